@@ -1,0 +1,171 @@
+//! Cluster messages (DESIGN section 5). Every message is validated after
+//! decoding; see [`crate::validate`].
+
+use crate::scene::{FrameState, Showcase};
+use serde::{Deserialize, Serialize};
+
+/// What a render node drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Role {
+    /// A CRT face: a stereo observer view through the beam splitter.
+    Face,
+    /// A projector: the irradiance map for that projector.
+    Projector,
+    /// A camera: capture only.
+    Camera,
+}
+
+impl std::fmt::Display for Role {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Role::Face => "face",
+            Role::Projector => "projector",
+            Role::Camera => "camera",
+        })
+    }
+}
+
+/// What a node can do.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Capabilities {
+    /// The node renders on a GPU (else on the CPU reference renderer).
+    pub gpu: bool,
+    /// Name of the adapter in use, for reports.
+    pub adapter: String,
+}
+
+/// First message of a node.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    /// Must equal [`crate::PROTOCOL_VERSION`].
+    pub protocol_version: u32,
+    /// The node's configured name (also in its certificate).
+    pub node: String,
+    /// Output it drives.
+    pub role: Role,
+    /// What it can do.
+    pub capabilities: Capabilities,
+}
+
+/// The master's answer to [`Hello`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Welcome {
+    /// The master's protocol version.
+    pub protocol_version: u32,
+    /// Target frame rate.
+    pub target_hz: f32,
+    /// Swap-barrier deadline in milliseconds after a frame is sent.
+    pub deadline_ms: f32,
+}
+
+/// The full scene, sent on join, rejoin and whenever the scene changes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneSnapshot {
+    /// Scene version; frames refer to it.
+    pub version: u64,
+    /// The scene.
+    pub showcase: Showcase,
+    /// The frame in flight when the snapshot was taken, for late joiners.
+    pub current: Option<FrameState>,
+}
+
+/// A node has rendered a frame and is waiting to present it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Ready {
+    /// The frame rendered.
+    pub frame: u64,
+    /// A hash of the rendered output, for replay checks.
+    pub output_hash: u64,
+}
+
+/// Present a frame now.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Swap {
+    /// The frame to present.
+    pub frame: u64,
+}
+
+/// Per-frame measurements from a node, reported after presenting.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeStats {
+    /// The frame measured.
+    pub frame: u64,
+    /// Render time in milliseconds.
+    pub render_ms: f32,
+    /// Time between sending Ready and receiving Swap, in milliseconds.
+    pub barrier_wait_ms: f32,
+    /// Present time on the node's clock (ns).
+    pub present_time_ns: u64,
+}
+
+/// NTP-style clock probe from the master.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ClockProbe {
+    /// Probe sequence number.
+    pub id: u64,
+    /// Master clock when sent (ns).
+    pub master_send_ns: u64,
+}
+
+/// A node's answer to a [`ClockProbe`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ClockReply {
+    /// The probe answered.
+    pub id: u64,
+    /// Echo of the probe's master send time (ns).
+    pub master_send_ns: u64,
+    /// Node clock when the probe arrived (ns).
+    pub node_recv_ns: u64,
+    /// Node clock when this reply was sent (ns).
+    pub node_send_ns: u64,
+}
+
+/// Orderly goodbye, with the reason.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Bye {
+    /// Why the sender is leaving or closing the peer.
+    pub reason: String,
+}
+
+/// Every message of the cluster protocol.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Message {
+    /// Node to master: join.
+    Hello(Hello),
+    /// Master to node: accepted.
+    Welcome(Welcome),
+    /// Master to node: the full scene.
+    SceneSnapshot(Box<SceneSnapshot>),
+    /// Master to node: the state of one frame.
+    FrameState(Box<crate::scene::FrameState>),
+    /// Node to master: frame rendered.
+    Ready(Ready),
+    /// Master to node: present the frame.
+    Swap(Swap),
+    /// Node to master: measurements.
+    NodeStats(NodeStats),
+    /// Master to node: clock probe.
+    ClockProbe(ClockProbe),
+    /// Node to master: clock reply.
+    ClockReply(ClockReply),
+    /// Either way: leaving.
+    Bye(Bye),
+}
+
+impl Message {
+    /// A short name for logs and errors.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Message::Hello(_) => "Hello",
+            Message::Welcome(_) => "Welcome",
+            Message::SceneSnapshot(_) => "SceneSnapshot",
+            Message::FrameState(_) => "FrameState",
+            Message::Ready(_) => "Ready",
+            Message::Swap(_) => "Swap",
+            Message::NodeStats(_) => "NodeStats",
+            Message::ClockProbe(_) => "ClockProbe",
+            Message::ClockReply(_) => "ClockReply",
+            Message::Bye(_) => "Bye",
+        }
+    }
+}
