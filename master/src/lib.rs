@@ -1,1 +1,5 @@
-//! placeholder
+//! Showcase's master: scene files, device calibration, offline jobs, the
+//! cluster server and the command line behind `showcase-master`.
+
+pub mod calibrate;
+pub mod scene_file;

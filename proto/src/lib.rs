@@ -9,6 +9,7 @@
 pub mod codec;
 pub mod message;
 pub mod scene;
+pub mod session;
 pub mod validate;
 
 pub use codec::{CodecError, FrameDecoder, MAX_FRAME_LEN, decode_frame, encode_frame};

@@ -1,1 +1,9 @@
-//! it
+//! The one integration-test binary of the workspace (linking many binaries
+//! of a wgpu + quinn workspace is slow). One module per area.
+
+mod calibration;
+mod codec;
+mod gpu;
+mod light;
+mod scene_files;
+mod session;

@@ -1,0 +1,1 @@
+//! wgpu device bring-up and GPU passes. Every pass has a CPU reference in `crate::light`.
