@@ -137,3 +137,96 @@ impl FrameDecoder {
         self.buf.len()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Every valid message survives encode -> decode unchanged.
+        #[test]
+        fn every_message_round_trips(msg in testing::message()) {
+            prop_assert_eq!(msg.validate(), Ok(()));
+            let frame = encode_frame(&msg, MAX_FRAME_LEN).unwrap();
+            let (back, used) = decode_frame(&frame, MAX_FRAME_LEN).unwrap().unwrap();
+            prop_assert_eq!(used, frame.len());
+            prop_assert_eq!(back, msg);
+        }
+
+        /// A stream split at arbitrary points yields the same messages.
+        #[test]
+        fn stream_reassembles_across_splits(
+            msgs in proptest::collection::vec(testing::message(), 1..6),
+            chunk in 1usize..97,
+        ) {
+            let bytes: Vec<u8> = msgs
+                .iter()
+                .flat_map(|m| encode_frame(m, MAX_FRAME_LEN).unwrap())
+                .collect();
+            let mut dec = FrameDecoder::new(MAX_FRAME_LEN);
+            let mut out = Vec::new();
+            for part in bytes.chunks(chunk) {
+                dec.push(part);
+                while let Some(m) = dec.next_message().unwrap() {
+                    out.push(m);
+                }
+            }
+            prop_assert_eq!(dec.buffered(), 0);
+            prop_assert_eq!(out, msgs);
+        }
+    }
+
+    #[test]
+    fn oversized_prefix_is_refused_before_reading() {
+        let mut buf = ((MAX_FRAME_LEN + 1) as u32).to_le_bytes().to_vec();
+        buf.extend_from_slice(&[0; 8]);
+        let err = decode_frame(&buf, MAX_FRAME_LEN).unwrap_err();
+        assert!(matches!(err, CodecError::TooLarge { .. }), "{err}");
+        let err = decode_frame(&1000u32.to_le_bytes(), 999).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("1000 bytes exceeds the limit of 999"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn trailing_bytes_and_invalid_values_are_errors() {
+        let msg = Message::Swap(crate::Swap { frame: 7 });
+        let mut frame = encode_frame(&msg, MAX_FRAME_LEN).unwrap();
+        frame.push(0);
+        let len = (frame.len() - PREFIX_LEN) as u32;
+        frame[..4].copy_from_slice(&len.to_le_bytes());
+        let err = decode_frame(&frame, MAX_FRAME_LEN).unwrap_err();
+        assert!(
+            err.to_string().contains("1 trailing bytes after a Swap"),
+            "{err}"
+        );
+
+        let bad = Message::NodeStats(crate::NodeStats {
+            frame: 1,
+            render_ms: f32::NAN,
+            barrier_wait_ms: 0.0,
+            present_time_ns: 0,
+        });
+        let frame = encode_frame(&bad, MAX_FRAME_LEN).unwrap();
+        let err = decode_frame(&frame, MAX_FRAME_LEN).unwrap_err();
+        assert!(err.to_string().contains("NodeStats.render_ms"), "{err}");
+    }
+
+    #[test]
+    fn incomplete_frames_ask_for_more() {
+        let frame = encode_frame(&Message::Swap(crate::Swap { frame: 3 }), MAX_FRAME_LEN).unwrap();
+        for cut in 0..frame.len() {
+            assert!(
+                decode_frame(&frame[..cut], MAX_FRAME_LEN)
+                    .unwrap()
+                    .is_none()
+            );
+        }
+    }
+}

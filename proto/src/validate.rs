@@ -205,7 +205,9 @@ impl Validate for Light {
                 if !(0.0..=*outer_deg).contains(inner_deg) || *outer_deg > 90.0 {
                     return fail(
                         "outer_deg",
-                        format!("cone {inner_deg}..{outer_deg} degrees is not 0 <= inner <= outer <= 90"),
+                        format!(
+                            "cone {inner_deg}..{outer_deg} degrees is not 0 <= inner <= outer <= 90"
+                        ),
                     );
                 }
                 Ok(())
@@ -261,7 +263,10 @@ impl Validate for PinholeDevice {
             finite(&|| "k".into(), c)?;
         }
         if k.row(2) != DVec3::new(0.0, 0.0, 1.0) || k.x_axis.y != 0.0 {
-            return fail("k", "camera matrix is not upper triangular with k[2][2] = 1");
+            return fail(
+                "k",
+                "camera matrix is not upper triangular with k[2][2] = 1",
+            );
         }
         if !(k.x_axis.x > 0.0 && k.y_axis.y > 0.0) {
             return fail(
@@ -284,7 +289,10 @@ impl Validate for PinholeDevice {
         if !(self.near > 0.0 && self.far > self.near) {
             return fail(
                 "far",
-                format!("need 0 < near < far, got near={} far={}", self.near, self.far),
+                format!(
+                    "need 0 < near < far, got near={} far={}",
+                    self.near, self.far
+                ),
             );
         }
         Ok(())
@@ -411,11 +419,17 @@ impl Validate for Showcase {
             name(&|| format!("lights[{i}].name"), &l.name)?;
             within(|| format!("lights[{i}]"), l.light.validate())?;
         }
-        unique("projectors", self.projectors.iter().map(|p| p.name.as_str()))?;
+        unique(
+            "projectors",
+            self.projectors.iter().map(|p| p.name.as_str()),
+        )?;
         for (i, p) in self.projectors.iter().enumerate() {
             name(&|| format!("projectors[{i}].name"), &p.name)?;
             within(|| format!("projectors[{i}].device"), p.device.validate())?;
-            within(|| format!("projectors[{i}].response"), p.response.validate())?;
+            within(
+                || format!("projectors[{i}].response"),
+                p.response.validate(),
+            )?;
         }
         unique("cameras", self.cameras.iter().map(|c| c.name.as_str()))?;
         for (i, c) in self.cameras.iter().enumerate() {
@@ -497,58 +511,66 @@ impl FrameState {
 impl Validate for Message {
     fn validate(&self) -> R {
         let kind = self.kind();
-        let r = match self {
-            Message::Hello(Hello { node, .. }) => name(&|| "node".into(), node),
-            Message::Welcome(Welcome {
-                target_hz,
-                deadline_ms,
-                ..
-            }) => {
-                for (f, v) in [("target_hz", *target_hz), ("deadline_ms", *deadline_ms)] {
-                    finite(&|| f.into(), v as f64)?;
-                    if v <= 0.0 {
-                        return fail(f, format!("{v} must be positive"));
+        let check = || -> R {
+            match self {
+                Message::Hello(Hello { node, .. }) => name(&|| "node".into(), node),
+                Message::Welcome(Welcome {
+                    target_hz,
+                    deadline_ms,
+                    ..
+                }) => {
+                    for (f, v) in [("target_hz", *target_hz), ("deadline_ms", *deadline_ms)] {
+                        finite(&|| f.into(), v as f64)?;
+                        if v <= 0.0 {
+                            return fail(f, format!("{v} must be positive"));
+                        }
                     }
-                }
-                Ok(())
-            }
-            Message::SceneSnapshot(s) => {
-                within(|| "showcase".into(), s.showcase.validate())?;
-                match &s.current {
-                    Some(f) if f.scene_version != s.version => fail(
-                        "current.scene_version",
-                        format!("{} differs from snapshot version {}", f.scene_version, s.version),
-                    ),
-                    Some(f) => within(|| "current".into(), f.validate_against(&s.showcase)),
-                    None => Ok(()),
-                }
-            }
-            Message::FrameState(f) => f.validate(),
-            Message::NodeStats(NodeStats {
-                render_ms,
-                barrier_wait_ms,
-                ..
-            }) => {
-                for (f, v) in [("render_ms", *render_ms), ("barrier_wait_ms", *barrier_wait_ms)] {
-                    finite(&|| f.into(), v as f64)?;
-                    if v < 0.0 {
-                        return fail(f, format!("{v} is negative"));
-                    }
-                }
-                Ok(())
-            }
-            Message::Bye(b) => {
-                if b.reason.len() > 4096 {
-                    fail("reason", "longer than 4096 bytes")
-                } else {
                     Ok(())
                 }
+                Message::SceneSnapshot(s) => {
+                    within(|| "showcase".into(), s.showcase.validate())?;
+                    match &s.current {
+                        Some(f) if f.scene_version != s.version => fail(
+                            "current.scene_version",
+                            format!(
+                                "{} differs from snapshot version {}",
+                                f.scene_version, s.version
+                            ),
+                        ),
+                        Some(f) => within(|| "current".into(), f.validate_against(&s.showcase)),
+                        None => Ok(()),
+                    }
+                }
+                Message::FrameState(f) => f.validate(),
+                Message::NodeStats(NodeStats {
+                    render_ms,
+                    barrier_wait_ms,
+                    ..
+                }) => {
+                    for (f, v) in [
+                        ("render_ms", *render_ms),
+                        ("barrier_wait_ms", *barrier_wait_ms),
+                    ] {
+                        finite(&|| f.into(), v as f64)?;
+                        if v < 0.0 {
+                            return fail(f, format!("{v} is negative"));
+                        }
+                    }
+                    Ok(())
+                }
+                Message::Bye(b) => {
+                    if b.reason.len() > 4096 {
+                        fail("reason", "longer than 4096 bytes")
+                    } else {
+                        Ok(())
+                    }
+                }
+                Message::Ready(_)
+                | Message::Swap(_)
+                | Message::ClockProbe(_)
+                | Message::ClockReply(_) => Ok(()),
             }
-            Message::Ready(_)
-            | Message::Swap(_)
-            | Message::ClockProbe(_)
-            | Message::ClockReply(_) => Ok(()),
         };
-        within(|| kind.to_string(), r)
+        within(|| kind.to_string(), check())
     }
 }

@@ -1,6 +1,7 @@
 //! The one integration-test binary of the workspace (linking many binaries
 //! of a wgpu + quinn workspace is slow). One module per area.
 
+mod alloc_track;
 mod calibration;
 mod codec;
 mod gpu;
