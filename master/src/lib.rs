@@ -2,4 +2,6 @@
 //! cluster server and the command line behind `showcase-master`.
 
 pub mod calibrate;
+pub mod cli;
+pub mod demo;
 pub mod scene_file;
