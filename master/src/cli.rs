@@ -231,9 +231,23 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Capture(_) => Err(not_built("capture", "reflectance capture", 3)),
         Command::Radiosity(_) => Err(not_built("radiosity", "augmented radiosity", 5)),
         Command::Replay(_) => Err(not_built("replay", "session replay", 7)),
-        Command::Certs(_) => Err(not_built("certs", "cluster certificates", 7)),
+        Command::Certs(args) => {
+            let certs = crate::certs::generate(&args.nodes)?;
+            let files = crate::certs::write(&args.out, &certs)?;
+            for f in &files {
+                println!("{}", f.display());
+            }
+            eprintln!(
+                "wrote a cluster CA and {} certificates to {}; keep ca.key offline",
+                certs.peers.len(),
+                args.out.display()
+            );
+            Ok(())
+        }
         Command::Bench(args) => match args.target {
-            BenchTarget::Calibration => Err(not_built("bench calibration", "device calibration", 4)),
+            BenchTarget::Calibration => {
+                Err(not_built("bench calibration", "device calibration", 4))
+            }
             BenchTarget::Reflectance => {
                 Err(not_built("bench reflectance", "reflectance capture", 3))
             }

@@ -82,9 +82,18 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         ),
     );
 
-    report.skipped("calibration", "device calibration is not built yet (issue #4)");
-    report.skipped("reflectance", "reflectance capture is not built yet (issue #3)");
-    report.skipped("radiosity", "augmented radiosity is not built yet (issue #5)");
+    report.skipped(
+        "calibration",
+        "device calibration is not built yet (issue #4)",
+    );
+    report.skipped(
+        "reflectance",
+        "reflectance capture is not built yet (issue #3)",
+    );
+    report.skipped(
+        "radiosity",
+        "augmented radiosity is not built yet (issue #5)",
+    );
     report.skipped(
         "interactive",
         &format!(
@@ -95,7 +104,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     report.complete = report.phases.iter().all(|p| p.status == "ran");
     write_report(&args.out, &report)?;
-    let skipped = report.phases.iter().filter(|p| p.status == "skipped").count();
+    let skipped = report
+        .phases
+        .iter()
+        .filter(|p| p.status == "skipped")
+        .count();
     eprintln!(
         "[demo] wrote {}/report.json and index.html; {} of {} phases ran, {skipped} skipped (see above)",
         args.out.display(),

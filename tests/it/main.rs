@@ -8,3 +8,4 @@ mod gpu;
 mod light;
 mod scene_files;
 mod session;
+mod transport;

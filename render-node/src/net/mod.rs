@@ -1,0 +1,8 @@
+//! Cluster transport shared by the master and the nodes: QUIC (quinn) with
+//! mutual TLS against the cluster CA, and message framing over a stream.
+
+pub mod stream;
+pub mod tls;
+
+pub use stream::{MessageStream, StreamError};
+pub use tls::{ALPN, ClusterIdentity, TlsError, client_config, peer_is, server_config};

@@ -1,0 +1,170 @@
+//! Mutual TLS for the cluster. Every peer holds a certificate signed by the
+//! cluster CA (`showcase-master certs`); the master requires and verifies
+//! client certificates, and a node verifies the master's. Node names are
+//! DNS names in their certificates, so the master can check that a Hello
+//! comes from the node it claims to be.
+
+use quinn::crypto::rustls::{QuicClientConfig, QuicServerConfig};
+use rustls::pki_types::pem::PemObject;
+use rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// ALPN protocol identifier of the cluster protocol.
+pub const ALPN: &[u8] = b"showcase/1";
+
+/// Why TLS material could not be loaded or used.
+#[derive(Debug, thiserror::Error)]
+pub enum TlsError {
+    /// A PEM file is missing or unreadable.
+    #[error("{path}: {problem}")]
+    Pem {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+    },
+    /// rustls refused the configuration.
+    #[error("tls configuration: {0}")]
+    Config(String),
+}
+
+/// A peer's certificate chain and key plus the cluster CA that it trusts.
+#[derive(Debug)]
+pub struct ClusterIdentity {
+    /// The cluster CA certificate.
+    pub ca: CertificateDer<'static>,
+    /// The peer's certificate chain (leaf first).
+    pub chain: Vec<CertificateDer<'static>>,
+    /// The peer's private key.
+    pub key: PrivateKeyDer<'static>,
+}
+
+impl Clone for ClusterIdentity {
+    fn clone(&self) -> Self {
+        Self {
+            ca: self.ca.clone(),
+            chain: self.chain.clone(),
+            key: self.key.clone_key(),
+        }
+    }
+}
+
+fn pem_err(path: &Path, e: impl std::fmt::Display) -> TlsError {
+    TlsError::Pem {
+        path: path.to_owned(),
+        problem: e.to_string(),
+    }
+}
+
+impl ClusterIdentity {
+    /// Load `ca.pem`, `<name>.pem` and `<name>.key` from `dir`, as written
+    /// by `showcase-master certs`.
+    pub fn load(dir: &Path, name: &str) -> Result<Self, TlsError> {
+        let ca_path = dir.join("ca.pem");
+        let ca = CertificateDer::from_pem_file(&ca_path).map_err(|e| pem_err(&ca_path, e))?;
+        let cert_path = dir.join(format!("{name}.pem"));
+        let chain = CertificateDer::pem_file_iter(&cert_path)
+            .map_err(|e| pem_err(&cert_path, e))?
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| pem_err(&cert_path, e))?;
+        if chain.is_empty() {
+            return Err(pem_err(&cert_path, "no certificate in file"));
+        }
+        let key_path = dir.join(format!("{name}.key"));
+        let key = PrivateKeyDer::from_pem_file(&key_path).map_err(|e| pem_err(&key_path, e))?;
+        Ok(Self { ca, chain, key })
+    }
+
+    /// Build from PEM text (certificates generated in memory, e.g. tests).
+    pub fn from_pem(ca: &str, chain: &str, key: &str) -> Result<Self, TlsError> {
+        let here = Path::new("<memory>");
+        Ok(Self {
+            ca: CertificateDer::from_pem_slice(ca.as_bytes()).map_err(|e| pem_err(here, e))?,
+            chain: CertificateDer::pem_slice_iter(chain.as_bytes())
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| pem_err(here, e))?,
+            key: PrivateKeyDer::from_pem_slice(key.as_bytes()).map_err(|e| pem_err(here, e))?,
+        })
+    }
+
+    fn roots(&self) -> Result<Arc<rustls::RootCertStore>, TlsError> {
+        let mut roots = rustls::RootCertStore::empty();
+        roots
+            .add(self.ca.clone())
+            .map_err(|e| TlsError::Config(format!("cluster CA: {e}")))?;
+        Ok(Arc::new(roots))
+    }
+}
+
+fn provider() -> Arc<rustls::crypto::CryptoProvider> {
+    Arc::new(rustls::crypto::ring::default_provider())
+}
+
+/// The master's QUIC server configuration: requires a client certificate
+/// signed by the cluster CA.
+pub fn server_config(id: &ClusterIdentity) -> Result<quinn::ServerConfig, TlsError> {
+    let verifier =
+        rustls::server::WebPkiClientVerifier::builder_with_provider(id.roots()?, provider())
+            .build()
+            .map_err(|e| TlsError::Config(e.to_string()))?;
+    let mut tls = rustls::ServerConfig::builder_with_provider(provider())
+        .with_protocol_versions(&[&rustls::version::TLS13])
+        .map_err(|e| TlsError::Config(e.to_string()))?
+        .with_client_cert_verifier(verifier)
+        .with_single_cert(id.chain.clone(), id.key.clone_key())
+        .map_err(|e| TlsError::Config(e.to_string()))?;
+    tls.alpn_protocols = vec![ALPN.to_vec()];
+    let quic = QuicServerConfig::try_from(tls).map_err(|e| TlsError::Config(e.to_string()))?;
+    let mut cfg = quinn::ServerConfig::with_crypto(Arc::new(quic));
+    cfg.transport_config(transport());
+    Ok(cfg)
+}
+
+/// A node's QUIC client configuration: trusts only the cluster CA and
+/// presents the node's certificate.
+pub fn client_config(id: &ClusterIdentity) -> Result<quinn::ClientConfig, TlsError> {
+    let mut tls = rustls::ClientConfig::builder_with_provider(provider())
+        .with_protocol_versions(&[&rustls::version::TLS13])
+        .map_err(|e| TlsError::Config(e.to_string()))?
+        .with_root_certificates(id.roots()?)
+        .with_client_auth_cert(id.chain.clone(), id.key.clone_key())
+        .map_err(|e| TlsError::Config(e.to_string()))?;
+    tls.alpn_protocols = vec![ALPN.to_vec()];
+    let quic = QuicClientConfig::try_from(tls).map_err(|e| TlsError::Config(e.to_string()))?;
+    let mut cfg = quinn::ClientConfig::new(Arc::new(quic));
+    cfg.transport_config(transport());
+    Ok(cfg)
+}
+
+fn transport() -> Arc<quinn::TransportConfig> {
+    let mut t = quinn::TransportConfig::default();
+    // Frame-lock traffic is tiny and latency-bound; detect dead peers fast.
+    t.keep_alive_interval(Some(std::time::Duration::from_millis(200)));
+    t.max_idle_timeout(Some(
+        std::time::Duration::from_secs(3)
+            .try_into()
+            .expect("3 s is a valid idle timeout"),
+    ));
+    Arc::new(t)
+}
+
+/// True when the peer of `conn` presented a certificate valid for `name`
+/// (its node name). The chain itself was already verified by the handshake.
+pub fn peer_is(conn: &quinn::Connection, name: &str) -> bool {
+    let Some(identity) = conn.peer_identity() else {
+        return false;
+    };
+    let Ok(chain) = identity.downcast::<Vec<CertificateDer<'static>>>() else {
+        return false;
+    };
+    let Some(leaf) = chain.first() else {
+        return false;
+    };
+    let Ok(server_name) = ServerName::try_from(name.to_owned()) else {
+        return false;
+    };
+    webpki::EndEntityCert::try_from(leaf)
+        .and_then(|c| c.verify_is_valid_for_subject_name(&server_name))
+        .is_ok()
+}
