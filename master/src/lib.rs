@@ -6,3 +6,4 @@ pub mod certs;
 pub mod cli;
 pub mod demo;
 pub mod scene_file;
+pub mod tracking;
