@@ -1,12 +1,13 @@
 //! Showcase's shared language: the scene model, the cluster messages and
 //! their codec, and the sans-IO session state machines.
 //!
-//! Invariants: nothing here does IO, reads a clock, or depends on tokio,
+//! Invariants: nothing here does IO (callers read files and pass text), reads a clock, or depends on tokio,
 //! quinn or wgpu. Time enters as an argument (`now`, in nanoseconds of the
 //! caller's monotonic clock).
 #![forbid(unsafe_code)]
 
 pub mod codec;
+pub mod config;
 pub mod message;
 pub mod scene;
 pub mod session;

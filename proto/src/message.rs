@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 /// What a render node drives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Role {
     /// A CRT face: a stereo observer view through the beam splitter.
     Face,

@@ -1,0 +1,421 @@
+//! The cluster configuration shared by the master and every node: where
+//! the master listens, which node drives which output on which PC, where
+//! the certificates and calibrations are, and how tracking bodies map onto
+//! observers, lights and objects. Parsing and checks are pure; reading the
+//! file and checking that referenced files exist is the caller's job.
+
+use crate::message::Role;
+use serde::Deserialize;
+use std::collections::{HashMap, HashSet};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// A cluster configuration file (TOML). See `deploy/cluster.toml`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterConfig {
+    /// The master.
+    pub master: MasterConfig,
+    /// Tracking input (optional: a cluster can run on scripted heads).
+    pub tracking: Option<TrackingConfig>,
+    /// The render nodes.
+    #[serde(rename = "node", default)]
+    pub nodes: Vec<NodeConfig>,
+}
+
+/// The master's settings.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MasterConfig {
+    /// Name of the PC the master runs on.
+    pub host: String,
+    /// QUIC listen address (UDP). Nodes connect here.
+    pub listen: SocketAddr,
+    /// Scene file, relative to the configuration file.
+    pub scene: PathBuf,
+    /// Folder with `ca.pem` and the peers' certificates and keys.
+    pub certs: PathBuf,
+    /// Target frame rate.
+    #[serde(default = "default_hz")]
+    pub target_hz: f32,
+    /// Swap-barrier deadline in milliseconds.
+    #[serde(default = "default_deadline")]
+    pub deadline_ms: f32,
+}
+
+fn default_hz() -> f32 {
+    60.0
+}
+fn default_deadline() -> f32 {
+    50.0
+}
+
+/// Where tracking data comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TrackingSource {
+    /// A.R.T. DTrack ASCII datagrams on `port`.
+    Dtrack,
+    /// A recorded session `file`.
+    Recording,
+    /// The scripted walk built into the master.
+    Scripted,
+}
+
+/// Tracking settings.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingConfig {
+    /// The source.
+    pub source: TrackingSource,
+    /// UDP port for DTrack (on the master's host).
+    pub port: Option<u16>,
+    /// Recorded session for `recording`.
+    pub file: Option<PathBuf>,
+    /// DTrack room to showcase world: translation in metres.
+    #[serde(default)]
+    pub room_translation: [f64; 3],
+    /// DTrack room to showcase world: rotation, XYZ Euler degrees.
+    #[serde(default)]
+    pub room_rotation_deg: [f64; 3],
+    /// Constant-velocity prediction in milliseconds (0: off).
+    #[serde(default)]
+    pub predict_ms: f64,
+    /// Body id to target mapping.
+    #[serde(rename = "body", default)]
+    pub bodies: Vec<BodyMapping>,
+}
+
+/// A tracked body drives an observer's head, a light or an object.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyMapping {
+    /// DTrack body id.
+    pub id: u32,
+    /// `observer:<name>`, `light:<name>` or `object:<name>`.
+    pub target: String,
+}
+
+/// One render node.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeConfig {
+    /// Node name; also its certificate name.
+    pub name: String,
+    /// What it drives.
+    pub role: Role,
+    /// Name of the PC it runs on.
+    pub host: String,
+    /// The scene's face, projector or camera it drives.
+    pub output: String,
+    /// Calibration JSON for projectors and cameras, relative to the
+    /// configuration file, or `"scene"` to use the scene's own device.
+    pub calibration: Option<String>,
+    /// Local UDP address to bind (default: any port).
+    pub bind: Option<SocketAddr>,
+}
+
+/// A configuration that cannot work; names the node or field.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ConfigError {
+    /// TOML syntax, an unknown key or a wrong type.
+    #[error("{file}: {message}")]
+    Parse {
+        /// The file.
+        file: String,
+        /// toml's message, with line and column.
+        message: String,
+    },
+    /// A node name that is not in the configuration.
+    #[error("{file}: unknown node {name:?}; the configuration has {known:?}")]
+    UnknownNode {
+        /// The file.
+        file: String,
+        /// The name asked for.
+        name: String,
+        /// The names it has.
+        known: Vec<String>,
+    },
+    /// Two nodes share a name.
+    #[error("{file}: node name {name:?} is used twice")]
+    DuplicateName {
+        /// The file.
+        file: String,
+        /// The name.
+        name: String,
+    },
+    /// Two nodes drive the same output in the same role.
+    #[error("{file}: nodes {first:?} and {second:?} both drive {role} {output:?}")]
+    DuplicateRole {
+        /// The file.
+        file: String,
+        /// First node.
+        first: String,
+        /// Second node.
+        second: String,
+        /// Their role.
+        role: Role,
+        /// The output.
+        output: String,
+    },
+    /// A projector or camera node without a calibration.
+    #[error(
+        "{file}: node {node:?} ({role}) has no calibration; give a calibration file or \"scene\""
+    )]
+    MissingCalibration {
+        /// The file.
+        file: String,
+        /// The node.
+        node: String,
+        /// Its role.
+        role: Role,
+    },
+    /// Two services want the same UDP port on the same host.
+    #[error("{file}: port {port} on host {host:?} is used by both {first} and {second}")]
+    PortClash {
+        /// The file.
+        file: String,
+        /// The host.
+        host: String,
+        /// The port.
+        port: u16,
+        /// First user.
+        first: String,
+        /// Second user.
+        second: String,
+    },
+    /// Any other invalid value.
+    #[error("{file}: {field}: {problem}")]
+    Invalid {
+        /// The file.
+        file: String,
+        /// The field.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+impl ClusterConfig {
+    /// Parse and check a configuration; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let cfg: ClusterConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            file: file.to_owned(),
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        cfg.check(file)?;
+        Ok(cfg)
+    }
+
+    /// The node called `name`.
+    pub fn node(&self, name: &str, file: &str) -> Result<&NodeConfig, ConfigError> {
+        self.nodes
+            .iter()
+            .find(|n| n.name == name)
+            .ok_or_else(|| ConfigError::UnknownNode {
+                file: file.to_owned(),
+                name: name.to_owned(),
+                known: self.nodes.iter().map(|n| n.name.clone()).collect(),
+            })
+    }
+
+    fn check(&self, file: &str) -> Result<(), ConfigError> {
+        let invalid = |field: &str, problem: String| ConfigError::Invalid {
+            file: file.to_owned(),
+            field: field.to_owned(),
+            problem,
+        };
+        let m = &self.master;
+        if !(m.target_hz.is_finite() && m.target_hz > 0.0 && m.target_hz <= 1000.0) {
+            return Err(invalid(
+                "master.target_hz",
+                format!("{} is outside (0, 1000]", m.target_hz),
+            ));
+        }
+        if !(m.deadline_ms.is_finite() && m.deadline_ms > 0.0) {
+            return Err(invalid(
+                "master.deadline_ms",
+                format!("{} must be positive", m.deadline_ms),
+            ));
+        }
+        let mut names = HashSet::new();
+        let mut outputs: HashMap<(Role, &str), &str> = HashMap::new();
+        let mut ports: HashMap<(&str, u16), String> = HashMap::new();
+        ports.insert((m.host.as_str(), m.listen.port()), "the master".into());
+        for n in &self.nodes {
+            if !names.insert(n.name.as_str()) {
+                return Err(ConfigError::DuplicateName {
+                    file: file.to_owned(),
+                    name: n.name.clone(),
+                });
+            }
+            if let Some(first) = outputs.insert((n.role, n.output.as_str()), n.name.as_str()) {
+                return Err(ConfigError::DuplicateRole {
+                    file: file.to_owned(),
+                    first: first.to_owned(),
+                    second: n.name.clone(),
+                    role: n.role,
+                    output: n.output.clone(),
+                });
+            }
+            if matches!(n.role, Role::Projector | Role::Camera) && n.calibration.is_none() {
+                return Err(ConfigError::MissingCalibration {
+                    file: file.to_owned(),
+                    node: n.name.clone(),
+                    role: n.role,
+                });
+            }
+            if let Some(bind) = n.bind.filter(|b| b.port() != 0) {
+                claim(
+                    &mut ports,
+                    file,
+                    &n.host,
+                    bind.port(),
+                    format!("node {:?}", n.name),
+                )?;
+            }
+        }
+        if let Some(t) = &self.tracking {
+            match t.source {
+                TrackingSource::Dtrack => {
+                    let port = t.port.ok_or_else(|| {
+                        invalid("tracking.port", "dtrack needs a UDP port".into())
+                    })?;
+                    claim(&mut ports, file, &m.host, port, "DTrack tracking".into())?;
+                }
+                TrackingSource::Recording if t.file.is_none() => {
+                    return Err(invalid(
+                        "tracking.file",
+                        "a recording source needs a file".into(),
+                    ));
+                }
+                _ => {}
+            }
+            if !t.predict_ms.is_finite() || !(0.0..=200.0).contains(&t.predict_ms) {
+                return Err(invalid(
+                    "tracking.predict_ms",
+                    format!("{} is outside 0..=200", t.predict_ms),
+                ));
+            }
+            for v in t.room_translation.iter().chain(&t.room_rotation_deg) {
+                if !v.is_finite() {
+                    return Err(invalid(
+                        "tracking.room_*",
+                        format!("value {v} is not finite"),
+                    ));
+                }
+            }
+            let mut ids = HashSet::new();
+            for b in &t.bodies {
+                if !ids.insert(b.id) {
+                    return Err(invalid(
+                        "tracking.body",
+                        format!("body id {} is mapped twice", b.id),
+                    ));
+                }
+                let ok = ["observer:", "light:", "object:"]
+                    .iter()
+                    .any(|p| b.target.strip_prefix(p).is_some_and(|s| !s.is_empty()));
+                if !ok {
+                    return Err(invalid(
+                        "tracking.body.target",
+                        format!(
+                            "{:?} is not observer:<name>, light:<name> or object:<name>",
+                            b.target
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn claim<'a>(
+    ports: &mut HashMap<(&'a str, u16), String>,
+    file: &str,
+    host: &'a str,
+    port: u16,
+    who: String,
+) -> Result<(), ConfigError> {
+    if let Some(first) = ports.get(&(host, port)) {
+        return Err(ConfigError::PortClash {
+            file: file.to_owned(),
+            host: host.to_owned(),
+            port,
+            first: first.clone(),
+            second: who,
+        });
+    }
+    ports.insert((host, port), who);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LOOPBACK: &str = include_str!("../../deploy/loopback.toml");
+    const CABINET: &str = include_str!("../../deploy/cluster.toml");
+
+    #[test]
+    fn shipped_configs_parse() {
+        let c = ClusterConfig::parse(LOOPBACK, "loopback.toml").unwrap();
+        assert_eq!(c.nodes.len(), 4);
+        let c = ClusterConfig::parse(CABINET, "cluster.toml").unwrap();
+        assert_eq!(c.nodes.len(), 5);
+        let hosts: HashSet<_> = c.nodes.iter().map(|n| n.host.as_str()).collect();
+        assert_eq!(hosts.len(), 3, "three PCs");
+        assert_eq!(c.node("face-1", "cluster.toml").unwrap().role, Role::Face);
+    }
+
+    #[track_caller]
+    fn check(edit: impl Fn(&str) -> String, expected: &str) {
+        let err = ClusterConfig::parse(&edit(LOOPBACK), "loopback.toml").unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.starts_with("loopback.toml: "), "{msg}");
+        assert!(msg.contains(expected), "{msg:?} lacks {expected:?}");
+    }
+
+    #[test]
+    fn bad_configs_get_clear_errors() {
+        let c = ClusterConfig::parse(LOOPBACK, "loopback.toml").unwrap();
+        let err = c
+            .node("projector-9", "loopback.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("unknown node \"projector-9\""), "{err}");
+        check(
+            |s| s.replace("target_hz = 60", "target_hz = 60\ncolour = 1"),
+            "unknown field `colour`",
+        );
+        check(
+            |s| s.replace("name = \"face-1\"", "name = \"face-0\""),
+            "node name \"face-0\" is used twice",
+        );
+        check(
+            |s| s.replace("output = \"face-1\"", "output = \"face-0\""),
+            "nodes \"face-0\" and \"face-1\" both drive face \"face-0\"",
+        );
+        check(
+            |s| s.replacen("calibration = \"scene\"\n", "", 1),
+            "(projector) has no calibration",
+        );
+        check(
+            |s| s.replace("port = 5000", "port = 4433"),
+            "port 4433 on host \"localhost\" is used by both the master and DTrack tracking",
+        );
+        check(
+            |s| s.replace("target_hz = 60", "target_hz = nan"),
+            "master.target_hz",
+        );
+        check(
+            |s| s.replace("role = \"face\"", "role = \"wall\""),
+            "unknown variant `wall`",
+        );
+        check(
+            |s| s.replace("observer:alice", "alice"),
+            "is not observer:<name>",
+        );
+    }
+}
