@@ -5,4 +5,5 @@
 
 pub mod gpu;
 pub mod light;
+pub mod mirror_view;
 pub mod net;
