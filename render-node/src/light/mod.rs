@@ -3,4 +3,21 @@
 //! checked against.
 #![forbid(unsafe_code)]
 
+pub mod bvh;
+mod ciede2000;
+pub mod device;
+pub mod geometry;
+pub mod image;
+pub mod intensity;
+pub mod lambert;
+pub mod metrics;
 pub mod raster;
+pub mod ray;
+
+pub use device::{DeviceError, DeviceRays};
+pub use geometry::{GeometryError, Hit, ObjectFilter, SceneGeometry};
+pub use image::{Image, RgbImage};
+pub use intensity::{IntensityImage, IntensityLight, SurfaceSample, render_intensity};
+pub use lambert::{LambertError, form_factor_point_polygon, polygon_irradiance};
+pub use metrics::MetricError;
+pub use ray::{Aabb, Ray};
