@@ -118,7 +118,7 @@ impl DeviceRays {
     /// The integer pixel holding a world point, if it projects into the image.
     pub fn pixel_of(&self, world: DVec3) -> Option<(u32, u32)> {
         let p = self.project(world)?;
-        self.in_image(p).then(|| (p.x as u32, p.y as u32))
+        self.in_image(p).then_some((p.x as u32, p.y as u32))
     }
 
     /// True when surface point `point` (unit normal `normal`) and the device

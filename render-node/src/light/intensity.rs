@@ -84,7 +84,7 @@ impl IntensityLight {
     ) -> Option<f64> {
         let to_light = self.position - point;
         let r2 = to_light.length_squared();
-        if !(r2 > 0.0 && r2.is_finite()) || !point.is_finite() {
+        if !(r2 > 0.0 && r2.is_finite() && point.is_finite()) {
             return None;
         }
         let l = to_light / r2.sqrt();

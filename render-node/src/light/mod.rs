@@ -2,6 +2,9 @@
 //! visibility and the CPU reference renderers that every GPU pass is
 //! checked against.
 #![forbid(unsafe_code)]
+// `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which is
+// how bad input is turned away instead of propagated.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bvh;
 mod ciede2000;
