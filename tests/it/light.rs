@@ -10,7 +10,7 @@ use showcase_proto::{Material, Mesh, Object, ObjectKind, PinholeDevice, Showcase
 use showcase_render::light::ray::intersect_triangle;
 use showcase_render::light::{
     DeviceRays, IntensityLight, ObjectFilter, Ray, SceneGeometry, form_factor_point_polygon,
-    polygon_irradiance, render_intensity,
+    polygon_irradiance, render_intensity, world_matrix,
 };
 use std::f64::consts::PI;
 
@@ -213,7 +213,7 @@ fn every_ray_from_inside_a_closed_mesh_hits_it() {
         transform,
     )]);
     let geometry = SceneGeometry::build(&s, &ObjectFilter::Real).unwrap();
-    let model = transform.matrix().as_dmat4();
+    let model = world_matrix(&transform).unwrap();
     let centre = model.transform_point3(DVec3::ZERO);
     let mut lost = 0;
     // Aim at every vertex and edge midpoint (where triangles meet) from

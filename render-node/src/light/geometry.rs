@@ -14,8 +14,8 @@
 
 use super::bvh::Bvh;
 use super::ray::{Aabb, Ray};
-use glam::{DMat3, DMat4, DQuat, DVec2, DVec3, Vec2};
-use showcase_proto::{ObjectKind, Showcase};
+use glam::{DMat3, DMat4, DVec2, DVec3, Vec2};
+use showcase_proto::{ObjectKind, Showcase, Transform};
 
 /// Relative size of the surface offset, see the module docs.
 const EPSILON_RELATIVE: f64 = 1e-9;
@@ -78,6 +78,22 @@ impl ObjectFilter {
             ObjectFilter::Indices(list) => list.contains(&index),
         }
     }
+}
+
+/// The object-to-world matrix of `transform` in f64 (`T * R * S`, the
+/// quaternion renormalised in f64), as every CPU reference uses it; `None`
+/// if it is not finite or the quaternion is zero.
+pub fn world_matrix(transform: &Transform) -> Option<DMat4> {
+    let q = transform.rotation.as_dquat();
+    if !q.is_finite() || q.length() == 0.0 {
+        return None;
+    }
+    let m = DMat4::from_scale_rotation_translation(
+        transform.scale.as_dvec3(),
+        q.normalize(),
+        transform.translation.as_dvec3(),
+    );
+    m.is_finite().then_some(m)
 }
 
 /// Per-triangle data beside the BVH's positions.
@@ -147,19 +163,10 @@ impl SceneGeometry {
                 object: oi,
                 name: object.name.clone(),
             };
-            let tr = &object.transform;
-            let q = tr.rotation.as_dquat();
-            if !q.is_finite() || q.length() == 0.0 {
-                return Err(bad_transform());
-            }
-            let model = DMat4::from_scale_rotation_translation(
-                tr.scale.as_dvec3(),
-                DQuat::from_vec4(q.normalize().into()),
-                tr.translation.as_dvec3(),
-            );
+            let model = world_matrix(&object.transform).ok_or_else(bad_transform)?;
             let linear = DMat3::from_mat4(model);
             let det = linear.determinant();
-            if !model.is_finite() || det == 0.0 || !det.is_finite() {
+            if det == 0.0 || !det.is_finite() {
                 return Err(bad_transform());
             }
             let normal_matrix = linear.inverse().transpose();
@@ -303,5 +310,98 @@ impl SceneGeometry {
             return true;
         }
         !self.occluded(origin, d / len, stop)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+    use showcase_proto::{Material, Mesh, Object};
+
+    fn one_object(mesh: Mesh, transform: Transform, kind: ObjectKind) -> Showcase {
+        let mut s = Showcase::default();
+        let id = s.add_mesh(mesh);
+        s.objects.push(Object {
+            name: "quad".into(),
+            mesh: id,
+            material: Material::diffuse(Vec3::ONE),
+            kind,
+            transform,
+        });
+        s
+    }
+
+    fn quad() -> Mesh {
+        Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            // Tilted, non-unit vertex normals.
+            normals: vec![
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(0.0, 0.0, 3.0),
+                Vec3::Z,
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            uvs: vec![
+                glam::Vec2::ZERO,
+                glam::Vec2::X,
+                glam::Vec2::ONE,
+                glam::Vec2::Y,
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn hit_interpolates_uv_and_transforms_normals_by_the_inverse_transpose() {
+        let transform = Transform {
+            translation: Vec3::new(1.0, 2.0, 3.0),
+            rotation: Quat::from_rotation_y(0.4),
+            scale: Vec3::new(2.0, 1.0, 0.5),
+        };
+        let s = one_object(quad(), transform, ObjectKind::Real);
+        let g = SceneGeometry::build(&s, &ObjectFilter::Real).unwrap();
+        let model = world_matrix(&transform).unwrap();
+        let local = DVec3::new(0.75, 0.25, 0.0); // in triangle 0: weights a 0.25, b 0.5, c 0.25
+        let target = model.transform_point3(local);
+        let normal_matrix = DMat3::from_mat4(model).inverse().transpose();
+        let front = (normal_matrix * DVec3::Z).normalize();
+        let origin = target + front;
+        let hit = g
+            .closest_hit(&Ray::new(origin, target - origin), 0.0, f64::INFINITY)
+            .unwrap();
+        assert_eq!((hit.object, hit.triangle), (0, 0));
+        assert!(hit.front_face);
+        assert!((hit.point - target).length() < 1e-12);
+        assert!((hit.t - 1.0).abs() < 1e-12);
+        assert!((hit.barycentric - DVec2::new(0.5, 0.25)).length() < 1e-12);
+        assert!((hit.uv.unwrap() - glam::Vec2::new(0.75, 0.25)).length() < 1e-6);
+        assert!((hit.geometric_normal - front).length() < 1e-12);
+        let n = |v: Vec3| v.as_dvec3().normalize();
+        let blend = 0.25 * n(Vec3::new(1.0, 0.0, 1.0)) + 0.5 * DVec3::Z + 0.25 * DVec3::Z;
+        let expected = (normal_matrix * blend).normalize();
+        // Vertex normals are transformed then interpolated; with these
+        // weights that equals interpolating the transformed unit normals.
+        let transformed = |v: DVec3| (normal_matrix * v).normalize();
+        let expected_interp = (0.25 * transformed(n(Vec3::new(1.0, 0.0, 1.0)))
+            + 0.75 * transformed(DVec3::Z))
+        .normalize();
+        assert!((hit.shading_normal - expected_interp).length() < 1e-12);
+        assert!(hit.shading_normal.dot(expected) > 0.99);
+    }
+
+    #[test]
+    fn filters_select_objects_by_kind_and_index() {
+        let s = one_object(quad(), Transform::IDENTITY, ObjectKind::Virtual);
+        let count = |f: ObjectFilter| SceneGeometry::build(&s, &f).unwrap().triangle_count();
+        assert_eq!(count(ObjectFilter::All), 2);
+        assert_eq!(count(ObjectFilter::Virtual), 2);
+        assert_eq!(count(ObjectFilter::Real), 0);
+        assert_eq!(count(ObjectFilter::Indices(vec![0])), 2);
+        assert_eq!(count(ObjectFilter::Indices(vec![1])), 0);
+        let empty = SceneGeometry::build(&s, &ObjectFilter::Real).unwrap();
+        assert!(empty.bounds().is_empty() && empty.epsilon() > 0.0);
+        assert!(empty.visible(DVec3::ZERO, DVec3::Z, DVec3::ONE, true));
+        assert_eq!(empty.object_kind(0), Some(ObjectKind::Virtual));
     }
 }

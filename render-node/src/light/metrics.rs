@@ -299,4 +299,37 @@ mod tests {
         let e = mean_delta_e_2000(&a, &b, None).unwrap();
         assert!((e - (lb - la) / sl).abs() < 1e-4, "{e}");
     }
+
+    proptest::proptest! {
+        /// Any input, NaN and infinities included, gives a finite value or
+        /// an error.
+        #[test]
+        fn metrics_are_finite_or_errors(
+            values in proptest::collection::vec(
+                proptest::prop_oneof![
+                    -1e30f32..1e30f32,
+                    proptest::strategy::Just(f32::NAN),
+                    proptest::strategy::Just(f32::INFINITY),
+                    proptest::strategy::Just(0.0f32),
+                ],
+                0..24,
+            ),
+            mask_bits in proptest::num::u32::ANY,
+            peak in -1.0f64..1e3,
+        ) {
+            let n = values.len() / 6;
+            let img = |off: usize| Image::from_fn(n as u32, 1, |x, _| {
+                let i = off + 3 * x as usize;
+                Vec3::new(values[i], values[i + 1], values[i + 2])
+            });
+            let (a, b) = (img(0), img(3 * n));
+            let mask = Image::from_fn(n as u32, 1, |x, _| mask_bits >> x & 1 == 1);
+            for m in [None, Some(&mask)] {
+                let results = [relative_rmse(&a, &b, m), psnr(&a, &b, peak, m), mean_delta_e_2000(&a, &b, m)];
+                for v in results.into_iter().flatten() {
+                    proptest::prop_assert!(v.is_finite());
+                }
+            }
+        }
+    }
 }
