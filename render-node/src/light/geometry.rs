@@ -109,6 +109,21 @@ struct TriangleInfo {
     uvs: Option<[Vec2; 3]>,
 }
 
+/// One world-space triangle of a [`SceneGeometry`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldTriangle {
+    /// Vertices in world space, counter-clockwise seen from the front.
+    pub vertices: [DVec3; 3],
+    /// Index into `Showcase::objects`.
+    pub object: u32,
+    /// Index of the triangle within that object's mesh.
+    pub triangle: u32,
+    /// Unit geometric normal of the front side (zero if degenerate).
+    pub normal: DVec3,
+    /// Area in square metres.
+    pub area: f64,
+}
+
 /// A ray/scene intersection.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -116,6 +131,8 @@ pub struct Hit {
     pub object: u32,
     /// Index of the triangle within that object's mesh.
     pub triangle: u32,
+    /// Index of the triangle in [`SceneGeometry::triangle`] numbering.
+    pub primitive: u32,
     /// Ray parameter (distance when the direction is a unit vector).
     pub t: f64,
     /// Barycentric weights of the triangle's second and third vertex.
@@ -239,6 +256,29 @@ impl SceneGeometry {
         self.info.len()
     }
 
+    /// Triangle `index` (`0..triangle_count()`, in object order), degenerate
+    /// ones included.
+    pub fn triangle(&self, index: u32) -> Option<WorldTriangle> {
+        let info = self.info.get(index as usize)?;
+        let vertices = self.bvh.triangles()[index as usize];
+        let area = 0.5
+            * (vertices[1] - vertices[0])
+                .cross(vertices[2] - vertices[0])
+                .length();
+        Some(WorldTriangle {
+            vertices,
+            object: info.object,
+            triangle: info.local,
+            normal: info.normal,
+            area: if area.is_finite() { area } else { 0.0 },
+        })
+    }
+
+    /// All triangles, in object order.
+    pub fn triangles(&self) -> impl Iterator<Item = WorldTriangle> + '_ {
+        (0..self.info.len() as u32).filter_map(|i| self.triangle(i))
+    }
+
     /// The underlying BVH.
     pub fn bvh(&self) -> &Bvh {
         &self.bvh
@@ -264,6 +304,7 @@ impl SceneGeometry {
         Some(Hit {
             object: info.object,
             triangle: info.local,
+            primitive: h.triangle,
             t: h.hit.t,
             barycentric: DVec2::new(u, v),
             point,
@@ -370,7 +411,16 @@ mod tests {
         let hit = g
             .closest_hit(&Ray::new(origin, target - origin), 0.0, f64::INFINITY)
             .unwrap();
-        assert_eq!((hit.object, hit.triangle), (0, 0));
+        assert_eq!((hit.object, hit.triangle, hit.primitive), (0, 0, 0));
+        let tri = g.triangle(hit.primitive).unwrap();
+        assert_eq!(tri.normal, hit.geometric_normal);
+        // Both triangles: the quad's area scaled by the transform.
+        let area: f64 = g.triangles().map(|t| t.area).sum();
+        let expected_area = (DMat3::from_mat4(model) * DVec3::X)
+            .cross(DMat3::from_mat4(model) * DVec3::Y)
+            .length();
+        assert!((area - expected_area).abs() < 1e-12);
+        assert!(g.triangle(2).is_none());
         assert!(hit.front_face);
         assert!((hit.point - target).length() < 1e-12);
         assert!((hit.t - 1.0).abs() < 1e-12);

@@ -18,7 +18,7 @@ pub mod raster;
 pub mod ray;
 
 pub use device::{DeviceError, DeviceRays};
-pub use geometry::{GeometryError, Hit, ObjectFilter, SceneGeometry, world_matrix};
+pub use geometry::{GeometryError, Hit, ObjectFilter, SceneGeometry, WorldTriangle, world_matrix};
 pub use image::{Image, RgbImage};
 pub use intensity::{IntensityImage, IntensityLight, SurfaceSample, render_intensity};
 pub use lambert::{LambertError, form_factor_point_polygon, polygon_irradiance};
