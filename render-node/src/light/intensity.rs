@@ -208,3 +208,64 @@ fn shade_pixel(
 fn finite_or_zero(v: DVec3) -> DVec3 {
     if v.is_finite() { v } else { DVec3::ZERO }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
+
+    /// The unit square on `y = 0`, front side up.
+    fn plate() -> Showcase {
+        let mut s = Showcase::default();
+        let id = s.add_mesh(Mesh {
+            positions: vec![Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        });
+        s.objects.push(Object {
+            name: "plate".into(),
+            mesh: id,
+            material: Material::diffuse(Vec3::ONE),
+            kind: ObjectKind::Real,
+            transform: Transform::IDENTITY,
+        });
+        s
+    }
+
+    #[test]
+    fn surfaces_are_two_sided_and_lit_only_from_the_side_the_camera_sees() {
+        let s = plate();
+        let geometry = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
+        let centre = DVec3::new(0.5, 0.0, 0.5);
+        let render = |eye: DVec3, light: DVec3| {
+            let camera = PinholeDevice::look_at(eye, centre, DVec3::Z, 30.0, 9, 9);
+            let light = IntensityLight::point(light, DVec3::ONE);
+            let img = render_intensity(
+                &geometry,
+                &DeviceRays::new(&camera).unwrap(),
+                &light,
+                &ObjectFilter::All,
+            );
+            (
+                img.intensity.get(4, 4).copied().unwrap(),
+                img.surface.get(4, 4).copied().unwrap().unwrap(),
+            )
+        };
+        let above = DVec3::new(0.5, 1.0, 0.5);
+        let below = DVec3::new(0.5, -1.0, 0.5);
+        let (front, sample) = render(above, DVec3::new(0.5, 2.0, 0.5));
+        assert!(
+            (front.x as f64 - 0.25).abs() < 1e-6,
+            "cos 1 / r^2 4 = 0.25, got {front}"
+        );
+        assert!((sample.normal - DVec3::Y).length() < 1e-12);
+        let (back_unlit, sample) = render(below, DVec3::new(0.5, 2.0, 0.5));
+        assert_eq!(back_unlit, Vec3::ZERO, "light behind the seen side");
+        assert!(!sample.lit && (sample.normal + DVec3::Y).length() < 1e-12);
+        let (back_lit, _) = render(below, DVec3::new(0.5, -2.0, 0.5));
+        assert!((back_lit.x as f64 - 0.25).abs() < 1e-6);
+        // A light exactly in the plane: grazing, 0 and finite.
+        let (grazing, _) = render(above, DVec3::new(3.0, 0.0, 0.5));
+        assert_eq!(grazing, Vec3::ZERO);
+    }
+}

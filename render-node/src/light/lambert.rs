@@ -132,6 +132,7 @@ fn clip_above(polygon: &[DVec3], n: DVec3) -> Vec<DVec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     /// A square of half-side `a` at height `h` above the origin, facing down.
     fn square(a: f64, h: f64) -> Vec<DVec3> {
@@ -184,5 +185,137 @@ mod tests {
         // A plane-filling emitter gives F -> 1 and E -> pi L.
         let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &square(1e7, 1.0)).unwrap();
         assert!((f - 1.0).abs() < 1e-6, "{f}");
+    }
+
+    /// Irradiance by midpoint quadrature over the parallelogram
+    /// `corner + s u + t v` (emitting along `u x v`), for receiver `x`, `n`.
+    fn irradiance_numeric(
+        x: DVec3,
+        n: DVec3,
+        corner: DVec3,
+        u: DVec3,
+        v: DVec3,
+        radiance: f64,
+        steps: usize,
+    ) -> f64 {
+        let ne = u.cross(v);
+        let da = ne.length() / (steps * steps) as f64;
+        let ne = ne.normalize();
+        let mut sum = 0.0;
+        for i in 0..steps {
+            for j in 0..steps {
+                let y = corner
+                    + (i as f64 + 0.5) / steps as f64 * u
+                    + (j as f64 + 0.5) / steps as f64 * v;
+                let d = y - x;
+                let r2 = d.length_squared();
+                let cos_x = (n.dot(d) / r2.sqrt()).max(0.0);
+                let cos_y = (ne.dot(-d) / r2.sqrt()).max(0.0);
+                sum += cos_x * cos_y / r2 * da;
+            }
+        }
+        radiance * sum
+    }
+
+    #[test]
+    fn lambert_matches_numeric_integration_including_below_the_horizon() {
+        let corner = DVec3::new(-0.3, 1.0, -0.2);
+        let (u, v) = (DVec3::new(0.2, 0.5, 1.1), DVec3::new(0.9, 0.3, 0.0));
+        // Emit towards the receivers (below).
+        let (u, v) = if u.cross(v).y < 0.0 { (u, v) } else { (v, u) };
+        let polygon = [corner, corner + u, corner + u + v, corner + v];
+        let cases = [
+            (DVec3::ZERO, DVec3::Y),
+            (
+                DVec3::new(0.1, 0.2, 0.3),
+                DVec3::new(0.3, 1.0, -0.2).normalize(),
+            ),
+            // Tilted so the emitter straddles the receiver's horizon.
+            (
+                DVec3::new(0.2, 0.0, 0.4),
+                DVec3::new(1.0, 0.15, 0.0).normalize(),
+            ),
+            (
+                DVec3::new(0.2, 0.0, 0.4),
+                DVec3::new(-1.0, 0.3, 0.2).normalize(),
+            ),
+        ];
+        for (x, n) in cases {
+            let exact = polygon_irradiance(x, n, &polygon, 3.0).unwrap();
+            let numeric = irradiance_numeric(x, n, corner, u, v, 3.0, 600);
+            assert!(exact > 0.0);
+            assert!(
+                (exact - numeric).abs() < 1e-4 * numeric,
+                "{exact} vs {numeric} at {x}, {n}"
+            );
+            // A triangle half of the quad plus the other half is the whole.
+            let half1 = polygon_irradiance(x, n, &polygon[..3], 3.0).unwrap();
+            let half2 =
+                polygon_irradiance(x, n, &[polygon[0], polygon[2], polygon[3]], 3.0).unwrap();
+            assert!((half1 + half2 - exact).abs() < 1e-12 * exact.max(1.0));
+        }
+    }
+
+    #[test]
+    fn lambert_matches_closed_forms_on_the_axis_of_a_square_and_a_disk() {
+        for (a, h) in [(0.5, 1.0), (0.1, 2.0), (3.0, 0.2), (1.0, 1.0)] {
+            // Square of side 2a, facing down, at height h over the origin.
+            let square = [
+                DVec3::new(-a, h, -a),
+                DVec3::new(a, h, -a),
+                DVec3::new(a, h, a),
+                DVec3::new(-a, h, a),
+            ];
+            let square = if (square[1] - square[0]).cross(square[2] - square[0]).y < 0.0 {
+                square
+            } else {
+                [square[0], square[3], square[2], square[1]]
+            };
+            let x: f64 = a / h;
+            let s = (1.0 + x * x).sqrt();
+            let expected = 4.0 / PI * x / s * (x / s).atan();
+            let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Y, &square).unwrap();
+            assert!(
+                (f - expected).abs() < 1e-12,
+                "square a={a} h={h}: {f} vs {expected}"
+            );
+            // Disk of radius a as a fine regular polygon: F = a^2 / (a^2 + h^2).
+            let n = 4096;
+            let mut disk: Vec<DVec3> = (0..n)
+                .map(|k| {
+                    let phi = 2.0 * PI * k as f64 / n as f64;
+                    DVec3::new(a * phi.cos(), h, a * phi.sin())
+                })
+                .collect();
+            if (disk[1] - disk[0]).cross(disk[2] - disk[0]).y > 0.0 {
+                disk.reverse(); // face down
+            }
+            let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Y, &disk).unwrap();
+            let expected = a * a / (a * a + h * h);
+            assert!(
+                (f - expected).abs() < 1e-5 * expected,
+                "disk a={a} h={h}: {f} vs {expected}"
+            );
+            let e = polygon_irradiance(DVec3::ZERO, DVec3::Y, &disk, 2.0).unwrap();
+            assert!((e - PI * 2.0 * f).abs() < 1e-12);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn lambert_is_finite_and_bounded(
+            x in proptest::array::uniform3(-2.0f64..2.0),
+            n in proptest::array::uniform3(-1.0f64..1.0),
+            polygon in proptest::collection::vec(proptest::array::uniform3(-2.0f64..2.0), 0..7),
+        ) {
+            let polygon: Vec<DVec3> = polygon.into_iter().map(DVec3::from_array).collect();
+            let (x, n) = (DVec3::from_array(x), DVec3::from_array(n));
+            if let Ok(f) = form_factor_point_polygon(x, n, &polygon) {
+                proptest::prop_assert!(f.is_finite() && (0.0..=1.0).contains(&f));
+            }
+            if let Ok(e) = polygon_irradiance(x, n, &polygon, 0.0) {
+                proptest::prop_assert_eq!(e, 0.0);
+            }
+        }
     }
 }
