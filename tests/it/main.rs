@@ -3,9 +3,12 @@
 
 mod alloc_track;
 mod calibration;
+mod capture;
 mod codec;
 mod gpu;
 mod light;
+mod radiosity;
 mod scene_files;
 mod session;
+mod sim;
 mod transport;
