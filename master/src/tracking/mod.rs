@@ -5,6 +5,10 @@
 
 pub mod dtrack;
 pub mod filter;
+pub mod recording;
+pub mod scripted;
+pub mod tracker;
 
 pub use dtrack::{Body6d, DtrackError, DtrackFrame, parse_datagram};
 pub use filter::{FilterConfig, PoseFilter, Rejection};
+pub use tracker::{Target, Tracker, TrackerError, initial_frame};
