@@ -1,0 +1,17 @@
+//! Unit tests of the scene-file loader: transforms, defaults and error paths
+//! that need no data files.
+
+use super::*;
+
+#[track_caller]
+fn load(text: &str) -> Result<Showcase, SceneError> {
+    load_scene_str(text, Path::new("."), "unit.toml")
+}
+
+#[test]
+fn empty_scene_gets_defaults() {
+    let s = load("name = \"empty\"").unwrap();
+    assert_eq!(s.name, "empty");
+    assert_eq!(s.ambient, glam::Vec3::ZERO);
+    assert!(s.objects.is_empty());
+}
