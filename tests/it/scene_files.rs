@@ -29,13 +29,17 @@ fn load_fixture(text: &str) -> Result<Showcase, SceneError> {
 
 /// World-space bounds of an object.
 fn world_bounds(s: &Showcase, name: &str) -> (Vec3, Vec3) {
-    let o = &s.objects[s.object_index(name).unwrap_or_else(|| panic!("no object {name}"))];
+    let o = &s.objects[s
+        .object_index(name)
+        .unwrap_or_else(|| panic!("no object {name}"))];
     let m = o.transform.matrix();
     let mesh = s.mesh(&o.mesh).unwrap();
     mesh.positions
         .iter()
         .map(|p| m.transform_point3(*p))
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        })
 }
 
 const CORNELL: &str = "../shared/data/cornell-box.obj";
@@ -48,17 +52,25 @@ fn cornell_box_loads_with_every_part_and_its_mtl_values() {
     ))
     .unwrap();
     let names: Vec<&str> = s.objects.iter().map(|o| o.name.as_str()).collect();
-    assert_eq!(names, [
-        "box/floor",
-        "box/ceiling",
-        "box/back",
-        "box/right_green",
-        "box/left_red",
-        "box/short_block",
-        "box/tall_block",
-        "box/light",
-    ]);
-    let tris = |n: &str| s.mesh(&s.objects[s.object_index(n).unwrap()].mesh).unwrap().triangles.len();
+    assert_eq!(
+        names,
+        [
+            "box/floor",
+            "box/ceiling",
+            "box/back",
+            "box/right_green",
+            "box/left_red",
+            "box/short_block",
+            "box/tall_block",
+            "box/light",
+        ]
+    );
+    let tris = |n: &str| {
+        s.mesh(&s.objects[s.object_index(n).unwrap()].mesh)
+            .unwrap()
+            .triangles
+            .len()
+    };
     assert_eq!(tris("box/floor"), 2);
     assert_eq!(tris("box/short_block"), 10);
     assert_eq!(tris("box/tall_block"), 10);
@@ -146,11 +158,14 @@ fn gltf_nodes_load_with_transforms_and_materials() {
     assert_eq!(names, ["gl/leaf", "gl/other"]);
     let leaf = s.mesh(&s.objects[0].mesh).unwrap();
     // Node "leaf" is scaled by 2 under "parent", translated by (1, 2, 3).
-    assert_eq!(leaf.positions, [
-        Vec3::new(1.0, 2.0, 3.0),
-        Vec3::new(3.0, 2.0, 3.0),
-        Vec3::new(1.0, 4.0, 3.0),
-    ]);
+    assert_eq!(
+        leaf.positions,
+        [
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(3.0, 2.0, 3.0),
+            Vec3::new(1.0, 4.0, 3.0),
+        ]
+    );
     assert_eq!(leaf.triangles, [[0, 1, 2]]);
     let other = s.mesh(&s.objects[1].mesh).unwrap();
     assert_eq!(other.positions[1], Vec3::X);
@@ -186,7 +201,10 @@ fn calibration_file_gives_the_device_it_describes() {
     // (0, 0.1, 0): its centre is there and the target projects to (cx, cy).
     assert!((d.center() - DVec3::new(0.3, 0.7, 0.3)).length() < 1e-12);
     let px = d.project(DVec3::new(0.0, 0.1, 0.0)).unwrap();
-    assert!((px - glam::DVec2::new(512.0, 384.0)).length() < 1e-9, "{px}");
+    assert!(
+        (px - glam::DVec2::new(512.0, 384.0)).length() < 1e-9,
+        "{px}"
+    );
 }
 
 #[test]
@@ -259,7 +277,10 @@ fn cornell_scene_has_the_emitter_and_the_classic_camera() {
     assert_eq!(emitters, ["cornell/light"]);
     let cam = &s.cameras[0].device;
     assert!((cam.center() - DVec3::new(0.278, 0.273, -0.8)).length() < 1e-12);
-    assert!((cam.rotation.row(2) - DVec3::Z).length() < 1e-12, "looks along +z");
+    assert!(
+        (cam.rotation.row(2) - DVec3::Z).length() < 1e-12,
+        "looks along +z"
+    );
     // Horizontal field of view: the principal point plus f tan(fov/2) is the edge.
     let f = cam.k.x_axis.x;
     let half = (0.5 * cam.width as f64 / f).atan().to_degrees();
@@ -275,7 +296,16 @@ fn figure3_scene_has_real_walls_virtual_blocks_and_a_virtual_light() {
         .filter(|o| o.kind == ObjectKind::Real)
         .map(|o| o.name.as_str())
         .collect();
-    assert_eq!(real, ["room/floor", "room/ceiling", "room/back", "room/right_green", "room/left_red"]);
+    assert_eq!(
+        real,
+        [
+            "room/floor",
+            "room/ceiling",
+            "room/back",
+            "room/right_green",
+            "room/left_red"
+        ]
+    );
     let virt: Vec<&str> = s
         .objects
         .iter()
@@ -283,11 +313,23 @@ fn figure3_scene_has_real_walls_virtual_blocks_and_a_virtual_light() {
         .map(|o| o.name.as_str())
         .collect();
     assert_eq!(virt, ["blocks/short_block", "blocks/tall_block"]);
-    assert!(s.objects.iter().all(|o| !o.material.is_emitter()), "the light is counted once");
-    let Light::Area { edge_u, edge_v, radiance, .. } = s.lights[0].light else {
+    assert!(
+        s.objects.iter().all(|o| !o.material.is_emitter()),
+        "the light is counted once"
+    );
+    let Light::Area {
+        edge_u,
+        edge_v,
+        radiance,
+        ..
+    } = s.lights[0].light
+    else {
         panic!("ceiling light is not an area light");
     };
-    assert!(edge_u.cross(edge_v).normalize().dot(Vec3::NEG_Y) > 0.999, "emits downwards");
+    assert!(
+        edge_u.cross(edge_v).normalize().dot(Vec3::NEG_Y) > 0.999,
+        "emits downwards"
+    );
     assert_eq!(radiance, Vec3::new(17.0, 12.0, 4.0));
     assert_eq!((s.projectors.len(), s.cameras.len()), (2, 1));
     // Each projector lights the back wall and both side walls through the
@@ -300,7 +342,8 @@ fn figure3_scene_has_real_walls_virtual_blocks_and_a_virtual_light() {
         ] {
             let px = p.device.project(target).unwrap();
             assert!(
-                (0.0..p.device.width as f64).contains(&px.x) && (0.0..p.device.height as f64).contains(&px.y),
+                (0.0..p.device.width as f64).contains(&px.x)
+                    && (0.0..p.device.height as f64).contains(&px.y),
                 "{} misses {target}: {px}",
                 p.name
             );
@@ -311,11 +354,24 @@ fn figure3_scene_has_real_walls_virtual_blocks_and_a_virtual_light() {
 #[test]
 fn showcase_scene_fits_its_pyramid_beam_splitter() {
     let s = shipped("showcase.toml");
-    assert_eq!((s.faces.len(), s.projectors.len(), s.cameras.len(), s.observers.len()), (2, 2, 1, 2));
+    assert_eq!(
+        (
+            s.faces.len(),
+            s.projectors.len(),
+            s.cameras.len(),
+            s.observers.len()
+        ),
+        (2, 2, 1, 2)
+    );
     // The four mirror planes of the pyramid (two carry faces): outward
     // normal cos 30 d + sin 30 y, through the floor edge at 0.6 d.
     let planes: Vec<showcase_proto::Plane> = [Vec3::X, Vec3::NEG_X, Vec3::Z, Vec3::NEG_Z]
-        .map(|d| showcase_proto::Plane::from_point_normal(0.6 * d, 30f32.to_radians().cos() * d + 0.5 * Vec3::Y))
+        .map(|d| {
+            showcase_proto::Plane::from_point_normal(
+                0.6 * d,
+                30f32.to_radians().cos() * d + 0.5 * Vec3::Y,
+            )
+        })
         .into();
     let inside = |p: Vec3| planes.iter().all(|pl| pl.normal.dot(p) - pl.offset < 1e-4);
     for o in &s.objects {
@@ -326,22 +382,57 @@ fn showcase_scene_fits_its_pyramid_beam_splitter() {
             assert!(w.y >= -1e-6, "{} is below the floor at {w}", o.name);
         }
     }
-    for d in s.projectors.iter().map(|p| &p.device).chain(s.cameras.iter().map(|c| &c.device)) {
-        assert!(inside(d.center().as_vec3()), "device at {} is outside", d.center());
+    for d in s
+        .projectors
+        .iter()
+        .map(|p| &p.device)
+        .chain(s.cameras.iter().map(|c| &c.device))
+    {
+        assert!(
+            inside(d.center().as_vec3()),
+            "device at {} is outside",
+            d.center()
+        );
     }
     for (face, observer) in s.faces.iter().zip(&s.observers) {
         let mirror = face.mirror;
-        assert!(planes.iter().any(|p| (p.normal - mirror.normal).length() < 1e-6 && (p.offset - mirror.offset).abs() < 1e-6));
+        assert!(
+            planes
+                .iter()
+                .any(|p| (p.normal - mirror.normal).length() < 1e-6
+                    && (p.offset - mirror.offset).abs() < 1e-6)
+        );
         let dist = |p: Vec3| mirror.normal.dot(p) - mirror.offset;
-        assert!(dist(observer.head.position) > 0.0, "{} is behind its mirror", observer.name);
+        assert!(
+            dist(observer.head.position) > 0.0,
+            "{} is behind its mirror",
+            observer.name
+        );
         let r = face.screen;
-        let corners = [r.origin, r.origin + r.right, r.origin + r.down, r.origin + r.right + r.down];
+        let corners = [
+            r.origin,
+            r.origin + r.right,
+            r.origin + r.down,
+            r.origin + r.right + r.down,
+        ];
         for c in corners {
-            assert!(dist(c) > 0.0, "{} screen corner {c} is behind its mirror", face.name);
+            assert!(
+                dist(c) > 0.0,
+                "{} screen corner {c} is behind its mirror",
+                face.name
+            );
             // Its mirror image lies inside the cabinet, where virtual objects are.
-            assert!(inside(mirror.reflect_point(c)), "{} image of {c} is outside", face.name);
+            assert!(
+                inside(mirror.reflect_point(c)),
+                "{} image of {c} is outside",
+                face.name
+            );
         }
-        assert!(r.normal().dot(-mirror.normal) > 0.5, "{} does not face its mirror", face.name);
+        assert!(
+            r.normal().dot(-mirror.normal) > 0.5,
+            "{} does not face its mirror",
+            face.name
+        );
     }
     let sphere = &s.objects[s.object_index("sphere").unwrap()];
     assert!(sphere.material.reflective && sphere.kind == ObjectKind::Virtual);
@@ -350,7 +441,11 @@ fn showcase_scene_fits_its_pyramid_beam_splitter() {
     let (lo, hi) = world_bounds(&s, "bunny");
     assert!((hi.y - lo.y - 0.15).abs() < 1e-5);
     let vb = s.object_index("virtual-bunny").unwrap();
-    assert_eq!(s.objects[vb].mesh, s.objects[s.object_index("bunny").unwrap()].mesh, "one mesh, two bunnies");
+    assert_eq!(
+        s.objects[vb].mesh,
+        s.objects[s.object_index("bunny").unwrap()].mesh,
+        "one mesh, two bunnies"
+    );
     assert!(matches!(s.lights[0].light, Light::Point { .. }));
 }
 
@@ -377,184 +472,405 @@ const LOOK: &str = "look_at = { eye = [0, 0, 0], target = [0, 0, 1], fov_deg = 4
 #[test]
 fn toml_errors_name_the_line_and_column() {
     check("name = \"x\"\n[[object]\n", &["case.toml:2:"]);
-    check("name = \"x\"\ncolour = 1\n", &["case.toml:2:1:", "unknown field `colour`"]);
+    check(
+        "name = \"x\"\ncolour = 1\n",
+        &["case.toml:2:1:", "unknown field `colour`"],
+    );
     check("name = 3\n", &["case.toml:1:8:", "invalid type"]);
     check("", &["case.toml", "missing field `name`"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\ncolor = [1, 0, 0]\n"), &[
-        "case.toml:6:1:",
-        "unknown field `color`",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nkind2 = 1\n"), &["case.toml:6:", "kind2"]);
-    check("name = \"x\"\n[[object]]\nname = \"m\"\nmesh = \"builtin:quad\"\nkind = \"imaginary\"\n", &[
-        "case.toml:5:",
-        "imaginary",
-    ]);
-    check(&format!("name = \"x\"\n{PROJ}{K}{R}bits = -1\n"), &["case.toml:9:", "bits = -1"]);
-    check(&format!("name = \"x\"\n{PROJ}{LOOK}width2 = 3\n"), &["case.toml:7:", "width2"]);
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\ncolor = [1, 0, 0]\n"),
+        &["case.toml:6:1:", "unknown field `color`"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nkind2 = 1\n"),
+        &["case.toml:6:", "kind2"],
+    );
+    check(
+        "name = \"x\"\n[[object]]\nname = \"m\"\nmesh = \"builtin:quad\"\nkind = \"imaginary\"\n",
+        &["case.toml:5:", "imaginary"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{K}{R}bits = -1\n"),
+        &["case.toml:9:", "bits = -1"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{LOOK}width2 = 3\n"),
+        &["case.toml:7:", "width2"],
+    );
 }
 
 #[test]
 fn non_finite_numbers_are_rejected_naming_the_field() {
-    check("name = \"x\"\nambient = [0, nan, 0]\n", &["case.toml:2:", "not finite", "ambient"]);
-    check("name = \"x\"\n[[light]]\nname = \"l\"\ntype = \"point\"\nposition = [0, inf, 0]\nintensity = [1, 1, 1]\n", &[
-        "case.toml:5:",
-        "inf is not finite",
-        "position",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = -inf\n"), &["case.toml:6:", "scale"]);
-    check(&format!("name = \"x\"\n{PROJ}{LOOK}near = nan\n"), &["case.toml:7:", "near"]);
-    check("name = \"x\"\nambient = [0, 1e300, 0]\n", &["case.toml:2:", "outside", "ambient"]);
+    check(
+        "name = \"x\"\nambient = [0, nan, 0]\n",
+        &["case.toml:2:", "not finite", "ambient"],
+    );
+    check(
+        "name = \"x\"\n[[light]]\nname = \"l\"\ntype = \"point\"\nposition = [0, inf, 0]\nintensity = [1, 1, 1]\n",
+        &["case.toml:5:", "inf is not finite", "position"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = -inf\n"),
+        &["case.toml:6:9:", "-inf is not finite", "scale"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = [1, nan, 1]\n"),
+        &["case.toml:6:", "NaN is not finite", "scale"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = [1, 1]\n"),
+        &["case.toml:6:", "invalid length 2", "scale"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = \"big\"\n"),
+        &["case.toml:6:", "a number or an array of 3 numbers"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{LOOK}near = nan\n"),
+        &["case.toml:7:", "near"],
+    );
+    check(
+        "name = \"x\"\nambient = [0, 1e300, 0]\n",
+        &["case.toml:2:", "1e300 is outside", "ambient"],
+    );
 }
 
 #[test]
 fn degenerate_device_matrices_are_rejected_naming_the_device() {
     let singular = "camera_matrix = [[0, 0, 320], [0, 500, 240], [0, 0, 1]]\n";
-    check(&format!("name = \"x\"\n{PROJ}{singular}{R}"), &["projector[0] 'p'.camera_matrix", "singular"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{singular}{R}"),
+        &["projector[0] 'p'.camera_matrix", "singular"],
+    );
     let lower = "camera_matrix = [[500, 0, 320], [3, 500, 240], [0, 0, 1]]\n";
-    check(&format!("name = \"x\"\n{PROJ}{lower}{R}"), &["projector[0] 'p'.camera_matrix", "upper triangular"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{lower}{R}"),
+        &["projector[0] 'p'.camera_matrix", "upper triangular"],
+    );
     let negative = "camera_matrix = [[-500, 0, 320], [0, -500, 240], [0, 0, 1]]\n";
-    check(&format!("name = \"x\"\n{PROJ}{negative}{R}"), &["camera_matrix", "must be positive"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{negative}{R}"),
+        &["camera_matrix", "must be positive"],
+    );
     let skewed = "rotation = [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]\ntranslation = [0, 0, 1]\n";
     let second = "[[projector]]\nname = \"projector-1\"\nwidth = 640\nheight = 480\n";
-    check(&format!("name = \"x\"\n{PROJ}{K}{R}{second}{K}{skewed}"), &[
-        "case.toml: projector[1] 'projector-1'.rotation: rotation is not orthonormal",
-    ]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{K}{R}{second}{K}{skewed}"),
+        &["case.toml: projector[1] 'projector-1'.rotation: rotation is not orthonormal"],
+    );
     let mirrored = "rotation = [[-1, 0, 0], [0, 1, 0], [0, 0, 1]]\ntranslation = [0, 0, 1]\n";
-    check(&format!("name = \"x\"\n{PROJ}{K}{mirrored}"), &["projector[0] 'p'.rotation", "reflection"]);
-    check(&format!("name = \"x\"\n{PROJ}{K}"), &["projector[0] 'p'.rotation", "needs `rotation`"]);
-    check(&format!("name = \"x\"\n{PROJ}{K}{R}{LOOK}"), &["projector[0] 'p'", "exactly one of"]);
-    check(&format!("name = \"x\"\n{PROJ}"), &["projector[0] 'p'", "exactly one of"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{K}{mirrored}"),
+        &["projector[0] 'p'.rotation", "reflection"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{K}"),
+        &["projector[0] 'p'.rotation", "needs `rotation`"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{K}{R}{LOOK}"),
+        &["projector[0] 'p'", "exactly one of"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}"),
+        &["projector[0] 'p'", "exactly one of"],
+    );
     let same = "look_at = { eye = [1, 1, 1], target = [1, 1, 1], fov_deg = 40 }\n";
-    check(&format!("name = \"x\"\n{PROJ}{same}"), &["projector[0] 'p'.look_at", "eye and target"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{same}"),
+        &["projector[0] 'p'.look_at", "eye and target"],
+    );
     let up = "look_at = { eye = [0, 0, 0], target = [0, 1, 0], fov_deg = 40 }\n";
-    check(&format!("name = \"x\"\n{PROJ}{up}"), &["projector[0] 'p'.look_at.up", "parallel"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{up}"),
+        &["projector[0] 'p'.look_at.up", "parallel"],
+    );
     let fov = "look_at = { eye = [0, 0, 0], target = [0, 0, 1], fov_deg = 180 }\n";
-    check(&format!("name = \"x\"\n{PROJ}{fov}"), &["look_at.fov_deg", "180"]);
-    check(&format!("name = \"x\"\n{PROJ}{LOOK}near = 2\nfar = 1\n"), &["projector[0] 'p'.far", "near < far"]);
+    check(
+        &format!("name = \"x\"\n{PROJ}{fov}"),
+        &["look_at.fov_deg", "180"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{LOOK}near = 2\nfar = 1\n"),
+        &["projector[0] 'p'.far", "near < far"],
+    );
     let no_size = "[[camera]]\nname = \"c\"\n";
-    check(&format!("name = \"x\"\n{no_size}{LOOK}"), &["camera[0] 'c'.width", "needs `width`"]);
-    check(&format!("name = \"x\"\n[[camera]]\nname = \"c\"\nwidth = 0\nheight = 480\n{LOOK}"), &[
-        "camera[0] 'c'.device.width",
-        "0x480",
-    ]);
-    check(&format!("name = \"x\"\n{PROJ}{LOOK}gain = 2\n"), &["projector[0] 'p'.gain", "does not apply"]);
-    check(&format!("name = \"x\"\n[[camera]]\nname = \"c\"\nwidth = 4\nheight = 4\n{LOOK}eta = 2\n"), &[
-        "camera[0] 'c'.eta",
-        "does not apply",
-    ]);
-    check(&format!("name = \"x\"\n{PROJ}{LOOK}gamma = 0\n"), &["projector[0] 'p'.response.gamma"]);
+    check(
+        &format!("name = \"x\"\n{no_size}{LOOK}"),
+        &["camera[0] 'c'.width", "needs `width`"],
+    );
+    check(
+        &format!("name = \"x\"\n[[camera]]\nname = \"c\"\nwidth = 0\nheight = 480\n{LOOK}"),
+        &["camera[0] 'c'.device.width", "0x480"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{LOOK}gain = 2\n"),
+        &["projector[0] 'p'.gain", "does not apply"],
+    );
+    check(
+        &format!("name = \"x\"\n[[camera]]\nname = \"c\"\nwidth = 4\nheight = 4\n{LOOK}eta = 2\n"),
+        &["camera[0] 'c'.eta", "does not apply"],
+    );
+    check(
+        &format!("name = \"x\"\n{PROJ}{LOOK}gamma = 0\n"),
+        &["projector[0] 'p'.response.gamma"],
+    );
 }
 
 #[test]
 fn calibration_file_errors_name_both_files() {
     let cal = |f: &str| format!("name = \"x\"\n[[camera]]\nname = \"c\"\ncalibration = \"{f}\"\n");
-    check(&cal("nope.json"), &["camera[0] 'c'.calibration", "nope.json", "cannot read"]);
-    check(&cal("calibration-bad-rotation.json"), &["calibration-bad-rotation.json", "rotation is not orthonormal"]);
-    check(&cal("calibration-bad-projection.json"), &["calibration-bad-projection.json", "projection", "disagrees"]);
-    check(&cal("calibration-syntax.json"), &["calibration-syntax.json:3:"]);
-    check(&format!("{}width = 800\n", cal("calibration-good.json")), &["camera[0] 'c'.width", "800 differs from 1024"]);
+    check(
+        &cal("nope.json"),
+        &["camera[0] 'c'.calibration", "nope.json", "cannot read"],
+    );
+    check(
+        &cal("calibration-bad-rotation.json"),
+        &[
+            "calibration-bad-rotation.json",
+            "rotation is not orthonormal",
+        ],
+    );
+    check(
+        &cal("calibration-bad-projection.json"),
+        &["calibration-bad-projection.json", "projection", "disagrees"],
+    );
+    check(
+        &cal("calibration-syntax.json"),
+        &["calibration-syntax.json:3:"],
+    );
+    check(
+        &format!("{}width = 800\n", cal("calibration-good.json")),
+        &["camera[0] 'c'.width", "800 differs from 1024"],
+    );
 }
 
 #[test]
 fn mesh_file_errors_name_both_files_and_the_line() {
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"missing.obj\"\n"), &["object[0] 'm'.mesh", "missing.obj", "cannot read"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"broken.obj\"\n"), &["object[0] 'm'.mesh", "broken.obj:3:", "position parse error"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"no-mtl.obj\"\n"), &["no-mtl.obj", "missing.mtl"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"nan-vertex.obj\"\n"), &["nan-vertex.obj", "positions[1]", "not finite"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"cube.stl\"\n"), &["cube.stl", "unknown mesh format"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"overrun.gltf\"\n"), &["overrun.gltf", "runs past the end"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"calibration-syntax.json\"\n"), &["unknown mesh format"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:cone\"\n"), &["object[0] 'm'.mesh", "builtin:cone"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:sphere\"\nsize = [1, 1]\n"), &["object[0] 'm'.size", "does not apply"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:plate\"\nsubdivisions = 0\n"), &["object[0] 'm'.subdivisions"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:sphere\"\nradius = 0\n"), &["object[0] 'm'.radius", "positive"]);
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"missing.obj\"\n"),
+        &["object[0] 'm'.mesh", "missing.obj", "cannot read"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"broken.obj\"\n"),
+        &[
+            "object[0] 'm'.mesh",
+            "broken.obj:3:",
+            "position parse error",
+        ],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"no-mtl.obj\"\n"),
+        &["no-mtl.obj", "missing.mtl"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"nan-vertex.obj\"\n"),
+        &["nan-vertex.obj", "positions[1]", "not finite"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"cube.stl\"\n"),
+        &["cube.stl", "unknown mesh format"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"overrun.gltf\"\n"),
+        &["overrun.gltf", "runs past the end"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"calibration-syntax.json\"\n"),
+        &["unknown mesh format"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:cone\"\n"),
+        &["object[0] 'm'.mesh", "builtin:cone"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:sphere\"\nsize = [1, 1]\n"),
+        &["object[0] 'm'.size", "does not apply"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:plate\"\nsubdivisions = 0\n"),
+        &["object[0] 'm'.subdivisions"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:sphere\"\nradius = 0\n"),
+        &["object[0] 'm'.radius", "positive"],
+    );
 }
 
 #[test]
 fn object_errors_name_the_object_and_field() {
     let cornell = "../../../../shared/data/cornell-box.obj";
     let bunny = "../../../../shared/data/bunny.obj";
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"{cornell}\"\nparts = [\"floor\", \"sofa\"]\n"), &[
-        "object[0] 'm'.parts",
-        "no part named \"sofa\"",
-        "available: \"floor\", \"ceiling\"",
-        "\"light\"",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"{cornell}\"\nexclude_parts = [\"lamp\"]\n"), &["object[0] 'm'.exclude_parts", "lamp"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"triangle.gltf\"\nparts = [\"tri\"]\nexclude_parts = [\"tri\"]\n"), &[
-        "object[0] 'm'.parts",
-        "no parts",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\n{OBJ}mesh = \"builtin:quad\"\n"), &[
-        "object[1] 'm'.name",
-        "duplicate name \"m\", also used by object[0]",
-    ]);
     check(
-        &format!("name = \"x\"\n[[object]]\nname = \"c/floor\"\nkind = \"real\"\nmesh = \"builtin:quad\"\n[[object]]\nname = \"c\"\nkind = \"real\"\nmesh = \"{cornell}\"\n"),
-        &["object[1] 'c' part \"floor\".name", "duplicate name \"c/floor\""],
+        &format!("name = \"x\"\n{OBJ}mesh = \"{cornell}\"\nparts = [\"floor\", \"sofa\"]\n"),
+        &[
+            "object[0] 'm'.parts",
+            "no part named \"sofa\"",
+            "available: \"floor\", \"ceiling\"",
+            "\"light\"",
+        ],
     );
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nalbedo = [1.5, 0, 0]\n"), &["object[0] 'm'.material.albedo", "exceeds 1"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nemission = [-1, 0, 0]\n"), &["object[0] 'm'.material.emission", "negative"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = [1, 0, 1]\n"), &["object[0] 'm'.scale", "positive"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nrotation_deg = [0, 0, 0]\nrotation_quat = [0, 0, 0, 1]\n"), &[
-        "object[0] 'm'.rotation_quat",
-        "not both",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nrotation_quat = [0, 0, 0, 0]\n"), &["rotation_quat", "zero"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nnormalize_height = 0.3\n"), &["object[0] 'm'.normalize_height", "flat"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"{bunny}\"\nnormalize_height = 0.3\nscale = 2\n"), &["normalize_height", "not both"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"{bunny}\"\nnormalize_height = -1\n"), &["normalize_height", "positive"]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"{bunny}\"\ntexture = {{ type = \"checker\", cells = 4, a = [1, 1, 1], b = [0, 0, 0] }}\n"), &[
-        "object[0] 'm'.texture",
-        "texture coordinates",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:plate\"\ntexture = {{ type = \"wood\", light = [2, 1, 1], dark = [0, 0, 0], rings = 3 }}\n"), &[
-        "object[0] 'm'.material.texture.a",
-        "exceeds 1",
-    ]);
-    check(&format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nreflectance_map = \"\"\n"), &["object[0] 'm'.material.reflectance_map", "empty"]);
-    check("name = \"x\"\n[[object]]\nname = \"\"\nkind = \"real\"\nmesh = \"builtin:quad\"\n", &["object[0] ''.name", "empty"]);
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"{cornell}\"\nexclude_parts = [\"lamp\"]\n"),
+        &["object[0] 'm'.exclude_parts", "lamp"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{OBJ}mesh = \"triangle.gltf\"\nparts = [\"tri\"]\nexclude_parts = [\"tri\"]\n"
+        ),
+        &["object[0] 'm'.parts", "no parts"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\n{OBJ}mesh = \"builtin:quad\"\n"),
+        &[
+            "object[1] 'm'.name",
+            "duplicate name \"m\", also used by object[0]",
+        ],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n[[object]]\nname = \"c/floor\"\nkind = \"real\"\nmesh = \"builtin:quad\"\n[[object]]\nname = \"c\"\nkind = \"real\"\nmesh = \"{cornell}\"\n"
+        ),
+        &[
+            "object[1] 'c' part \"floor\".name",
+            "duplicate name \"c/floor\"",
+        ],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nalbedo = [1.5, 0, 0]\n"),
+        &["object[0] 'm'.material.albedo", "exceeds 1"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nemission = [-1, 0, 0]\n"),
+        &["object[0] 'm'.material.emission", "negative"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nscale = [1, 0, 1]\n"),
+        &["object[0] 'm'.scale", "positive"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nrotation_deg = [0, 0, 0]\nrotation_quat = [0, 0, 0, 1]\n"
+        ),
+        &["object[0] 'm'.rotation_quat", "not both"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nrotation_quat = [0, 0, 0, 0]\n"),
+        &["rotation_quat", "zero"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nnormalize_height = 0.3\n"),
+        &["object[0] 'm'.normalize_height", "flat"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"{bunny}\"\nnormalize_height = 0.3\nscale = 2\n"),
+        &["normalize_height", "not both"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"{bunny}\"\nnormalize_height = -1\n"),
+        &["normalize_height", "positive"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{OBJ}mesh = \"{bunny}\"\ntexture = {{ type = \"checker\", cells = 4, a = [1, 1, 1], b = [0, 0, 0] }}\n"
+        ),
+        &["object[0] 'm'.texture", "texture coordinates"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{OBJ}mesh = \"builtin:plate\"\ntexture = {{ type = \"wood\", light = [2, 1, 1], dark = [0, 0, 0], rings = 3 }}\n"
+        ),
+        &["object[0] 'm'.material.texture.a", "exceeds 1"],
+    );
+    check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"builtin:quad\"\nreflectance_map = \"\"\n"),
+        &["object[0] 'm'.material.reflectance_map", "empty"],
+    );
+    check(
+        "name = \"x\"\n[[object]]\nname = \"\"\nkind = \"real\"\nmesh = \"builtin:quad\"\n",
+        &["object[0] ''.name", "empty"],
+    );
 }
 
 #[test]
 fn light_face_and_observer_errors_name_the_field() {
     let l = "[[light]]\nname = \"l\"\n";
-    check(&format!("name = \"x\"\n{l}type = \"point\"\nposition = [0, 0, 0]\n"), &["light[0] 'l'.intensity", "needs `intensity`"]);
-    check(&format!("name = \"x\"\n{l}type = \"point\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\nradiance = [1, 1, 1]\n"), &[
-        "light[0] 'l'.radiance",
-        "does not apply to a point light",
-    ]);
-    check(&format!("name = \"x\"\n{l}type = \"spot\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\ndirection = [0, 0, 0]\ninner_deg = 10\nouter_deg = 20\n"), &[
-        "light[0] 'l'.direction",
-        "zero",
-    ]);
-    check(&format!("name = \"x\"\n{l}type = \"spot\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\ndirection = [0, -1, 0]\ninner_deg = 30\nouter_deg = 20\n"), &[
-        "light[0] 'l'.outer_deg",
-    ]);
-    check(&format!("name = \"x\"\n{l}type = \"area\"\ncorner = [0, 0, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\nradiance = [1, 1, 1]\n"), &[
-        "light[0] 'l'.edge_v",
-        "no area",
-    ]);
-    check(&format!("name = \"x\"\n{l}type = \"area\"\ncorner = [0, 0, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [1, 1, 1]\nsamples = 0\n"), &[
-        "light[0] 'l'.samples",
-    ]);
+    check(
+        &format!("name = \"x\"\n{l}type = \"point\"\nposition = [0, 0, 0]\n"),
+        &["light[0] 'l'.intensity", "needs `intensity`"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{l}type = \"point\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\nradiance = [1, 1, 1]\n"
+        ),
+        &["light[0] 'l'.radiance", "does not apply to a point light"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{l}type = \"spot\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\ndirection = [0, 0, 0]\ninner_deg = 10\nouter_deg = 20\n"
+        ),
+        &["light[0] 'l'.direction", "zero"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{l}type = \"spot\"\nposition = [0, 0, 0]\nintensity = [1, 1, 1]\ndirection = [0, -1, 0]\ninner_deg = 30\nouter_deg = 20\n"
+        ),
+        &["light[0] 'l'.outer_deg"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{l}type = \"area\"\ncorner = [0, 0, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\nradiance = [1, 1, 1]\n"
+        ),
+        &["light[0] 'l'.edge_v", "no area"],
+    );
+    check(
+        &format!(
+            "name = \"x\"\n{l}type = \"area\"\ncorner = [0, 0, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [1, 1, 1]\nsamples = 0\n"
+        ),
+        &["light[0] 'l'.samples"],
+    );
     let f = "[[face]]\nname = \"f\"\nwidth = 640\nheight = 480\nscreen = { origin = [0, 1, 0], right = [1, 0, 0], down = [0, -1, 0] }\n";
-    check(&format!("name = \"x\"\n{f}mirror = {{ point = [0, 0, 0], normal = [0, 0, 0] }}\n"), &["face[0] 'f'.mirror.normal", "zero"]);
+    check(
+        &format!("name = \"x\"\n{f}mirror = {{ point = [0, 0, 0], normal = [0, 0, 0] }}\n"),
+        &["face[0] 'f'.mirror.normal", "zero"],
+    );
     let flat = "[[face]]\nname = \"f\"\nwidth = 640\nheight = 480\nscreen = { origin = [0, 1, 0], right = [1, 0, 0], down = [2, 0, 0] }\n";
-    check(&format!("name = \"x\"\n{flat}mirror = {{ point = [0, 0, 0], normal = [0, 0, 1] }}\n"), &["face[0] 'f'.screen", "zero area"]);
+    check(
+        &format!("name = \"x\"\n{flat}mirror = {{ point = [0, 0, 0], normal = [0, 0, 1] }}\n"),
+        &["face[0] 'f'.screen", "zero area"],
+    );
     let o = "[[observer]]\nname = \"o\"\nposition = [0, 0, 1]\n";
-    check(&format!("name = \"x\"\n{o}ipd = 0.5\n"), &["observer[0] 'o'.ipd", "outside"]);
-    check(&format!("name = \"x\"\n{o}look_at = [0, 0, 1]\n"), &["observer[0] 'o'.look_at", "at its target"]);
-    check(&format!("name = \"x\"\n{o}look_at = [0, 5, 1]\n"), &["observer[0] 'o'.up", "parallel"]);
-    check(&format!("name = \"x\"\n{o}look_at = [0, 0, 0]\norientation_quat = [0, 0, 0, 1]\n"), &["observer[0] 'o'", "not both"]);
-    check(&format!("name = \"x\"\n{o}{o}"), &["observer[1] 'o'.name", "duplicate"]);
+    check(
+        &format!("name = \"x\"\n{o}ipd = 0.5\n"),
+        &["observer[0] 'o'.ipd", "outside"],
+    );
+    check(
+        &format!("name = \"x\"\n{o}look_at = [0, 0, 1]\n"),
+        &["observer[0] 'o'.look_at", "at its target"],
+    );
+    check(
+        &format!("name = \"x\"\n{o}look_at = [0, 5, 1]\n"),
+        &["observer[0] 'o'.up", "parallel"],
+    );
+    check(
+        &format!("name = \"x\"\n{o}look_at = [0, 0, 0]\norientation_quat = [0, 0, 0, 1]\n"),
+        &["observer[0] 'o'", "not both"],
+    );
+    check(
+        &format!("name = \"x\"\n{o}{o}"),
+        &["observer[1] 'o'.name", "duplicate"],
+    );
 }
 
 #[test]
 fn missing_scene_file_names_the_file() {
     let path = fixtures().join("no-such-scene.toml");
     let err = load_scene(&path).unwrap_err().to_string();
-    assert!(err.contains("no-such-scene.toml") && err.contains("cannot read"), "{err}");
+    assert!(
+        err.contains("no-such-scene.toml") && err.contains("cannot read"),
+        "{err}"
+    );
 }
 
 /// A valid scene with a bit of everything, for mutation.

@@ -50,11 +50,17 @@ pub(crate) fn sphere(radius: f32, segments: u32) -> Mesh {
         let theta = PI * j as f32 / stacks as f32;
         for i in 0..=slices {
             let phi = TAU * i as f32 / slices as f32;
-            let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin());
+            let n = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            );
             mesh.positions.push(radius * n);
             mesh.normals.push(n);
-            mesh.uvs
-                .push(Vec2::new(i as f32 / slices as f32, j as f32 / stacks as f32));
+            mesh.uvs.push(Vec2::new(
+                i as f32 / slices as f32,
+                j as f32 / stacks as f32,
+            ));
         }
     }
     let row = slices + 1;
@@ -95,7 +101,10 @@ mod tests {
             assert!(n.y > 0.0 && n.x.abs() < 1e-9 && n.z.abs() < 1e-9, "{n}");
         }
         let (lo, hi) = m.bounds().unwrap();
-        assert_eq!((lo, hi), (Vec3::new(-0.2, 0.0, -0.15), Vec3::new(0.2, 0.0, 0.15)));
+        assert_eq!(
+            (lo, hi),
+            (Vec3::new(-0.2, 0.0, -0.15), Vec3::new(0.2, 0.0, 0.15))
+        );
         assert_eq!(m.uvs[0], Vec2::ZERO);
         assert_eq!(*m.uvs.last().unwrap(), Vec2::ONE);
     }

@@ -4,7 +4,9 @@
 //! rejected by name.
 
 use super::error::{Ctx, SceneError};
-use super::schema::{CalibrationDef, DeviceDef, FaceDef, LightDef, LightType, N3, Num, ObserverDef};
+use super::schema::{
+    CalibrationDef, DeviceDef, FaceDef, LightDef, LightType, N3, Num, ObserverDef,
+};
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 use showcase_proto::{
     Camera, CameraResponse, CrtFace, Light, LightSource, Observer, PinholeDevice, Plane, Pose,
@@ -39,7 +41,13 @@ pub(crate) fn quat(q: [Num; 4]) -> Option<Quat> {
     (q.length() > 1e-9).then(|| q.normalize().as_quat())
 }
 
-fn need<T: Copy>(ctx: &Ctx, label: &str, key: &str, what: &str, v: Option<T>) -> Result<T, SceneError> {
+fn need<T: Copy>(
+    ctx: &Ctx,
+    label: &str,
+    key: &str,
+    what: &str,
+    v: Option<T>,
+) -> Result<T, SceneError> {
     v.ok_or_else(|| ctx.invalid(format!("{label}.{key}"), format!("a {what} needs `{key}`")))
 }
 
@@ -57,29 +65,39 @@ fn reject(ctx: &Ctx, label: &str, what: &str, keys: &[(&str, bool)]) -> Result<(
 pub(crate) fn light(ctx: &Ctx, label: &str, d: &LightDef) -> Result<LightSource, SceneError> {
     let light = match d.kind {
         LightType::Point => {
-            reject(ctx, label, "point light", &[
-                ("direction", d.direction.is_some()),
-                ("inner_deg", d.inner_deg.is_some()),
-                ("outer_deg", d.outer_deg.is_some()),
-                ("corner", d.corner.is_some()),
-                ("edge_u", d.edge_u.is_some()),
-                ("edge_v", d.edge_v.is_some()),
-                ("radiance", d.radiance.is_some()),
-                ("samples", d.samples.is_some()),
-            ])?;
+            reject(
+                ctx,
+                label,
+                "point light",
+                &[
+                    ("direction", d.direction.is_some()),
+                    ("inner_deg", d.inner_deg.is_some()),
+                    ("outer_deg", d.outer_deg.is_some()),
+                    ("corner", d.corner.is_some()),
+                    ("edge_u", d.edge_u.is_some()),
+                    ("edge_v", d.edge_v.is_some()),
+                    ("radiance", d.radiance.is_some()),
+                    ("samples", d.samples.is_some()),
+                ],
+            )?;
             Light::Point {
                 position: v3(need(ctx, label, "position", "point light", d.position)?),
                 intensity: v3(need(ctx, label, "intensity", "point light", d.intensity)?),
             }
         }
         LightType::Spot => {
-            reject(ctx, label, "spot light", &[
-                ("corner", d.corner.is_some()),
-                ("edge_u", d.edge_u.is_some()),
-                ("edge_v", d.edge_v.is_some()),
-                ("radiance", d.radiance.is_some()),
-                ("samples", d.samples.is_some()),
-            ])?;
+            reject(
+                ctx,
+                label,
+                "spot light",
+                &[
+                    ("corner", d.corner.is_some()),
+                    ("edge_u", d.edge_u.is_some()),
+                    ("edge_v", d.edge_v.is_some()),
+                    ("radiance", d.radiance.is_some()),
+                    ("samples", d.samples.is_some()),
+                ],
+            )?;
             let direction = v3(need(ctx, label, "direction", "spot light", d.direction)?);
             if direction.length_squared() < 1e-12 {
                 return Err(ctx.invalid(format!("{label}.direction"), "spot direction is zero"));
@@ -93,13 +111,18 @@ pub(crate) fn light(ctx: &Ctx, label: &str, d: &LightDef) -> Result<LightSource,
             }
         }
         LightType::Area => {
-            reject(ctx, label, "area light", &[
-                ("position", d.position.is_some()),
-                ("intensity", d.intensity.is_some()),
-                ("direction", d.direction.is_some()),
-                ("inner_deg", d.inner_deg.is_some()),
-                ("outer_deg", d.outer_deg.is_some()),
-            ])?;
+            reject(
+                ctx,
+                label,
+                "area light",
+                &[
+                    ("position", d.position.is_some()),
+                    ("intensity", d.intensity.is_some()),
+                    ("direction", d.direction.is_some()),
+                    ("inner_deg", d.inner_deg.is_some()),
+                    ("outer_deg", d.outer_deg.is_some()),
+                ],
+            )?;
             let edge_u = dv3(need(ctx, label, "edge_u", "area light", d.edge_u)?);
             let edge_v = dv3(need(ctx, label, "edge_v", "area light", d.edge_v)?);
             if edge_u.cross(edge_v).length() < 1e-8 {
@@ -149,10 +172,16 @@ fn camera_matrix(ctx: &Ctx, field: &str, k: DMat3) -> Result<DMat3, SceneError> 
     }
     let (fx, fy) = (k.x_axis.x, k.y_axis.y);
     if fx * fy == 0.0 || k.determinant().abs() < 1e-12 {
-        return Err(ctx.invalid(field, format!("camera matrix is singular (fx={fx}, fy={fy})")));
+        return Err(ctx.invalid(
+            field,
+            format!("camera matrix is singular (fx={fx}, fy={fy})"),
+        ));
     }
     if fx < 0.0 || fy < 0.0 {
-        return Err(ctx.invalid(field, format!("focal lengths fx={fx} fy={fy} must be positive")));
+        return Err(ctx.invalid(
+            field,
+            format!("focal lengths fx={fx} fy={fy} must be positive"),
+        ));
     }
     let mut k = k;
     k.x_axis.y = 0.0;
@@ -191,7 +220,12 @@ pub(crate) fn rotation(ctx: &Ctx, field: &str, r: DMat3) -> Result<DMat3, SceneE
 }
 
 /// The geometry of a projector or camera.
-pub(crate) fn pinhole(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) -> Result<PinholeDevice, SceneError> {
+pub(crate) fn pinhole(
+    ctx: &Ctx,
+    label: &str,
+    d: &DeviceDef,
+    base_dir: &Path,
+) -> Result<PinholeDevice, SceneError> {
     let inline = d.camera_matrix.is_some() || d.rotation.is_some() || d.translation.is_some();
     let sources = [d.look_at.is_some(), inline, d.calibration.is_some()];
     if sources.iter().filter(|s| **s).count() != 1 {
@@ -205,7 +239,10 @@ pub(crate) fn pinhole(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) ->
         let up = la.up.map_or(DVec3::Y, dv3);
         let dir = target - eye;
         if dir.length() < 1e-9 {
-            return Err(ctx.invalid(format!("{label}.look_at"), format!("eye and target are both {eye}")));
+            return Err(ctx.invalid(
+                format!("{label}.look_at"),
+                format!("eye and target are both {eye}"),
+            ));
         }
         if dir.normalize().cross(up).length() < 1e-6 {
             return Err(ctx.invalid(
@@ -215,7 +252,10 @@ pub(crate) fn pinhole(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) ->
         }
         let fov = la.fov_deg.0;
         if !(fov > 0.0 && fov < 179.0) {
-            return Err(ctx.invalid(format!("{label}.look_at.fov_deg"), format!("{fov} is outside (0, 179)")));
+            return Err(ctx.invalid(
+                format!("{label}.look_at.fov_deg"),
+                format!("{fov} is outside (0, 179)"),
+            ));
         }
         let (w, h) = size(ctx, label, d.width, d.height, None)?;
         PinholeDevice::look_at(eye, target, up, fov, w, h)
@@ -238,10 +278,8 @@ pub(crate) fn pinhole(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) ->
         let file = d.calibration.as_deref().unwrap_or_default();
         calibrated(ctx, label, d, &base_dir.join(file))?
     };
-    if d.look_at.is_some() || d.calibration.is_some() {
-        if let Some(c) = d.dist_coeffs {
-            dev.dist_coeffs = c.map(|x| x.0);
-        }
+    if let (Some(c), false) = (d.dist_coeffs, inline) {
+        dev.dist_coeffs = c.map(|x| x.0);
     }
     dev.near = d.near.map_or(DEFAULT_NEAR, |n| n.0);
     dev.far = d.far.map_or(DEFAULT_FAR, |f| f.0);
@@ -254,7 +292,13 @@ pub(crate) fn pinhole(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) ->
     Ok(dev)
 }
 
-fn size(ctx: &Ctx, label: &str, w: Option<u32>, h: Option<u32>, from_file: Option<(Option<u32>, Option<u32>)>) -> Result<(u32, u32), SceneError> {
+fn size(
+    ctx: &Ctx,
+    label: &str,
+    w: Option<u32>,
+    h: Option<u32>,
+    from_file: Option<(Option<u32>, Option<u32>)>,
+) -> Result<(u32, u32), SceneError> {
     let (fw, fh) = from_file.unwrap_or((None, None));
     let pick = |key: &str, scene: Option<u32>, file: Option<u32>| match (scene, file) {
         (Some(a), Some(b)) if a != b => Err(ctx.invalid(
@@ -262,21 +306,38 @@ fn size(ctx: &Ctx, label: &str, w: Option<u32>, h: Option<u32>, from_file: Optio
             format!("{a} differs from {b} in the calibration file"),
         )),
         (Some(a), _) | (None, Some(a)) => Ok(a),
-        (None, None) => Err(ctx.invalid(format!("{label}.{key}"), format!("a device needs `{key}`"))),
+        (None, None) => {
+            Err(ctx.invalid(format!("{label}.{key}"), format!("a device needs `{key}`")))
+        }
     };
     Ok((pick("width", w, fw)?, pick("height", h, fh)?))
 }
 
 /// A device from the JSON written by `showcase-master calibrate`.
-fn calibrated(ctx: &Ctx, label: &str, d: &DeviceDef, path: &Path) -> Result<PinholeDevice, SceneError> {
+fn calibrated(
+    ctx: &Ctx,
+    label: &str,
+    d: &DeviceDef,
+    path: &Path,
+) -> Result<PinholeDevice, SceneError> {
     let field = format!("{label}.calibration");
-    let text = std::fs::read_to_string(path).map_err(|e| ctx.referenced(&field, path, None, format!("cannot read: {e}")))?;
-    let c: CalibrationDef = serde_json::from_str(&text)
-        .map_err(|e| ctx.referenced(&field, path, Some(e.line()).filter(|l| *l > 0), e.to_string()))?;
-    let bad = |what: &str, problem: String| ctx.referenced(&field, path, None, format!("{what}: {problem}"));
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ctx.referenced(&field, path, None, format!("cannot read: {e}")))?;
+    let c: CalibrationDef = serde_json::from_str(&text).map_err(|e| {
+        ctx.referenced(
+            &field,
+            path,
+            Some(e.line()).filter(|l| *l > 0),
+            e.to_string(),
+        )
+    })?;
+    let bad = |what: &str, problem: String| {
+        ctx.referenced(&field, path, None, format!("{what}: {problem}"))
+    };
     let k = camera_matrix(ctx, &field, rows3_f64(c.camera_matrix))
         .map_err(|e| bad("camera_matrix", problem_of(e)))?;
-    let r = rotation(ctx, &field, rows3_f64(c.rotation)).map_err(|e| bad("rotation", problem_of(e)))?;
+    let r =
+        rotation(ctx, &field, rows3_f64(c.rotation)).map_err(|e| bad("rotation", problem_of(e)))?;
     let t = DVec3::from_array(c.translation);
     if !t.is_finite() {
         return Err(bad("translation", "has a non-finite entry".into()));
@@ -284,7 +345,10 @@ fn calibrated(ctx: &Ctx, label: &str, d: &DeviceDef, path: &Path) -> Result<Pinh
     let mut dist = [0.0; 5];
     if let Some(dc) = &c.dist_coeffs {
         if dc.len() > 5 {
-            return Err(bad("dist_coeffs", format!("{} coefficients, at most 5 [k1, k2, p1, p2, k3]", dc.len())));
+            return Err(bad(
+                "dist_coeffs",
+                format!("{} coefficients, at most 5 [k1, k2, p1, p2, k3]", dc.len()),
+            ));
         }
         dist[..dc.len()].copy_from_slice(dc);
     }
@@ -325,14 +389,24 @@ fn problem_of(e: SceneError) -> String {
 }
 
 /// One `[[projector]]`.
-pub(crate) fn projector(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) -> Result<Projector, SceneError> {
-    reject(ctx, label, "projector (it is a camera key)", &[
-        ("gain", d.gain.is_some()),
-        ("exposure_s", d.exposure_s.is_some()),
-        ("read_noise", d.read_noise.is_some()),
-        ("shot_noise", d.shot_noise.is_some()),
-        ("bits", d.bits.is_some()),
-    ])?;
+pub(crate) fn projector(
+    ctx: &Ctx,
+    label: &str,
+    d: &DeviceDef,
+    base_dir: &Path,
+) -> Result<Projector, SceneError> {
+    reject(
+        ctx,
+        label,
+        "projector (it is a camera key)",
+        &[
+            ("gain", d.gain.is_some()),
+            ("exposure_s", d.exposure_s.is_some()),
+            ("read_noise", d.read_noise.is_some()),
+            ("shot_noise", d.shot_noise.is_some()),
+            ("bits", d.bits.is_some()),
+        ],
+    )?;
     let def = ProjectorResponse::default();
     let f = |n: Option<Num>, default: f32| n.map_or(default, |x| x.0 as f32);
     Ok(Projector {
@@ -342,20 +416,33 @@ pub(crate) fn projector(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) 
             gamma: f(d.gamma, def.gamma),
             eta: f(d.eta, def.eta),
             black_level: f(d.black_level, def.black_level),
-            wheel_segments: d.wheel_segments.as_ref().map_or(def.wheel_segments, |s| s.iter().map(|c| v3(*c)).collect()),
+            wheel_segments: d
+                .wheel_segments
+                .as_ref()
+                .map_or(def.wheel_segments, |s| s.iter().map(|c| v3(*c)).collect()),
             wheel_period_s: f(d.wheel_period_s, def.wheel_period_s),
         },
     })
 }
 
 /// One `[[camera]]`.
-pub(crate) fn camera(ctx: &Ctx, label: &str, d: &DeviceDef, base_dir: &Path) -> Result<Camera, SceneError> {
-    reject(ctx, label, "camera (it is a projector key)", &[
-        ("eta", d.eta.is_some()),
-        ("black_level", d.black_level.is_some()),
-        ("wheel_segments", d.wheel_segments.is_some()),
-        ("wheel_period_s", d.wheel_period_s.is_some()),
-    ])?;
+pub(crate) fn camera(
+    ctx: &Ctx,
+    label: &str,
+    d: &DeviceDef,
+    base_dir: &Path,
+) -> Result<Camera, SceneError> {
+    reject(
+        ctx,
+        label,
+        "camera (it is a projector key)",
+        &[
+            ("eta", d.eta.is_some()),
+            ("black_level", d.black_level.is_some()),
+            ("wheel_segments", d.wheel_segments.is_some()),
+            ("wheel_period_s", d.wheel_period_s.is_some()),
+        ],
+    )?;
     let def = CameraResponse::default();
     let f = |n: Option<Num>, default: f32| n.map_or(default, |x| x.0 as f32);
     Ok(Camera {
@@ -407,18 +494,26 @@ pub(crate) fn observer(ctx: &Ctx, label: &str, d: &ObserverDef) -> Result<Observ
             let dir = dv3(target) - position;
             let up = d.up.map_or(DVec3::Y, dv3);
             if dir.length() < 1e-9 {
-                return Err(ctx.invalid(format!("{label}.look_at"), format!("the head is at its target {position}")));
+                return Err(ctx.invalid(
+                    format!("{label}.look_at"),
+                    format!("the head is at its target {position}"),
+                ));
             }
             let z = -dir.normalize();
             let x = up.cross(z);
             if x.length() < 1e-6 {
-                return Err(ctx.invalid(format!("{label}.up"), format!("up {up} is parallel to the viewing direction")));
+                return Err(ctx.invalid(
+                    format!("{label}.up"),
+                    format!("up {up} is parallel to the viewing direction"),
+                ));
             }
             let x = x.normalize();
             let y = z.cross(x);
             Quat::from_mat3(&Mat3::from_cols(x.as_vec3(), y.as_vec3(), z.as_vec3())).normalize()
         }
-        (None, Some(q)) => quat(q).ok_or_else(|| ctx.invalid(format!("{label}.orientation_quat"), "quaternion is zero"))?,
+        (None, Some(q)) => quat(q).ok_or_else(|| {
+            ctx.invalid(format!("{label}.orientation_quat"), "quaternion is zero")
+        })?,
         (None, None) => {
             if d.up.is_some() {
                 return Err(ctx.invalid(format!("{label}.up"), "`up` needs `look_at`"));

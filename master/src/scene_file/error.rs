@@ -63,7 +63,11 @@ pub(crate) struct Ctx {
 
 impl Ctx {
     /// An [`SceneError::Invalid`] for `field`.
-    pub(crate) fn invalid(&self, field: impl Into<String>, problem: impl Into<String>) -> SceneError {
+    pub(crate) fn invalid(
+        &self,
+        field: impl Into<String>,
+        problem: impl Into<String>,
+    ) -> SceneError {
         SceneError::Invalid {
             file: self.file.clone(),
             field: field.into(),

@@ -78,7 +78,8 @@ pub(crate) fn load(path: &Path) -> Result<Vec<Part>, MeshFileError> {
 }
 
 fn read_limited(path: &Path) -> Result<Vec<u8>, MeshFileError> {
-    let meta = std::fs::metadata(path).map_err(|e| MeshFileError::new(format!("cannot read: {e}")))?;
+    let meta =
+        std::fs::metadata(path).map_err(|e| MeshFileError::new(format!("cannot read: {e}")))?;
     if !meta.is_file() {
         return Err(MeshFileError::new("not a regular file"));
     }
@@ -93,9 +94,15 @@ fn read_limited(path: &Path) -> Result<Vec<u8>, MeshFileError> {
 
 /// Run a third-party parser, turning a panic into an error: bad input must
 /// never bring the loader down.
-fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, MeshFileError>) -> Result<T, MeshFileError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
-        .unwrap_or_else(|_| Err(MeshFileError::new(format!("the {what} parser failed on this file"))))
+fn guarded<T>(
+    what: &str,
+    f: impl FnOnce() -> Result<T, MeshFileError>,
+) -> Result<T, MeshFileError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+        Err(MeshFileError::new(format!(
+            "the {what} parser failed on this file"
+        )))
+    })
 }
 
 fn load_obj(path: &Path, bytes: &[u8]) -> Result<Vec<Part>, MeshFileError> {
@@ -179,12 +186,12 @@ fn obj_mesh(m: &tobj::Mesh) -> Result<Mesh, MeshFileError> {
     let positions: Vec<Vec3> = m
         .positions
         .chunks_exact(3)
-        .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
         .collect();
     let normals = if m.normals.len() == 3 * n {
         m.normals
             .chunks_exact(3)
-            .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
             .collect()
     } else {
         Vec::new()
@@ -192,7 +199,7 @@ fn obj_mesh(m: &tobj::Mesh) -> Result<Mesh, MeshFileError> {
     let uvs = if m.texcoords.len() == 2 * n {
         m.texcoords
             .chunks_exact(2)
-            .map(|c| Vec2::new(c[0] as f32, c[1] as f32))
+            .map(|c| Vec2::new(c[0], c[1]))
             .collect()
     } else {
         Vec::new()
@@ -237,9 +244,9 @@ fn obj_error_line(bytes: &[u8], e: &tobj::LoadError) -> Option<usize> {
             "f" => {
                 args.len() >= arity
                     && args.iter().all(|w| {
-                        w.split('/')
-                            .enumerate()
-                            .all(|(k, s)| (k > 0 && s.is_empty()) || s.parse::<i64>().is_ok_and(|v| v != 0))
+                        w.split('/').enumerate().all(|(k, s)| {
+                            (k > 0 && s.is_empty()) || s.parse::<i64>().is_ok_and(|v| v != 0)
+                        })
                     })
             }
             "o" => !args.is_empty(),
@@ -251,7 +258,8 @@ fn obj_error_line(bytes: &[u8], e: &tobj::LoadError) -> Option<usize> {
 
 fn append(into: &mut Mesh, more: &Mesh) {
     let base = into.positions.len() as u32;
-    let keep_normals = into.normals.len() == into.positions.len() && more.normals.len() == more.positions.len();
+    let keep_normals =
+        into.normals.len() == into.positions.len() && more.normals.len() == more.positions.len();
     let keep_uvs = into.uvs.len() == into.positions.len() && more.uvs.len() == more.positions.len();
     into.positions.extend_from_slice(&more.positions);
     if keep_normals {
@@ -271,7 +279,8 @@ fn append(into: &mut Mesh, more: &Mesh) {
 fn load_gltf(path: &Path, bytes: &[u8]) -> Result<Vec<Part>, MeshFileError> {
     let dir = path.parent().unwrap_or(Path::new("."));
     guarded("glTF", || {
-        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| MeshFileError::new(format!("glTF: {e}")))?;
+        let gltf =
+            gltf::Gltf::from_slice(bytes).map_err(|e| MeshFileError::new(format!("glTF: {e}")))?;
         let gltf::Gltf { document, blob } = gltf;
         let buffers = gltf::import_buffers(&document, Some(dir), blob)
             .map_err(|e| MeshFileError::new(format!("glTF buffers: {e}")))?;
@@ -330,13 +339,18 @@ fn gltf_part(
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
         let positions: Vec<Vec3> = reader
             .read_positions()
-            .ok_or_else(|| MeshFileError::new(format!("mesh {name:?} primitive {k} has no positions")))?
+            .ok_or_else(|| {
+                MeshFileError::new(format!("mesh {name:?} primitive {k} has no positions"))
+            })?
             .map(|p| world.transform_point3(Vec3::from_array(p)))
             .collect();
         let n = positions.len();
         let normals: Vec<Vec3> = reader
             .read_normals()
-            .map(|it| it.map(|v| (normal_matrix * Vec3::from_array(v)).normalize_or_zero()).collect())
+            .map(|it| {
+                it.map(|v| (normal_matrix * Vec3::from_array(v)).normalize_or_zero())
+                    .collect()
+            })
             .unwrap_or_default();
         let uvs: Vec<Vec2> = reader
             .read_tex_coords(0)
@@ -361,7 +375,11 @@ fn gltf_part(
             }
         }
         let piece = Mesh {
-            normals: if normals.len() == n { normals } else { Vec::new() },
+            normals: if normals.len() == n {
+                normals
+            } else {
+                Vec::new()
+            },
             uvs: if uvs.len() == n { uvs } else { Vec::new() },
             positions,
             triangles,
@@ -387,16 +405,19 @@ fn gltf_part(
 
 /// Check that an accessor lies within its buffer view and the view within
 /// its buffer, so that reading it cannot run off the end.
-fn check_accessor(acc: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), MeshFileError> {
+fn check_accessor(
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+) -> Result<(), MeshFileError> {
     let Some(view) = acc.view() else {
         return Err(MeshFileError::new(format!(
             "accessor {} has no buffer view (sparse accessors are not supported)",
             acc.index()
         )));
     };
-    let data = buffers
-        .get(view.buffer().index())
-        .ok_or_else(|| MeshFileError::new(format!("buffer {} is missing", view.buffer().index())))?;
+    let data = buffers.get(view.buffer().index()).ok_or_else(|| {
+        MeshFileError::new(format!("buffer {} is missing", view.buffer().index()))
+    })?;
     let view_end = view.offset().checked_add(view.length());
     if view_end.is_none_or(|e| e > data.0.len()) {
         return Err(MeshFileError::new(format!(
@@ -431,11 +452,20 @@ mod tests {
     #[test]
     fn obj_error_line_finds_the_bad_line_of_each_kind() {
         let text = b"v 0 0 0\nv 1 0 0\nv 1 x 0\nf 1 2 3\n";
-        assert_eq!(obj_error_line(text, &tobj::LoadError::PositionParseError), Some(3));
+        assert_eq!(
+            obj_error_line(text, &tobj::LoadError::PositionParseError),
+            Some(3)
+        );
         let text = b"v 0 0 0\nf 1 2 3\nf 1 2 q\n";
-        assert_eq!(obj_error_line(text, &tobj::LoadError::FaceParseError), Some(3));
+        assert_eq!(
+            obj_error_line(text, &tobj::LoadError::FaceParseError),
+            Some(3)
+        );
         let text = b"v 0 0 0\nf 1/1/1 2//2 3\nf 1 2\n";
-        assert_eq!(obj_error_line(text, &tobj::LoadError::FaceParseError), Some(3));
+        assert_eq!(
+            obj_error_line(text, &tobj::LoadError::FaceParseError),
+            Some(3)
+        );
         assert_eq!(obj_error_line(text, &tobj::LoadError::ReadError), None);
     }
 

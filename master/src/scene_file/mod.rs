@@ -148,7 +148,10 @@ pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
         return Err(SceneError::Invalid {
             file,
             field: "file".into(),
-            problem: format!("{} bytes is over the limit of {MAX_SCENE_FILE_BYTES}", meta.len()),
+            problem: format!(
+                "{} bytes is over the limit of {MAX_SCENE_FILE_BYTES}",
+                meta.len()
+            ),
         });
     }
     let text = std::fs::read_to_string(path).map_err(read_err)?;
@@ -158,7 +161,11 @@ pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
 
 /// Load and validate a scene from `text`, resolving relative paths against
 /// `base_dir` and naming the scene `file_label` in errors.
-pub fn load_scene_str(text: &str, base_dir: &Path, file_label: &str) -> Result<Showcase, SceneError> {
+pub fn load_scene_str(
+    text: &str,
+    base_dir: &Path,
+    file_label: &str,
+) -> Result<Showcase, SceneError> {
     let ctx = Ctx {
         file: file_label.to_owned(),
     };
@@ -169,10 +176,18 @@ pub fn load_scene_str(text: &str, base_dir: &Path, file_label: &str) -> Result<S
 fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneError> {
     unique(ctx, "object", def.objects.iter().map(|o| o.name.as_str()))?;
     unique(ctx, "light", def.lights.iter().map(|o| o.name.as_str()))?;
-    unique(ctx, "projector", def.projectors.iter().map(|o| o.name.as_str()))?;
+    unique(
+        ctx,
+        "projector",
+        def.projectors.iter().map(|o| o.name.as_str()),
+    )?;
     unique(ctx, "camera", def.cameras.iter().map(|o| o.name.as_str()))?;
     unique(ctx, "face", def.faces.iter().map(|o| o.name.as_str()))?;
-    unique(ctx, "observer", def.observers.iter().map(|o| o.name.as_str()))?;
+    unique(
+        ctx,
+        "observer",
+        def.observers.iter().map(|o| o.name.as_str()),
+    )?;
 
     let mut showcase = Showcase {
         name: def.name.clone(),
@@ -183,7 +198,14 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
     let mut cache = object::MeshCache::new();
     for (i, o) in def.objects.iter().enumerate() {
         let label = label("object", i, &o.name);
-        labels.objects.extend(object::add_object(ctx, &label, o, base_dir, &mut cache, &mut showcase)?);
+        labels.objects.extend(object::add_object(
+            ctx,
+            &label,
+            o,
+            base_dir,
+            &mut cache,
+            &mut showcase,
+        )?);
     }
     for (i, l) in def.lights.iter().enumerate() {
         let label = label("light", i, &l.name);
@@ -192,12 +214,16 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
     }
     for (i, p) in def.projectors.iter().enumerate() {
         let label = label("projector", i, &p.name);
-        showcase.projectors.push(device::projector(ctx, &label, p, base_dir)?);
+        showcase
+            .projectors
+            .push(device::projector(ctx, &label, p, base_dir)?);
         labels.projectors.push(label);
     }
     for (i, c) in def.cameras.iter().enumerate() {
         let label = label("camera", i, &c.name);
-        showcase.cameras.push(device::camera(ctx, &label, c, base_dir)?);
+        showcase
+            .cameras
+            .push(device::camera(ctx, &label, c, base_dir)?);
         labels.cameras.push(label);
     }
     for (i, f) in def.faces.iter().enumerate() {
@@ -221,7 +247,11 @@ fn label(kind: &str, i: usize, name: &str) -> String {
     format!("{kind}[{i}] '{}'", name.escape_debug())
 }
 
-fn unique<'a>(ctx: &Ctx, list: &str, names: impl Iterator<Item = &'a str>) -> Result<(), SceneError> {
+fn unique<'a>(
+    ctx: &Ctx,
+    list: &str,
+    names: impl Iterator<Item = &'a str>,
+) -> Result<(), SceneError> {
     let mut seen = HashMap::new();
     for (i, n) in names.enumerate() {
         if let Some(first) = seen.insert(n, i) {

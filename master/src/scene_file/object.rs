@@ -38,7 +38,10 @@ pub(crate) fn add_object(
         if d.texture.is_some() && part.mesh.uvs.is_empty() {
             return Err(ctx.invalid(
                 format!("{label}.texture"),
-                format!("a texture needs texture coordinates, and part {:?} has none", part.name),
+                format!(
+                    "a texture needs texture coordinates, and part {:?} has none",
+                    part.name
+                ),
             ));
         }
         let name = if all.len() > 1 {
@@ -119,7 +122,10 @@ fn parts_of(
         }
         _ => &[],
     };
-    if let Some((key, _)) = params.iter().find(|(k, present)| *present && !allowed.contains(k)) {
+    if let Some((key, _)) = params
+        .iter()
+        .find(|(k, present)| *present && !allowed.contains(k))
+    {
         return Err(ctx.invalid(
             format!("{label}.{key}"),
             format!("`{key}` does not apply to mesh {:?}", d.mesh),
@@ -136,7 +142,11 @@ fn parts_of(
         "builtin:plate" | "builtin:quad" => {
             let [w, dp] = d.size.map_or([0.2, 0.2], |s| [s[0].0, s[1].0]);
             let (w, dp) = (positive("size", w)?, positive("size", dp)?);
-            let n = if d.mesh == "builtin:quad" { 1 } else { d.subdivisions.unwrap_or(16) };
+            let n = if d.mesh == "builtin:quad" {
+                1
+            } else {
+                d.subdivisions.unwrap_or(16)
+            };
             if !(1..=builtin::MAX_SUBDIVISIONS).contains(&n) {
                 return Err(ctx.invalid(
                     format!("{label}.subdivisions"),
@@ -179,7 +189,12 @@ fn parts_of(
 }
 
 /// Apply `parts` and `exclude_parts`; every name given must exist.
-fn select<'a>(ctx: &Ctx, label: &str, d: &ObjectDef, all: &'a [Part]) -> Result<Vec<&'a Part>, SceneError> {
+fn select<'a>(
+    ctx: &Ctx,
+    label: &str,
+    d: &ObjectDef,
+    all: &'a [Part],
+) -> Result<Vec<&'a Part>, SceneError> {
     let available = || {
         all.iter()
             .map(|p| format!("{:?}", p.name))
@@ -191,14 +206,22 @@ fn select<'a>(ctx: &Ctx, label: &str, d: &ObjectDef, all: &'a [Part]) -> Result<
             if !all.iter().any(|p| p.answers_to(n)) {
                 return Err(ctx.invalid(
                     format!("{label}.{key}"),
-                    format!("no part named {n:?} in {:?}; available: {}", d.mesh, available()),
+                    format!(
+                        "no part named {n:?} in {:?}; available: {}",
+                        d.mesh,
+                        available()
+                    ),
                 ));
             }
         }
     }
     let picked: Vec<&Part> = all
         .iter()
-        .filter(|p| d.parts.as_ref().is_none_or(|names| names.iter().any(|n| p.answers_to(n))))
+        .filter(|p| {
+            d.parts
+                .as_ref()
+                .is_none_or(|names| names.iter().any(|n| p.answers_to(n)))
+        })
         .filter(|p| !d.exclude_parts.iter().flatten().any(|n| p.answers_to(n)))
         .collect();
     if picked.is_empty() {
@@ -210,7 +233,12 @@ fn select<'a>(ctx: &Ctx, label: &str, d: &ObjectDef, all: &'a [Part]) -> Result<
 /// The object-to-world transform: `T * R * S` with `normalize_height`
 /// folded into `S` and the anchor folded into `T`, so that the mesh data
 /// stay as in the file (and objects sharing a file share meshes).
-fn transform(ctx: &Ctx, label: &str, d: &ObjectDef, parts: &[&Part]) -> Result<Transform, SceneError> {
+fn transform(
+    ctx: &Ctx,
+    label: &str,
+    d: &ObjectDef,
+    parts: &[&Part],
+) -> Result<Transform, SceneError> {
     let rotation = match (d.rotation_deg, d.rotation_quat) {
         (Some(_), Some(_)) => {
             return Err(ctx.invalid(
@@ -220,11 +248,12 @@ fn transform(ctx: &Ctx, label: &str, d: &ObjectDef, parts: &[&Part]) -> Result<T
         }
         (Some(e), None) => {
             let [x, y, z] = dv3(e).to_array().map(f64::to_radians);
-            glam::DQuat::from_euler(EulerRot::XYZ, x, y, z).normalize().as_quat()
+            glam::DQuat::from_euler(EulerRot::XYZ, x, y, z)
+                .normalize()
+                .as_quat()
         }
-        (None, Some(q)) => {
-            quat(q).ok_or_else(|| ctx.invalid(format!("{label}.rotation_quat"), "quaternion is zero"))?
-        }
+        (None, Some(q)) => quat(q)
+            .ok_or_else(|| ctx.invalid(format!("{label}.rotation_quat"), "quaternion is zero"))?,
         (None, None) => Quat::IDENTITY,
     };
     let mut scale = match d.scale {
@@ -232,7 +261,7 @@ fn transform(ctx: &Ctx, label: &str, d: &ObjectDef, parts: &[&Part]) -> Result<T
         Some(ScaleDef::Uniform(s)) => Vec3::splat(s.0 as f32),
         Some(ScaleDef::PerAxis(s)) => v3(s),
     };
-    if !(scale.min_element() > 0.0) {
+    if scale.min_element() <= 0.0 {
         return Err(ctx.invalid(
             format!("{label}.scale"),
             format!("scale {scale} must be positive on every axis"),
@@ -242,7 +271,12 @@ fn transform(ctx: &Ctx, label: &str, d: &ObjectDef, parts: &[&Part]) -> Result<T
         .iter()
         .filter_map(|p| p.mesh.bounds())
         .reduce(|(a, b), (c, e)| (a.min(c), b.max(e)))
-        .ok_or_else(|| ctx.invalid(format!("{label}.mesh"), "the selected parts have no vertices"))?;
+        .ok_or_else(|| {
+            ctx.invalid(
+                format!("{label}.mesh"),
+                "the selected parts have no vertices",
+            )
+        })?;
     if let Some(h) = d.normalize_height {
         if d.scale.is_some() {
             return Err(ctx.invalid(
@@ -251,8 +285,11 @@ fn transform(ctx: &Ctx, label: &str, d: &ObjectDef, parts: &[&Part]) -> Result<T
             ));
         }
         let height = f64::from(hi.y) - f64::from(lo.y);
-        if !(h.0 > 0.0) {
-            return Err(ctx.invalid(format!("{label}.normalize_height"), format!("{} must be positive", h.0)));
+        if h.0 <= 0.0 {
+            return Err(ctx.invalid(
+                format!("{label}.normalize_height"),
+                format!("{} must be positive", h.0),
+            ));
         }
         if height < 1e-9 {
             return Err(ctx.invalid(

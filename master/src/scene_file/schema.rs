@@ -2,7 +2,7 @@
 //! every number is checked finite while it is parsed, so that TOML's span
 //! (line and column) points at the offending value.
 
-use serde::{Deserialize, Deserializer, de::Error as _};
+use serde::{Deserialize, Deserializer, de};
 
 /// Largest magnitude accepted for any number of a scene file. Larger values
 /// would overflow `f32` arithmetic downstream.
@@ -13,18 +13,22 @@ pub(crate) const MAX_MAGNITUDE: f64 = 1e9;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Num(pub(crate) f64);
 
+/// Check a parsed number: finite, and within [`MAX_MAGNITUDE`].
+fn checked<E: de::Error>(x: f64) -> Result<Num, E> {
+    if !x.is_finite() {
+        return Err(E::custom(format!("number {x} is not finite")));
+    }
+    if x.abs() > MAX_MAGNITUDE {
+        return Err(E::custom(format!(
+            "number {x:e} is outside -{MAX_MAGNITUDE:e}..={MAX_MAGNITUDE:e}"
+        )));
+    }
+    Ok(Num(x))
+}
+
 impl<'de> Deserialize<'de> for Num {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let x = f64::deserialize(d)?;
-        if !x.is_finite() {
-            return Err(D::Error::custom(format!("number {x} is not finite")));
-        }
-        if x.abs() > MAX_MAGNITUDE {
-            return Err(D::Error::custom(format!(
-                "number {x} is outside -{MAX_MAGNITUDE:e}..={MAX_MAGNITUDE:e}"
-            )));
-        }
-        Ok(Num(x))
+        checked(f64::deserialize(d)?)
     }
 }
 
@@ -61,11 +65,44 @@ pub(crate) enum KindDef {
 }
 
 /// `scale = 2.0` or `scale = [1, 2, 1]`.
-#[derive(Clone, Copy, Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Clone, Copy, Debug)]
 pub(crate) enum ScaleDef {
     Uniform(Num),
     PerAxis(N3),
+}
+
+impl<'de> Deserialize<'de> for ScaleDef {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ScaleVisitor;
+        impl<'de> de::Visitor<'de> for ScaleVisitor {
+            type Value = ScaleDef;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a number or an array of 3 numbers")
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<ScaleDef, E> {
+                checked(x).map(ScaleDef::Uniform)
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<ScaleDef, E> {
+                self.visit_f64(x as f64)
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<ScaleDef, E> {
+                self.visit_f64(x as f64)
+            }
+            fn visit_seq<A: de::SeqAccess<'de>>(self, mut seq: A) -> Result<ScaleDef, A::Error> {
+                let mut out = [Num(0.0); 3];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq
+                        .next_element()?
+                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                }
+                if seq.next_element::<de::IgnoredAny>()?.is_some() {
+                    return Err(de::Error::invalid_length(4, &self));
+                }
+                Ok(ScaleDef::PerAxis(out))
+            }
+        }
+        d.deserialize_any(ScaleVisitor)
+    }
 }
 
 /// Where the mesh's local origin is put before the transform applies.
