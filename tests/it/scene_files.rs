@@ -187,6 +187,19 @@ fn gltf_nodes_load_with_transforms_and_materials() {
 }
 
 #[test]
+fn binary_gltf_loads_like_its_text_twin() {
+    let load = |file: &str| {
+        load_fixture(&format!(
+            "name = \"g\"\n[[object]]\nname = \"gl\"\nmesh = \"{file}\"\nkind = \"virtual\"\n"
+        ))
+        .unwrap()
+    };
+    let (text, binary) = (load("triangle.gltf"), load("triangle.glb"));
+    assert_eq!(text.meshes, binary.meshes);
+    assert_eq!(text.objects, binary.objects);
+}
+
+#[test]
 fn calibration_file_gives_the_device_it_describes() {
     let s = load_fixture(
         "name = \"c\"\n[[projector]]\nname = \"projector-0\"\ncalibration = \"calibration-good.json\"\nnear = 0.1\nfar = 4.0\n",
@@ -967,6 +980,42 @@ proptest! {
         }
         let text: String = text.into_iter().collect();
         match load_fixture(&text) {
+            Ok(s) => prop_assert!(s.validate().is_ok()),
+            Err(e) => prop_assert!(e.to_string().contains("case.toml"), "{e}"),
+        }
+    }
+
+    #[test]
+    fn mutated_mesh_files_never_panic(
+        gltf in any::<bool>(),
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), 0u8..3, any::<u8>()), 1..8),
+    ) {
+        let (source, ext) = if gltf { ("triangle.gltf", "gltf") } else { ("broken.obj", "obj") };
+        let mut bytes = std::fs::read(fixtures().join(source)).unwrap();
+        if !gltf {
+            // A valid OBJ to start from: the broken fixture minus its bad line.
+            bytes = b"o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\no b\nf -1 -2 -3\n".to_vec();
+        }
+        for (at, op, b) in edits {
+            if bytes.is_empty() {
+                bytes.push(b);
+                continue;
+            }
+            let i = at.index(bytes.len());
+            match op {
+                0 => { bytes.remove(i); }
+                1 => bytes.insert(i, b),
+                _ => bytes[i] = b,
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("showcase-scene-files-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("mutated-{:?}.{ext}", std::thread::current().id()).replace(['(', ')'], ""));
+        std::fs::write(&path, &bytes).unwrap();
+        let text = format!("name = \"m\"\n[[object]]\nname = \"m\"\nkind = \"real\"\nmesh = {:?}\n", path.display().to_string());
+        let result = load_scene_str(&text, &dir, "case.toml");
+        std::fs::remove_file(&path).ok();
+        match result {
             Ok(s) => prop_assert!(s.validate().is_ok()),
             Err(e) => prop_assert!(e.to_string().contains("case.toml"), "{e}"),
         }

@@ -15,3 +15,16 @@ fn empty_scene_gets_defaults() {
     assert_eq!(s.ambient, glam::Vec3::ZERO);
     assert!(s.objects.is_empty());
 }
+
+#[test]
+fn deeply_nested_toml_is_an_error_not_a_crash() {
+    for (open, close) in [("[", "]"), ("{a=", "}")] {
+        let text = format!(
+            "name = \"x\"\nambient = {}{}\n",
+            open.repeat(100_000),
+            close.repeat(100_000)
+        );
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.starts_with("unit.toml:2:"), "{err}");
+    }
+}
