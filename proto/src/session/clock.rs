@@ -52,7 +52,9 @@ fn clamp_i64(v: i128) -> i64 {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ClockError {
     /// The reply arrived (on the master's clock) before its probe was sent.
-    #[error("clock reply {id} arrives at {master_recv_ns} ns, before its probe was sent at {master_send_ns} ns")]
+    #[error(
+        "clock reply {id} arrives at {master_recv_ns} ns, before its probe was sent at {master_send_ns} ns"
+    )]
     ReplyBeforeProbe {
         /// The probe.
         id: u64,
@@ -62,7 +64,9 @@ pub enum ClockError {
         master_recv_ns: u64,
     },
     /// The node claims to have sent its reply before it received the probe.
-    #[error("clock reply {id} was sent at {node_send_ns} ns, before the probe arrived at {node_recv_ns} ns")]
+    #[error(
+        "clock reply {id} was sent at {node_send_ns} ns, before the probe arrived at {node_recv_ns} ns"
+    )]
     SentBeforeReceived {
         /// The probe.
         id: u64,
@@ -257,10 +261,7 @@ mod tests {
         assert_eq!(s.to_master(1_000), 6_000);
         assert_eq!(s.to_node(6_000), 1_000);
         assert_eq!(s.to_node(1_000), 0);
-        let ahead = ClockSample {
-            offset_ns: 10,
-            ..s
-        };
+        let ahead = ClockSample { offset_ns: 10, ..s };
         assert_eq!(ahead.to_node(u64::MAX), u64::MAX);
     }
 

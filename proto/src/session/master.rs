@@ -19,13 +19,13 @@
 use super::barrier::{ReadyMark, Release, SwapBarrier};
 use super::clock::{ClockEstimator, ClockSample, clock_sample};
 use super::{ConnId, NS_PER_MS, ms};
+use crate::PROTOCOL_VERSION;
 use crate::message::{
     Bye, Capabilities, ClockProbe, ClockReply, Hello, Message, NodeStats, Ready, Role,
     SceneSnapshot, Swap, Welcome,
 };
 use crate::scene::{FrameState, Showcase};
 use crate::validate::{Validate, ValidationError};
-use crate::PROTOCOL_VERSION;
 use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use std::sync::Arc;
 
@@ -490,9 +490,11 @@ impl MasterCore {
             (Peer::AwaitHello { .. }, m) => {
                 self.violation(now, conn, format!("{} before Hello", m.kind()))
             }
-            (Peer::Live(_), m) => {
-                self.violation(now, conn, format!("{} is a master-to-node message", m.kind()))
-            }
+            (Peer::Live(_), m) => self.violation(
+                now,
+                conn,
+                format!("{} is a master-to-node message", m.kind()),
+            ),
         }
         self.advance(now);
     }
@@ -797,7 +799,10 @@ impl MasterCore {
             return;
         }
         node.last_stats = Some(s);
-        let present_master_ns = node.clock.estimate().map(|c| c.to_master(s.present_time_ns));
+        let present_master_ns = node
+            .clock
+            .estimate()
+            .map(|c| c.to_master(s.present_time_ns));
         let name = node.name.clone();
         if let Some(p) = self
             .presents

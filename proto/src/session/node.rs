@@ -307,10 +307,7 @@ impl NodeCore {
             Link::AwaitWelcome { since } | Link::AwaitSnapshot { since }
                 if now >= since.saturating_add(self.config.handshake_timeout_ns) =>
             {
-                let reason = format!(
-                    "no snapshot within {:.1} ms of connecting",
-                    ms(now - since)
-                );
+                let reason = format!("no snapshot within {:.1} ms of connecting", ms(now - since));
                 self.close(now, reason);
             }
             _ => {}

@@ -6,8 +6,8 @@
 //! time jumps to the next thing that happens, and every loop is bounded.
 
 use super::{
-    CloseReason, ConnId, MasterConfig, MasterCore, MasterEvent, MasterOutput, NodeConfig,
-    NodeCore, NodeEvent, NodeOutput, PresentReport, SwapReport,
+    CloseReason, ConnId, MasterConfig, MasterCore, MasterEvent, MasterOutput, NodeConfig, NodeCore,
+    NodeEvent, NodeOutput, PresentReport, SwapReport,
 };
 use crate::codec::{MAX_FRAME_LEN, decode_frame, encode_frame};
 use crate::message::{Message, Role};
@@ -102,7 +102,7 @@ impl SimNode {
         (now as i128 + self.spec.clock_offset_ns as i128).max(0) as u64
     }
 
-    fn from_clock(&self, t: u64) -> u64 {
+    fn virtual_time(&self, t: u64) -> u64 {
         (t as i128 - self.spec.clock_offset_ns as i128).max(0) as u64
     }
 }
@@ -126,12 +126,33 @@ pub struct MasterLog {
 
 #[derive(Debug)]
 enum Delivery {
-    ToMaster { conn: ConnId, bytes: Vec<u8> },
-    MasterLost { conn: ConnId },
-    ToNode { node: usize, conn: ConnId, bytes: Vec<u8> },
-    NodeLost { node: usize, conn: ConnId, reason: String },
-    DialFailed { node: usize, dial: u64 },
-    Rendered { node: usize, conn: ConnId, frame: u64, hash: u64 },
+    ToMaster {
+        conn: ConnId,
+        bytes: Vec<u8>,
+    },
+    MasterLost {
+        conn: ConnId,
+    },
+    ToNode {
+        node: usize,
+        conn: ConnId,
+        bytes: Vec<u8>,
+    },
+    NodeLost {
+        node: usize,
+        conn: ConnId,
+        reason: String,
+    },
+    DialFailed {
+        node: usize,
+        dial: u64,
+    },
+    Rendered {
+        node: usize,
+        conn: ConnId,
+        frame: u64,
+        hash: u64,
+    },
 }
 
 /// One master and K nodes on virtual time.
@@ -373,8 +394,12 @@ impl Cluster {
             .nodes
             .iter()
             .filter(|n| n.alive)
-            .filter_map(|n| n.core.poll_timeout().map(|t| n.from_clock(t)));
-        [queue, master, tick].into_iter().flatten().chain(nodes).min()
+            .filter_map(|n| n.core.poll_timeout().map(|t| n.virtual_time(t)));
+        [queue, master, tick]
+            .into_iter()
+            .flatten()
+            .chain(nodes)
+            .min()
     }
 
     fn step(&mut self) {
@@ -430,7 +455,9 @@ impl Cluster {
                     return;
                 };
                 match decode_frame(&bytes, MAX_FRAME_LEN) {
-                    Ok(Some((msg, used))) if used == bytes.len() => m.handle_message(now, conn, msg),
+                    Ok(Some((msg, used))) if used == bytes.len() => {
+                        m.handle_message(now, conn, msg)
+                    }
                     Ok(_) => {
                         let e = crate::CodecError::Malformed(format!(
                             "{} bytes are not exactly one frame",
