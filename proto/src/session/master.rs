@@ -63,6 +63,34 @@ impl Default for MasterConfig {
     }
 }
 
+impl MasterConfig {
+    /// Check every setting is in range (what `Welcome` can carry).
+    pub fn check(&self) -> Result<(), MasterError> {
+        let bad = |field, value: String, problem| {
+            Err(MasterError::InvalidConfig {
+                field,
+                value,
+                problem,
+            })
+        };
+        if !(self.target_hz.is_finite() && self.target_hz > 0.0) {
+            return bad("target_hz", self.target_hz.to_string(), "must be positive");
+        }
+        if !(NS_PER_MS / 1_000..=3_600_000 * NS_PER_MS).contains(&self.deadline_ns) {
+            let problem = "must be between 1 us and 1 hour";
+            return bad("deadline_ns", self.deadline_ns.to_string(), problem);
+        }
+        if self.clock_probe_interval_ns == 0 {
+            let value = self.clock_probe_interval_ns.to_string();
+            return bad("clock_probe_interval_ns", value, "must be positive");
+        }
+        if self.clock_window == 0 {
+            return bad("clock_window", "0".into(), "must be at least 1");
+        }
+        Ok(())
+    }
+}
+
 /// Why the master closes (or lost) a connection.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum CloseReason {
@@ -276,12 +304,22 @@ pub struct NodeInfo {
     pub last_stats: Option<NodeStats>,
 }
 
-/// Why a scene was refused.
+/// Why a [`MasterCore`] could not be created or a scene was refused.
 #[derive(Debug, thiserror::Error)]
-pub enum SceneError {
+pub enum MasterError {
     /// The scene breaks an invariant.
     #[error("scene is invalid: {0}")]
-    Invalid(#[from] ValidationError),
+    InvalidScene(#[from] ValidationError),
+    /// A setting is out of range.
+    #[error("master setting {field} = {value} is out of range: {problem}")]
+    InvalidConfig {
+        /// The setting.
+        field: &'static str,
+        /// Its value, as text.
+        value: String,
+        /// The rule it breaks.
+        problem: &'static str,
+    },
 }
 
 /// Why a frame was refused by [`MasterCore::submit_frame`].
@@ -371,7 +409,8 @@ pub struct MasterCore {
 
 impl MasterCore {
     /// A master serving `scene` as version 1.
-    pub fn new(config: MasterConfig, scene: Showcase) -> Result<Self, SceneError> {
+    pub fn new(config: MasterConfig, scene: Showcase) -> Result<Self, MasterError> {
+        config.check()?;
         scene.validate()?;
         Ok(Self {
             barrier: SwapBarrier::new(config.deadline_ns),
@@ -464,18 +503,28 @@ impl MasterCore {
         if let Some(peer) = self.peers.get(&conn) {
             let peer = peer_label(conn, peer);
             self.remove(now, conn, CloseReason::Disconnected { peer }, false);
+            self.advance(now);
         }
     }
 
     /// A message from `conn` could not be decoded; closes only that peer.
     pub fn handle_decode_error(&mut self, now: u64, conn: ConnId, error: &crate::CodecError) {
         self.violation(now, conn, error.to_string());
+        self.advance(now);
     }
 
     /// A decoded message from `conn`.
     pub fn handle_message(&mut self, now: u64, conn: ConnId, message: Message) {
-        let Some(peer) = self.peers.get_mut(&conn) else {
+        if !self.peers.contains_key(&conn) {
             return; // Already closed; late data is dropped.
+        }
+        if let Err(e) = message.validate() {
+            self.violation(now, conn, format!("invalid {}: {e}", message.kind()));
+            self.advance(now);
+            return;
+        }
+        let Some(peer) = self.peers.get_mut(&conn) else {
+            return;
         };
         match (peer, message) {
             (Peer::AwaitHello { .. }, Message::Hello(hello)) => self.hello(now, conn, hello),
@@ -502,7 +551,7 @@ impl MasterCore {
     /// Replace the scene: bumps the version and sends a fresh snapshot (with
     /// no `current`; frames in flight keep their version) to every live
     /// node. Returns the new version.
-    pub fn set_scene(&mut self, _now: u64, scene: Showcase) -> Result<u64, SceneError> {
+    pub fn set_scene(&mut self, _now: u64, scene: Showcase) -> Result<u64, MasterError> {
         scene.validate()?;
         self.scene = Arc::new(scene);
         self.scene_version += 1;
@@ -571,6 +620,7 @@ impl MasterCore {
             };
             self.remove(now, conn, reason, true);
         }
+        self.advance(now);
     }
 
     /// When [`Self::handle_timeout`] must be called next.

@@ -134,6 +134,14 @@ fn a_dropped_node_stalls_the_others_at_most_the_deadline() {
             .filter(|s| !s.evicted.is_empty())
             .collect();
         if tell_master {
+            // The loss releases the frame at once: no frame waits for node-2.
+            let longest = c
+                .log
+                .swaps
+                .iter()
+                .map(|s| s.swap_at_ns - s.sent_at_ns)
+                .max();
+            assert!(longest.unwrap() < 3 * MS, "{longest:?}");
             assert!(evicted.is_empty());
             assert!(matches!(
                 &c.log.closed[..],
@@ -597,4 +605,73 @@ fn frames_are_refused_out_of_order_beyond_the_pipeline_and_for_another_scene() {
         m.submit_frame(4, test_frame(8, 1, 0)),
         Err(SubmitError::PipelineFull { oldest: 6, .. })
     ));
+}
+
+#[test]
+fn settings_out_of_range_are_refused() {
+    #[track_caller]
+    fn check(config: MasterConfig, field: &str) {
+        match MasterCore::new(config, test_scene()) {
+            Err(MasterError::InvalidConfig { field: f, .. }) => assert_eq!(f, field),
+            other => panic!("expected an error for {field}, got {other:?}"),
+        }
+    }
+    let base = MasterConfig::default;
+    check(
+        MasterConfig {
+            target_hz: 0.0,
+            ..base()
+        },
+        "target_hz",
+    );
+    check(
+        MasterConfig {
+            target_hz: f32::NAN,
+            ..base()
+        },
+        "target_hz",
+    );
+    check(
+        MasterConfig {
+            deadline_ns: 0,
+            ..base()
+        },
+        "deadline_ns",
+    );
+    check(
+        MasterConfig {
+            clock_probe_interval_ns: 0,
+            ..base()
+        },
+        "clock_probe_interval_ns",
+    );
+    check(
+        MasterConfig {
+            clock_window: 0,
+            ..base()
+        },
+        "clock_window",
+    );
+    assert!(MasterCore::new(base(), test_scene()).is_ok());
+}
+
+#[test]
+fn invalid_node_stats_close_the_node() {
+    let mut m = master();
+    m.handle_connect(EPOCH_NS, ConnId(1));
+    m.handle_message(EPOCH_NS, ConnId(1), hello("n", PROTOCOL_VERSION));
+    let stats = crate::message::NodeStats {
+        frame: 0,
+        render_ms: f32::NAN,
+        barrier_wait_ms: 0.0,
+        present_time_ns: 0,
+    };
+    m.handle_message(EPOCH_NS, ConnId(1), Message::NodeStats(stats));
+    let c = closes(&drain(&mut m));
+    assert_eq!(c.len(), 1);
+    assert!(
+        c[0].1.contains("invalid NodeStats") && c[0].1.contains("render_ms"),
+        "{}",
+        c[0].1
+    );
 }
