@@ -677,3 +677,166 @@ fn invalid_node_stats_close_the_node() {
         c[0].1
     );
 }
+
+// Direct checks of the node's side.
+
+fn live_node() -> NodeCore {
+    let mut node = NodeCore::new(NodeConfig::new("face-left", Role::Face));
+    assert_eq!(node.poll(), Some(NodeOutput::Dial));
+    node.connect(0);
+    node.handle_message(
+        1,
+        Message::Welcome(crate::message::Welcome {
+            protocol_version: PROTOCOL_VERSION,
+            target_hz: 120.0,
+            deadline_ms: 50.0,
+        }),
+    );
+    node.handle_message(
+        2,
+        Message::SceneSnapshot(Box::new(crate::message::SceneSnapshot {
+            version: 1,
+            showcase: test_scene(),
+            current: Some(test_frame(10, 1, 0)),
+        })),
+    );
+    assert!(node.is_live());
+    node
+}
+
+fn node_outputs(node: &mut NodeCore) -> Vec<NodeOutput> {
+    std::iter::from_fn(|| node.poll()).take(10_000).collect()
+}
+
+fn node_close_reason(out: &[NodeOutput]) -> Option<String> {
+    out.iter().find_map(|o| match o {
+        NodeOutput::Close { reason } => Some(reason.clone()),
+        _ => None,
+    })
+}
+
+#[test]
+fn a_node_renders_its_snapshot_frame_then_presents_on_swap() {
+    let mut node = live_node();
+    let out = node_outputs(&mut node);
+    let kinds: Vec<&str> = out
+        .iter()
+        .map(|o| match o {
+            NodeOutput::Transmit(m) => m.kind(),
+            NodeOutput::Event(NodeEvent::Connected { .. }) => "Connected",
+            NodeOutput::Event(NodeEvent::SceneChanged { .. }) => "SceneChanged",
+            NodeOutput::Event(NodeEvent::Render { .. }) => "Render",
+            other => panic!("unexpected {other:?}"),
+        })
+        .collect();
+    assert_eq!(kinds, ["Hello", "Connected", "SceneChanged", "Render"]);
+    // Swap before the render finished: present as soon as it is done.
+    node.handle_message(3, Message::Swap(Swap { frame: 10 }));
+    assert!(node_outputs(&mut node).is_empty());
+    node.rendered(5, 10, 0xabc, 3).unwrap();
+    let out = node_outputs(&mut node);
+    assert_eq!(
+        out,
+        [
+            NodeOutput::Transmit(Message::Ready(Ready {
+                frame: 10,
+                output_hash: 0xabc
+            })),
+            NodeOutput::Event(NodeEvent::Present { frame: 10 }),
+        ]
+    );
+    node.presented(6, 10).unwrap();
+    match node_outputs(&mut node).as_slice() {
+        [NodeOutput::Transmit(Message::NodeStats(s))] => {
+            assert_eq!(
+                (s.frame, s.present_time_ns, s.barrier_wait_ms),
+                (10, 6, 0.0)
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    // Frame 11: Ready at 20, Swap at 27 -> 7 ns of barrier wait.
+    node.handle_message(15, Message::FrameState(Box::new(test_frame(11, 1, 0))));
+    node.rendered(20, 11, 1, 5).unwrap();
+    node.handle_message(27, Message::Swap(Swap { frame: 11 }));
+    node.presented(28, 11).unwrap();
+    let stats = node_outputs(&mut node).into_iter().find_map(|o| match o {
+        NodeOutput::Transmit(Message::NodeStats(s)) => Some(s),
+        _ => None,
+    });
+    assert_eq!(stats.unwrap().barrier_wait_ms, 7e-6);
+}
+
+#[test]
+fn a_master_out_of_protocol_makes_the_node_close_and_back_off() {
+    #[track_caller]
+    fn check(message: Message, want: &str) {
+        let mut node = live_node();
+        node_outputs(&mut node);
+        node.handle_message(100, message);
+        let out = node_outputs(&mut node);
+        let reason = node_close_reason(&out).expect("the node closes");
+        assert!(reason.contains(want), "{reason} does not say {want:?}");
+        assert!(matches!(
+            out.first(),
+            Some(NodeOutput::Transmit(Message::Bye(_)))
+        ));
+        assert_eq!(node.poll_timeout(), Some(100 + Backoff::default().delay(0)));
+        node.handle_timeout(100 + Backoff::default().delay(0));
+        assert_eq!(node.poll(), Some(NodeOutput::Dial));
+    }
+    check(
+        Message::Swap(Swap { frame: 11 }),
+        "Swap for frame 11, the next frame to swap is 10",
+    );
+    check(
+        Message::FrameState(Box::new(test_frame(10, 1, 0))),
+        "frame 10 after frame 10",
+    );
+    check(
+        Message::FrameState(Box::new(test_frame(11, 9, 0))),
+        "refers to scene version 9",
+    );
+    let mut no_heads = test_frame(11, 1, 0);
+    no_heads.heads.clear();
+    check(Message::FrameState(Box::new(no_heads)), "1 observers");
+    check(hello("x", PROTOCOL_VERSION), "unexpected Hello");
+    check(
+        Message::Ready(Ready {
+            frame: 10,
+            output_hash: 0,
+        }),
+        "unexpected Ready",
+    );
+}
+
+#[test]
+fn a_node_gives_up_a_handshake_that_does_not_finish() {
+    let mut node = NodeCore::new(NodeConfig::new("n", Role::Camera));
+    node_outputs(&mut node);
+    node.connect(1_000);
+    node_outputs(&mut node);
+    let t = node.poll_timeout().unwrap();
+    assert_eq!(t, 1_000 + 5_000 * MS);
+    node.handle_timeout(t);
+    let reason = node_close_reason(&node_outputs(&mut node)).unwrap();
+    assert!(reason.contains("no snapshot within 5000.0 ms"), "{reason}");
+    // A master that speaks another version is refused too.
+    node.handle_timeout(node.poll_timeout().unwrap());
+    assert_eq!(node.poll(), Some(NodeOutput::Dial));
+    node.connect(t + 1);
+    node.handle_message(
+        t + 2,
+        Message::Welcome(crate::message::Welcome {
+            protocol_version: PROTOCOL_VERSION + 1,
+            target_hz: 60.0,
+            deadline_ms: 50.0,
+        }),
+    );
+    let reason = node_close_reason(&node_outputs(&mut node)).unwrap();
+    assert!(
+        reason.contains("master speaks protocol version 2"),
+        "{reason}"
+    );
+    assert_eq!(node.failures(), 2);
+}
