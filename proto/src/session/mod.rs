@@ -12,6 +12,29 @@
 //! - [`NodeCore`]: one node's side, with reconnect backoff.
 //! - [`testing`]: an in-memory cluster on virtual time that drives both
 //!   through the wire codec.
+//!
+//! A master driver is a loop like this (a node driver is the same with
+//! [`NodeCore`] and [`NodeOutput`], plus dialing on [`NodeOutput::Dial`]):
+//!
+//! ```text
+//! loop {
+//!     while let Some(out) = core.poll() {
+//!         match out {
+//!             MasterOutput::Transmit { conn, message } => send(conn, encode_frame(&message)),
+//!             MasterOutput::Close { conn, reason } => flush_and_close(conn, reason),
+//!             MasterOutput::Event(e) => metrics(e),
+//!         }
+//!     }
+//!     select! {
+//!         accepted(conn) => core.handle_connect(now(), conn),
+//!         received(conn, Ok(msg)) => core.handle_message(now(), conn, msg),
+//!         received(conn, Err(e)) => core.handle_decode_error(now(), conn, &e),
+//!         lost(conn) => core.handle_disconnect(now(), conn),
+//!         frame_tick => if core.can_submit() { core.submit_frame(now(), next_state())? },
+//!         sleep_until(core.poll_timeout()) => core.handle_timeout(now()),
+//!     }
+//! }
+//! ```
 
 pub mod barrier;
 pub mod clock;
