@@ -17,7 +17,7 @@ impl MasterCore {
                 range_text(node.first_frame, node.newest_sent),
                 opt_text(node.last_ready)
             );
-            self.violation(now, conn, detail);
+            self.violation(conn, detail);
             return;
         }
         node.last_ready = Some(r.frame);
@@ -29,7 +29,7 @@ impl MasterCore {
         self.barrier.ready(conn, r.frame, mark);
     }
 
-    pub(super) fn stats(&mut self, now: u64, conn: ConnId, s: NodeStats) {
+    pub(super) fn stats(&mut self, conn: ConnId, s: NodeStats) {
         let Some(Peer::Live(node)) = self.peers.get_mut(&conn) else {
             return;
         };
@@ -43,7 +43,7 @@ impl MasterCore {
                 range_text(node.first_frame, node.last_swapped),
                 opt_text(node.last_stats.map(|l| l.frame))
             );
-            self.violation(now, conn, detail);
+            self.violation(conn, detail);
             return;
         }
         node.last_stats = Some(s);
@@ -94,7 +94,7 @@ impl MasterCore {
                 waited_ms: ms(now.saturating_sub(release.sent_at_ns)),
                 deadline_ms: ms(release.deadline_ns - release.sent_at_ns),
             };
-            self.remove(now, *conn, reason, true);
+            self.remove(*conn, reason, true);
         }
         let frame = release.frame;
         let mut swapped_to = BTreeSet::new();

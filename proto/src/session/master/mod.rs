@@ -187,14 +187,14 @@ impl MasterCore {
     pub fn handle_disconnect(&mut self, now: u64, conn: ConnId) {
         if let Some(peer) = self.peers.get(&conn) {
             let peer = peer_label(conn, peer);
-            self.remove(now, conn, CloseReason::Disconnected { peer }, false);
+            self.remove(conn, CloseReason::Disconnected { peer }, false);
             self.advance(now);
         }
     }
 
     /// A message from `conn` could not be decoded; closes only that peer.
     pub fn handle_decode_error(&mut self, now: u64, conn: ConnId, error: &crate::CodecError) {
-        self.violation(now, conn, error.to_string());
+        self.violation(conn, error.to_string());
         self.advance(now);
     }
 
@@ -204,7 +204,7 @@ impl MasterCore {
             return; // Already closed; late data is dropped.
         }
         if let Err(e) = message.validate() {
-            self.violation(now, conn, format!("invalid {}: {e}", message.kind()));
+            self.violation(conn, format!("invalid {}: {e}", message.kind()));
             self.advance(now);
             return;
         }
@@ -215,20 +215,18 @@ impl MasterCore {
             (Peer::AwaitHello { .. }, Message::Hello(hello)) => self.hello(now, conn, hello),
             (_, Message::Bye(Bye { reason })) => {
                 let peer = peer_label(conn, &self.peers[&conn]);
-                self.remove(now, conn, CloseReason::Left { peer, reason }, true);
+                self.remove(conn, CloseReason::Left { peer, reason }, true);
             }
             (Peer::Live(_), Message::Ready(r)) => self.ready(now, conn, r),
-            (Peer::Live(_), Message::NodeStats(s)) => self.stats(now, conn, s),
+            (Peer::Live(_), Message::NodeStats(s)) => self.stats(conn, s),
             (Peer::Live(_), Message::ClockReply(r)) => self.clock_reply(now, conn, r),
-            (Peer::Live(_), Message::Hello(_)) => self.violation(now, conn, "Hello twice".into()),
+            (Peer::Live(_), Message::Hello(_)) => self.violation(conn, "Hello twice".into()),
             (Peer::AwaitHello { .. }, m) => {
-                self.violation(now, conn, format!("{} before Hello", m.kind()))
+                self.violation(conn, format!("{} before Hello", m.kind()))
             }
-            (Peer::Live(_), m) => self.violation(
-                now,
-                conn,
-                format!("{} is a master-to-node message", m.kind()),
-            ),
+            (Peer::Live(_), m) => {
+                self.violation(conn, format!("{} is a master-to-node message", m.kind()))
+            }
         }
         self.advance(now);
     }
@@ -303,7 +301,7 @@ impl MasterCore {
             let reason = CloseReason::Shutdown {
                 reason: reason.to_string(),
             };
-            self.remove(now, conn, reason, true);
+            self.remove(conn, reason, true);
         }
         self.advance(now);
     }
@@ -339,7 +337,7 @@ impl MasterCore {
                 peer: conn.to_string(),
                 waited_ms: ms(now - since),
             };
-            self.remove(now, conn, reason, true);
+            self.remove(conn, reason, true);
         }
         let due: Vec<ConnId> = self
             .peers

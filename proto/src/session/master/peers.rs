@@ -3,16 +3,16 @@
 use super::*;
 
 impl MasterCore {
-    pub(super) fn violation(&mut self, now: u64, conn: ConnId, detail: String) {
+    pub(super) fn violation(&mut self, conn: ConnId, detail: String) {
         if let Some(peer) = self.peers.get(&conn) {
             let peer = peer_label(conn, peer);
             tracing::warn!(%conn, %peer, %detail, "protocol violation");
-            self.remove(now, conn, CloseReason::Violation { peer, detail }, true);
+            self.remove(conn, CloseReason::Violation { peer, detail }, true);
         }
     }
 
     /// Forget `conn`; with `close`, queue a Bye and a Close for the driver.
-    pub(super) fn remove(&mut self, now: u64, conn: ConnId, reason: CloseReason, close: bool) {
+    pub(super) fn remove(&mut self, conn: ConnId, reason: CloseReason, close: bool) {
         let Some(peer) = self.peers.remove(&conn) else {
             return;
         };
@@ -44,8 +44,7 @@ impl MasterCore {
             node: name,
             reason,
         });
-        // Releases are driven by the caller's `advance`.
-        let _ = now;
+        // Frames this frees are released by the caller's `advance`.
     }
 
     pub(super) fn hello(&mut self, now: u64, conn: ConnId, hello: Hello) {
@@ -55,7 +54,7 @@ impl MasterCore {
                 theirs: hello.protocol_version,
                 ours: PROTOCOL_VERSION,
             };
-            self.remove(now, conn, reason, true);
+            self.remove(conn, reason, true);
             return;
         }
         if let Some(&old) = self.names.get(&hello.node) {
@@ -63,7 +62,7 @@ impl MasterCore {
                 node: hello.node.clone(),
                 by: conn,
             };
-            self.remove(now, old, reason, true);
+            self.remove(old, reason, true);
         }
         // The newest frame of the current scene is this node's first frame.
         let current = self
@@ -144,7 +143,7 @@ impl MasterCore {
         };
         if r.id >= node.next_probe_id {
             let detail = format!("ClockReply for probe {} never sent", r.id);
-            self.violation(now, conn, detail);
+            self.violation(conn, detail);
             return;
         }
         let Some(i) = node.outstanding_probes.iter().position(|p| p.0 == r.id) else {
@@ -156,12 +155,12 @@ impl MasterCore {
                 "ClockReply {} echoes send time {} ns, the probe was sent at {sent} ns",
                 r.id, r.master_send_ns
             );
-            self.violation(now, conn, detail);
+            self.violation(conn, detail);
             return;
         }
         match clock_sample(&r, now) {
             Ok(s) => node.clock.push(s),
-            Err(e) => self.violation(now, conn, e.to_string()),
+            Err(e) => self.violation(conn, e.to_string()),
         }
     }
 }

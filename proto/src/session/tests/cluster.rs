@@ -540,8 +540,14 @@ fn random_faults_keep_the_frame_lock_invariants() {
                 );
             }
             let presented = node.presented_frames();
-            assert!(presented.windows(2).all(|f| f[0] < f[1]), "seed {seed} {name}");
-            assert!(presented.contains(&newest), "seed {seed} {name} missed {newest}");
+            assert!(
+                presented.windows(2).all(|f| f[0] < f[1]),
+                "seed {seed} {name}"
+            );
+            assert!(
+                presented.contains(&newest),
+                "seed {seed} {name} missed {newest}"
+            );
             assert_eq!(presented.last(), Some(&last), "seed {seed} {name}");
         }
     }
