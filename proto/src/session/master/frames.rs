@@ -65,8 +65,10 @@ impl MasterCore {
                 barrier_wait_ms: s.barrier_wait_ms,
                 present_node_ns: s.present_time_ns,
                 present_master_ns,
-                present_offset_ns: present_master_ns
-                    .map(|t| (t as i128 - p.swap_at_ns as i128) as i64),
+                present_offset_ns: present_master_ns.map(|t| {
+                    (t as i128 - p.swap_at_ns as i128).clamp(i64::MIN as i128, i64::MAX as i128)
+                        as i64
+                }),
             });
         }
     }
