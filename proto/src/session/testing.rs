@@ -1,0 +1,648 @@
+//! An in-memory cluster on virtual time, like quinn-proto's `Pair::drive`:
+//! one [`MasterCore`] and K [`NodeCore`]s, links with per-direction delays,
+//! every message encoded with [`encode_frame`] and decoded with
+//! [`decode_frame`], nodes that render in a fixed time, a frame clock, and
+//! faults (node crash, master restart, raw bytes). No sockets, no sleeps:
+//! time jumps to the next thing that happens, and every loop is bounded.
+
+use super::{
+    CloseReason, ConnId, MasterConfig, MasterCore, MasterEvent, MasterOutput, NodeConfig, NodeCore,
+    NodeEvent, NodeOutput, PresentReport, SwapReport,
+};
+use crate::codec::{MAX_FRAME_LEN, decode_frame, encode_frame};
+use crate::message::{Message, Role};
+use crate::scene::{FrameState, Light, LightSource, Observer, Pose, Showcase};
+use glam::{Quat, Vec3};
+use std::collections::BTreeMap;
+
+/// Steps one call to [`Cluster::run_until`] may take.
+const MAX_STEPS: usize = 5_000_000;
+
+/// The virtual clock starts here, so node clocks may lag it without going negative.
+pub const EPOCH_NS: u64 = 1_000_000_000_000;
+
+/// A harness loop did not settle within its bound.
+#[derive(Debug, thiserror::Error)]
+#[error("the simulated cluster did not settle within {steps} steps at t = {now_ns} ns")]
+pub struct StepLimit {
+    /// Steps taken.
+    pub steps: usize,
+    /// Virtual time reached.
+    pub now_ns: u64,
+}
+
+/// How one simulated node behaves.
+#[derive(Clone, Debug)]
+pub struct NodeSpec {
+    /// The node's configuration (name, role, backoff...).
+    pub config: NodeConfig,
+    /// One-way delay node to master (ns).
+    pub up_ns: u64,
+    /// One-way delay master to node (ns).
+    pub down_ns: u64,
+    /// Time to render one frame (ns).
+    pub render_ns: u64,
+    /// The node's clock minus the virtual clock (ns).
+    pub clock_offset_ns: i64,
+}
+
+impl NodeSpec {
+    /// A face node with 100 us links, 2 ms renders and a clock that agrees with the master's.
+    pub fn new(name: &str) -> Self {
+        Self {
+            config: NodeConfig::new(name, Role::Face),
+            up_ns: 100_000,
+            down_ns: 100_000,
+            render_ns: 2_000_000,
+            clock_offset_ns: 0,
+        }
+    }
+}
+
+/// What a simulated node saw.
+#[derive(Clone, Debug, Default)]
+pub struct NodeLog {
+    /// Frames rendered, with the scene version they were rendered against.
+    pub rendered: Vec<FrameState>,
+    /// Frames presented, with the virtual time.
+    pub presented: Vec<(u64, u64)>,
+    /// Scene versions received.
+    pub scenes: Vec<u64>,
+    /// Virtual times of each Dial.
+    pub dials: Vec<u64>,
+    /// Virtual times of each Welcome.
+    pub connected: Vec<u64>,
+    /// Disconnect reasons.
+    pub disconnects: Vec<String>,
+}
+
+/// A simulated node process.
+#[derive(Debug)]
+pub struct SimNode {
+    /// Its behaviour.
+    pub spec: NodeSpec,
+    /// Its core.
+    pub core: NodeCore,
+    /// The connection it holds, if any.
+    pub conn: Option<ConnId>,
+    /// The process runs (false after a crash).
+    pub alive: bool,
+    /// What it saw.
+    pub log: NodeLog,
+    busy_until: u64,
+}
+
+impl SimNode {
+    /// Frames presented, in order.
+    pub fn presented_frames(&self) -> Vec<u64> {
+        self.log.presented.iter().map(|p| p.0).collect()
+    }
+
+    fn clock(&self, now: u64) -> u64 {
+        (now as i128 + self.spec.clock_offset_ns as i128).max(0) as u64
+    }
+
+    fn virtual_time(&self, t: u64) -> u64 {
+        (t as i128 - self.spec.clock_offset_ns as i128).max(0) as u64
+    }
+}
+
+/// What the master side saw.
+#[derive(Clone, Debug, Default)]
+pub struct MasterLog {
+    /// Every frame submitted, by number (a restarted master overwrites).
+    pub submitted: BTreeMap<u64, FrameState>,
+    /// Swap reports, in order.
+    pub swaps: Vec<SwapReport>,
+    /// Present reports, in order.
+    pub presents: Vec<PresentReport>,
+    /// Closed connections: node name (if any) and reason.
+    pub closed: Vec<(Option<String>, CloseReason)>,
+    /// Joins: node, frame in its snapshot, virtual time.
+    pub joined: Vec<(String, Option<u64>, u64)>,
+    /// Frame-clock ticks skipped because the pipeline was full or the master down.
+    pub dropped_ticks: u64,
+}
+
+#[derive(Debug)]
+enum Delivery {
+    ToMaster {
+        conn: ConnId,
+        bytes: Vec<u8>,
+    },
+    MasterLost {
+        conn: ConnId,
+    },
+    ToNode {
+        node: usize,
+        conn: ConnId,
+        bytes: Vec<u8>,
+    },
+    NodeLost {
+        node: usize,
+        conn: ConnId,
+        reason: String,
+    },
+    DialFailed {
+        node: usize,
+        dial: u64,
+    },
+    Rendered {
+        node: usize,
+        conn: ConnId,
+        frame: u64,
+        hash: u64,
+    },
+}
+
+/// One master and K nodes on virtual time.
+#[derive(Debug)]
+pub struct Cluster {
+    /// Virtual time (ns).
+    pub now: u64,
+    /// The master, `None` while it is down.
+    pub master: Option<MasterCore>,
+    /// Settings for (re)starting the master.
+    pub master_config: MasterConfig,
+    /// The scene a (re)started master serves.
+    pub scene: Showcase,
+    /// The nodes.
+    pub nodes: Vec<SimNode>,
+    /// What the master saw.
+    pub log: MasterLog,
+    /// Frame period of the frame clock (ns); `None` stops the clock.
+    pub frame_period_ns: Option<u64>,
+    next_tick: u64,
+    queue: BTreeMap<(u64, u64), Delivery>,
+    seq: u64,
+    next_conn: u64,
+    conn_owner: BTreeMap<ConnId, usize>,
+}
+
+/// A scene with one observer, so frames carry a head pose.
+pub fn test_scene() -> Showcase {
+    Showcase {
+        name: "session-test".into(),
+        observers: vec![Observer {
+            name: "viewer".into(),
+            head: Pose::default(),
+            ipd: 0.064,
+        }],
+        ..Showcase::default()
+    }
+}
+
+/// A deterministic frame state for frame `n`: the head and a point light
+/// move with the frame, so every frame differs.
+pub fn test_frame(n: u64, scene_version: u64, time_ns: u64) -> FrameState {
+    let t = n as f32 * 0.01;
+    FrameState {
+        frame: n,
+        time_s: n as f64 / 60.0,
+        scene_version,
+        heads: vec![Pose {
+            position: Vec3::new(t.sin() * 0.3, 0.4, 0.8 + t.cos() * 0.1),
+            orientation: Quat::from_rotation_y(t.sin() * 0.2),
+        }],
+        lights: vec![LightSource {
+            name: "key".into(),
+            light: Light::Point {
+                position: Vec3::new(t.cos(), 1.0, t.sin()),
+                intensity: Vec3::splat(1.0 + (n % 7) as f32),
+            },
+        }],
+        object_transforms: Vec::new(),
+        tracking_time_ns: Some(time_ns),
+    }
+}
+
+/// The output hash a simulated node reports: BLAKE3 of the encoded frame.
+pub fn frame_hash(frame: &FrameState) -> u64 {
+    let bytes = encode_frame(&Message::FrameState(Box::new(frame.clone())), MAX_FRAME_LEN)
+        .unwrap_or_default();
+    let h = blake3::hash(&bytes);
+    u64::from_le_bytes(h.as_bytes()[..8].try_into().unwrap_or_default())
+}
+
+impl Cluster {
+    /// A running master (scene [`test_scene`]) and these nodes, all about
+    /// to dial; the frame clock runs at `frame_period_ns` from the start.
+    pub fn new(master_config: MasterConfig, nodes: Vec<NodeSpec>, frame_period_ns: u64) -> Self {
+        let scene = test_scene();
+        let master = MasterCore::new(master_config.clone(), scene.clone()).ok();
+        let nodes = nodes
+            .into_iter()
+            .map(|spec| SimNode {
+                core: NodeCore::new(spec.config.clone()),
+                spec,
+                conn: None,
+                alive: true,
+                log: NodeLog::default(),
+                busy_until: 0,
+            })
+            .collect();
+        Self {
+            now: EPOCH_NS,
+            master,
+            master_config,
+            scene,
+            nodes,
+            log: MasterLog::default(),
+            frame_period_ns: Some(frame_period_ns),
+            next_tick: EPOCH_NS,
+            queue: BTreeMap::new(),
+            seq: 0,
+            next_conn: 1,
+            conn_owner: BTreeMap::new(),
+        }
+    }
+
+    /// The index of the node named `name`.
+    pub fn node_index(&self, name: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.spec.config.name == name)
+    }
+
+    /// Run until virtual time `until` (absolute ns).
+    pub fn run_until(&mut self, until: u64) -> Result<(), StepLimit> {
+        for steps in 0..MAX_STEPS {
+            self.pump(steps)?;
+            match self.next_time() {
+                Some(t) if t <= until => {
+                    self.now = self.now.max(t);
+                    self.step();
+                }
+                _ => {
+                    self.now = self.now.max(until);
+                    return Ok(());
+                }
+            }
+        }
+        Err(StepLimit {
+            steps: MAX_STEPS,
+            now_ns: self.now,
+        })
+    }
+
+    /// Run for `dt` ns of virtual time.
+    pub fn run_for(&mut self, dt: u64) -> Result<(), StepLimit> {
+        self.run_until(self.now.saturating_add(dt))
+    }
+
+    /// Run until the master has swapped `frame` (or `limit_ns` of virtual time passed).
+    pub fn run_until_swapped(&mut self, frame: u64, limit_ns: u64) -> Result<bool, StepLimit> {
+        let end = self.now.saturating_add(limit_ns);
+        let step = self.frame_period_ns.unwrap_or(1_000_000).max(1);
+        while self.now < end {
+            if self.master_swapped(frame) {
+                return Ok(true);
+            }
+            self.run_until(self.now.saturating_add(step).min(end))?;
+        }
+        Ok(self.master_swapped(frame))
+    }
+
+    fn master_swapped(&self, frame: u64) -> bool {
+        self.master
+            .as_ref()
+            .and_then(MasterCore::swapped_upto)
+            .is_some_and(|s| s >= frame)
+    }
+
+    /// Crash node `i`. With `tell_master`, the transport reports the loss
+    /// to the master after the link delay; otherwise the master only
+    /// notices through the swap deadline.
+    pub fn crash_node(&mut self, i: usize, tell_master: bool) {
+        let node = &mut self.nodes[i];
+        node.alive = false;
+        if let Some(conn) = node.conn.take() {
+            let at = self.now + node.spec.up_ns;
+            if tell_master {
+                self.schedule(at, Delivery::MasterLost { conn });
+            }
+        }
+    }
+
+    /// Start node `i` again as a fresh process (it dials at once).
+    pub fn restart_node(&mut self, i: usize) {
+        let node = &mut self.nodes[i];
+        node.core = NodeCore::new(node.spec.config.clone());
+        node.alive = true;
+        node.conn = None;
+        node.busy_until = 0;
+    }
+
+    /// Stop the master: every node's connection drops after its link delay.
+    pub fn stop_master(&mut self) {
+        self.master = None;
+        for (i, node) in self.nodes.iter_mut().enumerate() {
+            if let Some(conn) = node.conn {
+                let at = self.now + node.spec.down_ns;
+                self.queue.insert(
+                    (at, self.seq),
+                    Delivery::NodeLost {
+                        node: i,
+                        conn,
+                        reason: "master stopped".into(),
+                    },
+                );
+                self.seq += 1;
+            }
+        }
+    }
+
+    /// Start a fresh master (scene version 1, frame numbers from 0).
+    pub fn start_master(&mut self) {
+        self.master = MasterCore::new(self.master_config.clone(), self.scene.clone()).ok();
+        self.next_tick = self.now;
+    }
+
+    /// Give the master a new scene (and keep it for a restarted master).
+    pub fn set_scene(&mut self, scene: Showcase) -> Option<u64> {
+        self.scene = scene.clone();
+        let now = self.now;
+        self.master.as_mut()?.set_scene(now, scene).ok()
+    }
+
+    /// Send raw bytes on node `i`'s connection to the master.
+    pub fn inject_bytes_to_master(&mut self, i: usize, bytes: Vec<u8>) {
+        if let Some(conn) = self.nodes[i].conn {
+            let at = self.now + self.nodes[i].spec.up_ns;
+            self.schedule(at, Delivery::ToMaster { conn, bytes });
+        }
+    }
+
+    /// Send a message on node `i`'s connection to the master, bypassing its core.
+    pub fn inject_message_to_master(&mut self, i: usize, message: &Message) {
+        if let Ok(bytes) = encode_frame(message, MAX_FRAME_LEN) {
+            self.inject_bytes_to_master(i, bytes);
+        }
+    }
+
+    fn schedule(&mut self, at: u64, d: Delivery) {
+        self.queue.insert((at, self.seq), d);
+        self.seq += 1;
+    }
+
+    fn next_time(&self) -> Option<u64> {
+        let queue = self.queue.keys().next().map(|k| k.0);
+        let master = self.master.as_ref().and_then(MasterCore::poll_timeout);
+        let tick = self
+            .frame_period_ns
+            .filter(|_| self.master.is_some())
+            .map(|_| self.next_tick);
+        let nodes = self
+            .nodes
+            .iter()
+            .filter(|n| n.alive)
+            .filter_map(|n| n.core.poll_timeout().map(|t| n.virtual_time(t)));
+        [queue, master, tick]
+            .into_iter()
+            .flatten()
+            .chain(nodes)
+            .min()
+    }
+
+    fn step(&mut self) {
+        let now = self.now;
+        while let Some(entry) = self.queue.first_entry() {
+            if entry.key().0 > now {
+                break;
+            }
+            let d = entry.remove();
+            self.deliver(d);
+        }
+        if let Some(period) = self.frame_period_ns
+            && self.master.is_some()
+            && self.next_tick <= now
+        {
+            self.next_tick = now + period.max(1);
+            self.tick();
+        }
+        if let Some(m) = self.master.as_mut()
+            && m.poll_timeout().is_some_and(|t| t <= now)
+        {
+            m.handle_timeout(now);
+        }
+        for node in self.nodes.iter_mut().filter(|n| n.alive) {
+            let local = node.clock(now);
+            if node.core.poll_timeout().is_some_and(|t| t <= local) {
+                node.core.handle_timeout(local);
+            }
+        }
+    }
+
+    fn tick(&mut self) {
+        let now = self.now;
+        let Some(m) = self.master.as_mut() else {
+            return;
+        };
+        if !m.can_submit() {
+            self.log.dropped_ticks += 1;
+            return;
+        }
+        let n = m.next_frame().unwrap_or(0);
+        let frame = test_frame(n, m.scene_version(), now);
+        if m.submit_frame(now, frame.clone()).is_ok() {
+            self.log.submitted.insert(n, frame);
+        }
+    }
+
+    fn deliver(&mut self, d: Delivery) {
+        let now = self.now;
+        match d {
+            Delivery::ToMaster { conn, bytes } => {
+                let Some(m) = self.master.as_mut() else {
+                    return;
+                };
+                match decode_frame(&bytes, MAX_FRAME_LEN) {
+                    Ok(Some((msg, used))) if used == bytes.len() => {
+                        m.handle_message(now, conn, msg)
+                    }
+                    Ok(_) => {
+                        let e = crate::CodecError::Malformed(format!(
+                            "{} bytes are not exactly one frame",
+                            bytes.len()
+                        ));
+                        m.handle_decode_error(now, conn, &e);
+                    }
+                    Err(e) => m.handle_decode_error(now, conn, &e),
+                }
+            }
+            Delivery::MasterLost { conn } => {
+                if let Some(m) = self.master.as_mut() {
+                    m.handle_disconnect(now, conn);
+                }
+            }
+            Delivery::ToNode { node, conn, bytes } => {
+                let n = &mut self.nodes[node];
+                if !n.alive || n.conn != Some(conn) {
+                    return;
+                }
+                let local = n.clock(now);
+                match decode_frame(&bytes, MAX_FRAME_LEN) {
+                    Ok(Some((msg, _))) => n.core.handle_message(local, msg),
+                    _ => n.core.handle_disconnect(local, "undecodable message"),
+                }
+            }
+            Delivery::NodeLost { node, conn, reason } => {
+                let n = &mut self.nodes[node];
+                if n.alive && n.conn == Some(conn) {
+                    n.conn = None;
+                    let local = n.clock(now);
+                    n.core.handle_disconnect(local, &reason);
+                }
+            }
+            Delivery::DialFailed { node, dial } => {
+                let n = &mut self.nodes[node];
+                if n.alive && n.log.dials.len() as u64 == dial {
+                    let local = n.clock(now);
+                    n.core.handle_disconnect(local, "connection refused");
+                }
+            }
+            Delivery::Rendered {
+                node,
+                conn,
+                frame,
+                hash,
+            } => {
+                let n = &mut self.nodes[node];
+                if n.alive && n.conn == Some(conn) {
+                    let local = n.clock(now);
+                    // An error means the frame was dropped by a reconnect.
+                    let _ = n.core.rendered(local, frame, hash, n.spec.render_ns);
+                }
+            }
+        }
+    }
+
+    /// Move every output until nothing is left.
+    fn pump(&mut self, steps: usize) -> Result<(), StepLimit> {
+        for _ in 0..MAX_STEPS {
+            let mut moved = false;
+            while let Some(out) = self.master.as_mut().and_then(MasterCore::poll) {
+                moved = true;
+                self.master_output(out);
+            }
+            for i in 0..self.nodes.len() {
+                while let Some(out) = self.nodes[i].core.poll() {
+                    moved = true;
+                    if self.nodes[i].alive {
+                        self.node_output(i, out);
+                    }
+                }
+            }
+            if !moved {
+                return Ok(());
+            }
+        }
+        Err(StepLimit {
+            steps,
+            now_ns: self.now,
+        })
+    }
+
+    fn master_output(&mut self, out: MasterOutput) {
+        let now = self.now;
+        match out {
+            MasterOutput::Transmit { conn, message } => {
+                let Some(&node) = self.conn_owner.get(&conn) else {
+                    return;
+                };
+                if let Ok(bytes) = encode_frame(&message, MAX_FRAME_LEN) {
+                    let at = now + self.nodes[node].spec.down_ns;
+                    self.schedule(at, Delivery::ToNode { node, conn, bytes });
+                }
+            }
+            MasterOutput::Close { conn, reason } => {
+                if let Some(&node) = self.conn_owner.get(&conn) {
+                    let at = now + self.nodes[node].spec.down_ns;
+                    let reason = reason.to_string();
+                    self.schedule(at, Delivery::NodeLost { node, conn, reason });
+                }
+            }
+            MasterOutput::Event(e) => match e {
+                MasterEvent::FrameSwapped(r) => self.log.swaps.push(r),
+                MasterEvent::FramePresented(r) => self.log.presents.push(r),
+                MasterEvent::NodeClosed { node, reason, .. } => {
+                    self.log.closed.push((node, reason))
+                }
+                MasterEvent::NodeJoined {
+                    node,
+                    current_frame,
+                    ..
+                } => self.log.joined.push((node, current_frame, now)),
+            },
+        }
+    }
+
+    fn node_output(&mut self, i: usize, out: NodeOutput) {
+        let now = self.now;
+        let n = &mut self.nodes[i];
+        match out {
+            NodeOutput::Dial => {
+                n.log.dials.push(now);
+                let dial = n.log.dials.len() as u64;
+                match self.master.as_mut() {
+                    Some(m) => {
+                        let conn = ConnId(self.next_conn);
+                        self.next_conn += 1;
+                        self.conn_owner.insert(conn, i);
+                        m.handle_connect(now, conn);
+                        n.conn = Some(conn);
+                        let local = n.clock(now);
+                        n.core.connect(local);
+                    }
+                    None => {
+                        let at = now + n.spec.up_ns + n.spec.down_ns;
+                        self.schedule(at, Delivery::DialFailed { node: i, dial });
+                    }
+                }
+            }
+            NodeOutput::Transmit(message) => {
+                let Some(conn) = n.conn else {
+                    return;
+                };
+                if let Ok(bytes) = encode_frame(&message, MAX_FRAME_LEN) {
+                    let at = now + n.spec.up_ns;
+                    self.schedule(at, Delivery::ToMaster { conn, bytes });
+                }
+            }
+            NodeOutput::Close { .. } => {
+                if let Some(conn) = n.conn.take() {
+                    let at = now + n.spec.up_ns;
+                    self.schedule(at, Delivery::MasterLost { conn });
+                }
+            }
+            NodeOutput::Event(e) => match e {
+                NodeEvent::Connected { .. } => n.log.connected.push(now),
+                NodeEvent::SceneChanged { version, .. } => n.log.scenes.push(version),
+                NodeEvent::Render { frame, .. } => {
+                    let done = now.max(n.busy_until) + n.spec.render_ns;
+                    n.busy_until = done;
+                    let hash = frame_hash(&frame);
+                    let (conn, f) = (n.conn.unwrap_or(ConnId(0)), frame.frame);
+                    n.log.rendered.push(*frame);
+                    self.schedule(
+                        done,
+                        Delivery::Rendered {
+                            node: i,
+                            conn,
+                            frame: f,
+                            hash,
+                        },
+                    );
+                }
+                NodeEvent::Present { frame } => {
+                    n.log.presented.push((frame, now));
+                    let local = n.clock(now);
+                    let _ = n.core.presented(local, frame);
+                }
+                NodeEvent::Disconnected { reason, .. } => {
+                    n.conn = None;
+                    n.busy_until = 0;
+                    n.log.disconnects.push(reason);
+                }
+            },
+        }
+    }
+}
