@@ -116,7 +116,11 @@ impl FlatLambertScene<'_> {
                 height: d.height,
             });
         }
-        let clip_ok = d.clip_from_world().to_cols_array().iter().all(|v| v.is_finite());
+        let clip_ok = d
+            .clip_from_world()
+            .to_cols_array()
+            .iter()
+            .all(|v| v.is_finite());
         if !(d.near > 0.0 && d.far > d.near && d.far.is_finite() && clip_ok) {
             return Err(SceneError::BadDevice {
                 near: d.near,
@@ -131,7 +135,10 @@ impl FlatLambertScene<'_> {
             let transform_ok = t.translation.is_finite()
                 && t.rotation.is_finite()
                 && t.scale.is_finite()
-                && normal_from_object(t).to_cols_array().iter().all(|v| v.is_finite());
+                && normal_from_object(t)
+                    .to_cols_array()
+                    .iter()
+                    .all(|v| v.is_finite());
             if !transform_ok {
                 return Err(SceneError::NonFinite {
                     item: i,
@@ -255,15 +262,16 @@ pub fn rasterise_flat_lambert(scene: &FlatLambertScene<'_>) -> Result<RasterImag
             let shade = lambert(&normals, face_normal(item.mesh, tri), to_light) as f32;
             let rgb = item.albedo * shade;
             let colour = [rgb.x, rgb.y, rgb.z, 1.0];
-            let clip = tri.map(|i| {
-                clip_from_object * item.mesh.positions[i as usize].as_dvec3().extend(1.0)
-            });
+            let clip = tri
+                .map(|i| clip_from_object * item.mesh.positions[i as usize].as_dvec3().extend(1.0));
             let polygon = clip_near_far(&clip);
             if polygon.len() < 3 {
                 continue;
             }
-            let screen: Vec<ScreenVertex> =
-                polygon.iter().map(|c| to_screen(*c, w as f64, h as f64)).collect();
+            let screen: Vec<ScreenVertex> = polygon
+                .iter()
+                .map(|c| to_screen(*c, w as f64, h as f64))
+                .collect();
             for i in 1..screen.len() - 1 {
                 draw_triangle(&mut frame, [screen[0], screen[i], screen[i + 1]], colour);
             }
@@ -381,8 +389,7 @@ fn draw_triangle(frame: &mut Frame, v: [ScreenVertex; 3], colour: [f32; 4]) {
             let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
             // e[i] is twice the area of the sub-triangle opposite vertex i.
             let e: [f64; 3] = std::array::from_fn(|i| cross(edges[i].1, p - edges[i].0));
-            let inside = front
-                && (0..3).all(|i| e[i] > 0.0 || (e[i] == 0.0 && edges[i].3));
+            let inside = front && (0..3).all(|i| e[i] > 0.0 || (e[i] == 0.0 && edges[i].3));
             let min_dist = (0..3)
                 .map(|i| e[i] / edges[i].2.max(f64::MIN_POSITIVE))
                 .fold(f64::INFINITY, f64::min);
@@ -444,7 +451,11 @@ mod tests {
     fn pixel_rect(dev: &PinholeDevice, r: [f64; 4], z: f64) -> Mesh {
         let (f, cx, cy) = (dev.k.x_axis.x, dev.k.z_axis.x, dev.k.z_axis.y);
         let w = |u: f64, v: f64| {
-            Vec3::new(((u - cx) * z / f) as f32, ((v - cy) * z / f) as f32, z as f32)
+            Vec3::new(
+                ((u - cx) * z / f) as f32,
+                ((v - cy) * z / f) as f32,
+                z as f32,
+            )
         };
         let [x0, y0, x1, y1] = r;
         Mesh {
@@ -535,12 +546,19 @@ mod tests {
         let dev = straight_device(8, 8, 8.0);
         let near = pixel_rect(&dev, [0.0, 0.0, 8.0, 8.0], 1.0);
         let far = pixel_rect(&dev, [0.0, 0.0, 8.0, 8.0], 2.0);
-        for order in [[(&near, Vec3::X), (&far, Vec3::Y)], [(&far, Vec3::Y), (&near, Vec3::X)]] {
+        for order in [
+            [(&near, Vec3::X), (&far, Vec3::Y)],
+            [(&far, Vec3::Y), (&near, Vec3::X)],
+        ] {
             let img = draw(&dev, &order);
             assert!(img.colour.iter().all(|c| *c == [1.0, 0.0, 0.0, 1.0]));
             // z_ndc = f (z - n) / (z (f - n)) at z = 1.
             let expected = 10.0 * (1.0 - 0.1) / (1.0 * (10.0 - 0.1));
-            assert!(img.depth.iter().all(|&d| (d as f64 - expected).abs() < 1e-7));
+            assert!(
+                img.depth
+                    .iter()
+                    .all(|&d| (d as f64 - expected).abs() < 1e-7)
+            );
             // Only the shared diagonal passes through pixel centres.
             let uncertain: Vec<usize> = (0..64).filter(|&i| img.uncertain[i]).collect();
             assert_eq!(uncertain, (0..8).map(|i| i * 8 + i).collect::<Vec<_>>());
