@@ -129,3 +129,10 @@ impl GpuContext {
         )
     }
 }
+
+/// Block until all work submitted to `device` has finished, e.g. to
+/// measure a frame's render time or before presenting at a swap barrier.
+pub fn wait_idle(device: &wgpu::Device) -> Result<(), GpuError> {
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    Ok(())
+}
