@@ -264,22 +264,26 @@ fn check_scene(
     compare(name, &cpu, &colour, &depth, &MESH_TOLERANCE)
 }
 
-/// The bunny, scaled to 0.3 m tall, standing on the origin, turned 30
-/// degrees about y.
-fn bunny() -> Result<(Mesh, Transform)> {
+/// The Stanford bunny as shipped (about 10 units tall, y up).
+fn bunny_mesh() -> Result<Mesh> {
     let mut models = load_obj(&data("bunny.obj"))?;
     ensure!(models.len() == 1, "bunny.obj has {} models", models.len());
-    let (mesh, _) = models.remove(0);
-    let (lo, hi) = mesh.bounds().context("bunny.obj has no vertices")?;
-    let scale = 0.3 / (hi.y - lo.y);
-    let centre = 0.5 * (lo + hi);
-    let rotation = Quat::from_rotation_y(30f32.to_radians());
-    let transform = Transform {
-        translation: -(rotation * (Vec3::new(centre.x, lo.y, centre.z) * scale)),
+    Ok(models.remove(0).0)
+}
+
+/// Place `mesh` standing on the floor (y = 0) at `at`: scaled to `height`
+/// metres tall, then stretched per axis by `stretch`, turned `yaw_deg`
+/// about y.
+fn standing(mesh: &Mesh, height: f32, stretch: Vec3, yaw_deg: f32, at: Vec3) -> Result<Transform> {
+    let (lo, hi) = mesh.bounds().context("mesh has no vertices")?;
+    let scale = stretch * (height / (hi.y - lo.y));
+    let foot = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+    let rotation = Quat::from_rotation_y(yaw_deg.to_radians());
+    Ok(Transform {
+        translation: at - rotation * (foot * scale),
         rotation,
-        scale: Vec3::splat(scale),
-    };
-    Ok((mesh, transform))
+        scale,
+    })
 }
 
 /// The device of the bunny tests: 1024x768, 0.6 m away, a little above.
@@ -302,11 +306,11 @@ fn bunny_gpu_matches_cpu_reference() -> Result<()> {
     let Some(ctx) = gpu_or_skip("bunny_gpu_matches_cpu_reference")? else {
         return Ok(());
     };
-    let (mesh, transform) = bunny()?;
+    let mesh = bunny_mesh()?;
     let device = bunny_device();
     let items = [DrawItem {
         mesh: &mesh,
-        transform,
+        transform: standing(&mesh, 0.3, Vec3::ONE, 30.0, Vec3::ZERO)?,
         albedo: Vec3::new(0.8, 0.7, 0.6),
     }];
     let scene = FlatLambertScene {
@@ -328,7 +332,7 @@ fn cornell_box_gpu_matches_cpu_reference() -> Result<()> {
         "cornell-box.obj has {} models",
         models.len()
     );
-    let items: Vec<DrawItem<'_>> = models
+    let mut items: Vec<DrawItem<'_>> = models
         .iter()
         .map(|(mesh, albedo)| DrawItem {
             mesh,
@@ -336,6 +340,20 @@ fn cornell_box_gpu_matches_cpu_reference() -> Result<()> {
             albedo: *albedo,
         })
         .collect();
+    // A squashed, stretched bunny on the floor in front of the tall
+    // block: non-uniform scale exercises the normal matrix.
+    let bunny = bunny_mesh()?;
+    items.push(DrawItem {
+        mesh: &bunny,
+        transform: standing(
+            &bunny,
+            0.14,
+            Vec3::new(1.4, 0.7, 1.0),
+            120.0,
+            Vec3::new(0.42, 0.0, 0.15),
+        )?,
+        albedo: Vec3::new(0.3, 0.5, 0.8),
+    });
     // The classic camera, in front of the open side, looking in.
     let mut device = PinholeDevice::look_at(
         DVec3::new(0.278, 0.273, -0.8),
@@ -352,7 +370,63 @@ fn cornell_box_gpu_matches_cpu_reference() -> Result<()> {
         items: &items,
         to_light: Vec3::new(-0.3, 0.8, -0.5),
     };
-    check_scene("cornell-box", &ctx, &scene, 0.5, 6)
+    check_scene("cornell-box", &ctx, &scene, 0.5, 100)
+}
+
+#[test]
+fn near_plane_clipping_matches_cpu_reference() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("near_plane_clipping_matches_cpu_reference")? else {
+        return Ok(());
+    };
+    // A device 0.2 m above a 20 m floor, tilted down: the floor runs
+    // through the near plane and behind the device. Also drawn: an empty
+    // mesh, and a bunny wholly behind the device.
+    let mut device = PinholeDevice::look_at(
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::new(0.3, 0.0, 1.0),
+        DVec3::Y,
+        90.0,
+        320,
+        240,
+    );
+    device.near = 0.1;
+    device.far = 30.0;
+    let floor = Mesh {
+        positions: vec![
+            Vec3::new(-10.0, 0.0, -10.0),
+            Vec3::new(10.0, 0.0, -10.0),
+            Vec3::new(10.0, 0.0, 10.0),
+            Vec3::new(-10.0, 0.0, 10.0),
+        ],
+        // Counter-clockwise seen from above: normal +y.
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+        ..Mesh::default()
+    };
+    let empty = Mesh::default();
+    let bunny = bunny_mesh()?;
+    let items = [
+        DrawItem {
+            mesh: &floor,
+            transform: Transform::IDENTITY,
+            albedo: Vec3::new(0.5, 0.6, 0.7),
+        },
+        DrawItem {
+            mesh: &empty,
+            transform: Transform::IDENTITY,
+            albedo: Vec3::ONE,
+        },
+        DrawItem {
+            mesh: &bunny,
+            transform: standing(&bunny, 0.3, Vec3::ONE, 0.0, Vec3::new(0.0, 0.0, -1.0))?,
+            albedo: Vec3::ONE,
+        },
+    ];
+    let scene = FlatLambertScene {
+        device: &device,
+        items: &items,
+        to_light: Vec3::new(0.2, 1.0, 0.1),
+    };
+    check_scene("near-clip", &ctx, &scene, 0.3, 1)
 }
 
 /// A device looking down +z whose clip mapping is exact in f32:
