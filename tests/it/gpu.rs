@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use showcase_proto::{Mesh, PinholeDevice, Transform};
 use showcase_render::gpu::{FlatLambertPass, GpuContext, GpuError, OffscreenTarget};
 use showcase_render::light::raster::{
-    DrawItem, FlatLambertScene, RasterImage, rasterise_flat_lambert,
+    DrawItem, FlatLambertScene, RasterImage, SceneError, rasterise_flat_lambert,
 };
 
 /// Open a headless GPU, or explain why the test is skipped. With `CI` set
@@ -641,5 +641,73 @@ fn every_wgsl_file_validates_with_naga() -> Result<()> {
         "invalid WGSL:\n{}",
         failures.join("\n")
     );
+    Ok(())
+}
+
+#[test]
+fn bad_gpu_input_is_an_error() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("bad_gpu_input_is_an_error")? else {
+        return Ok(());
+    };
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    assert!(matches!(
+        OffscreenTarget::new(device, 0, 16),
+        Err(GpuError::BadTargetSize { width: 0, .. })
+    ));
+    let huge = device.limits().max_texture_dimension_2d + 1;
+    assert!(matches!(
+        OffscreenTarget::new(device, 16, huge),
+        Err(GpuError::BadTargetSize { .. })
+    ));
+    let pass = FlatLambertPass::new(device);
+    let view = exact_device(16);
+    let broken = Mesh {
+        positions: vec![Vec3::Z; 3],
+        triangles: vec![[0, 1, 3]],
+        ..Mesh::default()
+    };
+    let items = [DrawItem {
+        mesh: &broken,
+        transform: Transform::IDENTITY,
+        albedo: Vec3::ONE,
+    }];
+    let scene = FlatLambertScene {
+        device: &view,
+        items: &items,
+        to_light: Vec3::Y,
+    };
+    assert!(matches!(
+        pass.upload(device, &scene),
+        Err(GpuError::Scene(SceneError::IndexOutOfRange {
+            index: 3,
+            ..
+        }))
+    ));
+    let batch = pass.upload(
+        device,
+        &FlatLambertScene {
+            items: &[],
+            ..scene
+        },
+    )?;
+    let wrong_size = OffscreenTarget::new(device, 8, 16)?;
+    assert!(matches!(
+        pass.render(device, queue, &wrong_size, &batch),
+        Err(GpuError::SizeMismatch {
+            target_width: 8,
+            width: 16,
+            ..
+        })
+    ));
+    // The right size draws the clear colour and depth.
+    let target = OffscreenTarget::new(device, 16, 16)?;
+    pass.render(device, queue, &target, &batch)?;
+    ensure!(
+        target
+            .read_rgba_f32(device, queue)?
+            .iter()
+            .all(|c| *c == [0.0; 4])
+    );
+    ensure!(target.read_depth(device, queue)?.iter().all(|&d| d == 1.0));
     Ok(())
 }

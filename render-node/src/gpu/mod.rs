@@ -55,6 +55,16 @@ pub enum GpuError {
         /// Device height.
         height: u32,
     },
+    /// A mesh's vertex data does not fit in one GPU buffer.
+    #[error("item {item}: {bytes} bytes of vertex data exceed the device's buffer limit {limit}")]
+    MeshTooLarge {
+        /// Index into the scene's items.
+        item: usize,
+        /// Size of the vertex data.
+        bytes: u64,
+        /// `max_buffer_size` of the device.
+        limit: u64,
+    },
     /// The scene cannot be drawn.
     #[error(transparent)]
     Scene(#[from] SceneError),
@@ -99,8 +109,12 @@ impl GpuContext {
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("showcase"),
                 required_features: wgpu::Features::empty(),
-                // WebGPU defaults, but as large textures as the adapter has.
-                required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+                // WebGPU defaults, but as large textures and buffers as
+                // the adapter has (scanned meshes can be large).
+                required_limits: wgpu::Limits {
+                    max_buffer_size: adapter.limits().max_buffer_size,
+                    ..wgpu::Limits::default().using_resolution(adapter.limits())
+                },
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,
                 trace: wgpu::Trace::Off,

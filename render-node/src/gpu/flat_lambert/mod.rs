@@ -163,7 +163,8 @@ impl FlatLambertPass {
 
     /// Validate `scene` and upload it: one non-indexed vertex buffer per
     /// item (each vertex carries its triangle's object-space normal) and
-    /// the uniforms.
+    /// the uniforms. A mesh too large for one buffer is an error, not a
+    /// wgpu validation panic.
     pub fn upload(
         &self,
         device: &wgpu::Device,
@@ -177,43 +178,49 @@ impl FlatLambertPass {
         };
         let view_bind_group =
             uniform_bind_group(device, &self.view_layout, "view", bytemuck::bytes_of(&view));
-        let items = scene
-            .items
-            .iter()
-            .map(|item| {
-                let mesh = item.mesh;
-                let vertices: Vec<Vertex> = mesh
-                    .triangles
-                    .iter()
-                    .flat_map(|&tri| {
-                        let n = face_normal(mesh, tri).as_vec3().to_array();
-                        tri.map(|i| Vertex {
-                            position: mesh.positions[i as usize].to_array(),
-                            face_normal: n,
-                        })
+        let limit = device.limits().max_buffer_size;
+        let mut items = Vec::with_capacity(scene.items.len());
+        for (index, item) in scene.items.iter().enumerate() {
+            let mesh = item.mesh;
+            let bytes = (mesh.triangles.len() * 3 * size_of::<Vertex>()) as u64;
+            if bytes > limit {
+                return Err(GpuError::MeshTooLarge {
+                    item: index,
+                    bytes,
+                    limit,
+                });
+            }
+            let vertices: Vec<Vertex> = mesh
+                .triangles
+                .iter()
+                .flat_map(|&tri| {
+                    let n = face_normal(mesh, tri).as_vec3().to_array();
+                    tri.map(|i| Vertex {
+                        position: mesh.positions[i as usize].to_array(),
+                        face_normal: n,
                     })
-                    .collect();
-                let object = ObjectUniform {
-                    world_from_object: item.transform.matrix().to_cols_array_2d(),
-                    normal_from_object: mat3_as_mat4(normal_from_object(&item.transform)),
-                    albedo: item.albedo.extend(0.0).to_array(),
-                };
-                UploadedItem {
-                    vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("flat lambert vertices"),
-                        contents: bytemuck::cast_slice(&vertices),
-                        usage: wgpu::BufferUsages::VERTEX,
-                    }),
-                    vertex_count: vertices.len() as u32,
-                    bind_group: uniform_bind_group(
-                        device,
-                        &self.object_layout,
-                        "object",
-                        bytemuck::bytes_of(&object),
-                    ),
-                }
-            })
-            .collect();
+                })
+                .collect();
+            let object = ObjectUniform {
+                world_from_object: item.transform.matrix().to_cols_array_2d(),
+                normal_from_object: mat3_as_mat4(normal_from_object(&item.transform)),
+                albedo: item.albedo.extend(0.0).to_array(),
+            };
+            items.push(UploadedItem {
+                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("flat lambert vertices"),
+                    contents: bytemuck::cast_slice(&vertices),
+                    usage: wgpu::BufferUsages::VERTEX,
+                }),
+                vertex_count: vertices.len() as u32,
+                bind_group: uniform_bind_group(
+                    device,
+                    &self.object_layout,
+                    "object",
+                    bytemuck::bytes_of(&object),
+                ),
+            });
+        }
         Ok(FlatLambertBatch {
             width: scene.device.width,
             height: scene.device.height,
