@@ -435,9 +435,10 @@ impl PinholeDevice {
 
     /// The one documented mapping of this device to wgpu clip space:
     /// OpenCV camera space (y down, z forward) to clip space (y up, depth
-    /// `0..1` from `near` to `far`), such that the pixel `(u, v)` of the
-    /// device maps to the centre of the wgpu framebuffer pixel
-    /// `(floor(u), floor(v))` of a `width x height` target.
+    /// `0..1` from `near` to `far`), such that the device's pixel position
+    /// `(u, v)` maps to the framebuffer position `(u, v)` of a
+    /// `width x height` target, so pixel centres `(i + 0.5, j + 0.5)` line
+    /// up on both sides.
     pub fn clip_from_world(&self) -> DMat4 {
         let (w, h) = (self.width as f64, self.height as f64);
         let (n, f) = (self.near, self.far);
