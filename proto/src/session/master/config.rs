@@ -16,7 +16,7 @@ pub struct MasterConfig {
     pub clock_probe_interval_ns: u64,
     /// Recent clock samples among which the minimum-delay one is kept; default 16.
     pub clock_window: usize,
-    /// A frame's [`PresentReport`] is emitted once every node reported its
+    /// A frame's [`PresentReport`](super::PresentReport) is emitted once every node reported its
     /// stats, or at the latest when the frame this many frames later swaps; default 4.
     pub present_report_lag: u64,
 }

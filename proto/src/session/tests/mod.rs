@@ -5,6 +5,7 @@ use crate::session::MasterConfig;
 
 mod cluster;
 mod direct;
+mod fuzz;
 
 const MS: u64 = 1_000_000;
 /// 120 Hz.
