@@ -1,0 +1,218 @@
+//! The seam between the cluster runtime and rendering: a node drives one
+//! output through a [`Renderer`]. The real-time renderer (projector
+//! irradiance maps, face views) implements it; [`StateHashRenderer`] is a
+//! renderer for tests and replay checks that renders nothing but a
+//! deterministic digest of exactly what it was asked to draw.
+
+use showcase_proto::{FrameState, Role, Showcase};
+use std::sync::Arc;
+
+/// What one render produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOutput {
+    /// A hash of the output pixels (or of the state, for renderers without
+    /// pixels). Equal inputs must give equal hashes on every run.
+    pub hash: u64,
+    /// The rendered image, linear RGBA f32, when the renderer keeps one
+    /// (headless nodes write selected frames to disk).
+    pub image: Option<OutputImage>,
+}
+
+/// A rendered image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major linear RGBA.
+    pub rgba: Vec<[f32; 4]>,
+}
+
+/// A renderer failure; the node reports it and leaves the cluster.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct RenderError(pub String);
+
+/// Renders one output of the showcase (a face, a projector or a camera).
+pub trait Renderer: Send {
+    /// A new scene arrived (join, rejoin or scene change).
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError>;
+    /// Render `frame` of `scene` into the back buffer.
+    fn render(&mut self, frame: &FrameState, scene: &Showcase)
+    -> Result<RenderOutput, RenderError>;
+    /// Show the last rendered frame (the swap).
+    fn present(&mut self, frame: u64) -> Result<(), RenderError>;
+}
+
+/// FNV-1a, 64 bit: a stable hash for output digests (std's hasher is
+/// randomly seeded per process, which would defeat replay comparisons).
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv64(u64);
+
+impl Default for Fnv64 {
+    fn default() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv64 {
+    /// Mix in bytes.
+    pub fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= *b as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    /// The digest.
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Hash linear RGBA pixels bit for bit.
+pub fn hash_pixels(rgba: &[[f32; 4]]) -> u64 {
+    let mut h = Fnv64::default();
+    for p in rgba {
+        for c in p {
+            h.write(&c.to_bits().to_le_bytes());
+        }
+    }
+    h.finish()
+}
+
+/// A renderer that draws nothing and digests exactly the state a real one
+/// would draw for its output: the frame number, the scene version, the
+/// heads, the lights and the object transforms, bit for bit. Used by the
+/// cluster tests and replay checks, which must not wait on a GPU.
+#[derive(Debug)]
+pub struct StateHashRenderer {
+    output: String,
+    role: Role,
+    scene_version: Option<u64>,
+    presented: Vec<u64>,
+}
+
+impl StateHashRenderer {
+    /// A renderer for the output called `output` in role `role`.
+    pub fn new(output: impl Into<String>, role: Role) -> Self {
+        Self {
+            output: output.into(),
+            role,
+            scene_version: None,
+            presented: Vec::new(),
+        }
+    }
+
+    /// Frames presented so far, in order.
+    pub fn presented(&self) -> &[u64] {
+        &self.presented
+    }
+}
+
+impl Renderer for StateHashRenderer {
+    fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
+        self.scene_version = Some(version);
+        Ok(())
+    }
+
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        _scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
+        if self.scene_version != Some(frame.scene_version) {
+            return Err(RenderError(format!(
+                "{}: frame {} is for scene version {} but the renderer has {:?}",
+                self.output, frame.frame, frame.scene_version, self.scene_version
+            )));
+        }
+        let mut h = Fnv64::default();
+        h.write(self.output.as_bytes());
+        h.write(&[self.role as u8]);
+        h.write(&frame.frame.to_le_bytes());
+        h.write(&frame.scene_version.to_le_bytes());
+        h.write(&frame.time_s.to_bits().to_le_bytes());
+        for p in &frame.heads {
+            for c in p
+                .position
+                .to_array()
+                .into_iter()
+                .chain(p.orientation.to_array())
+            {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+        }
+        for l in &frame.lights {
+            h.write(l.name.as_bytes());
+            for c in l.light.position().to_array() {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+        }
+        for t in &frame.object_transforms {
+            h.write(&t.object.to_le_bytes());
+            let m = t.transform.matrix().to_cols_array();
+            for c in m {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+        }
+        Ok(RenderOutput {
+            hash: h.finish(),
+            image: None,
+        })
+    }
+
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        self.presented.push(frame);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fnv_matches_reference_vectors() {
+        // FNV-1a 64 test vectors.
+        let h = |s: &str| {
+            let mut f = Fnv64::default();
+            f.write(s.as_bytes());
+            f.finish()
+        };
+        assert_eq!(h(""), 0xcbf29ce484222325);
+        assert_eq!(h("a"), 0xaf63dc4c8601ec8c);
+        assert_eq!(h("foobar"), 0x85944171f73967e8);
+    }
+
+    #[test]
+    fn state_hash_depends_on_what_is_drawn() {
+        let scene = Arc::new(Showcase::default());
+        let mut r = StateHashRenderer::new("face-0", Role::Face);
+        let mut f = FrameState {
+            frame: 3,
+            time_s: 0.05,
+            scene_version: 1,
+            heads: vec![],
+            lights: vec![],
+            object_transforms: vec![],
+            tracking_time_ns: Some(7),
+        };
+        assert!(r.render(&f, &scene).is_err(), "no scene yet");
+        r.set_scene(1, scene.clone()).unwrap();
+        let a = r.render(&f, &scene).unwrap().hash;
+        assert_eq!(a, r.render(&f, &scene).unwrap().hash);
+        // Tracking timestamps are metadata, not drawn.
+        f.tracking_time_ns = Some(8);
+        assert_eq!(a, r.render(&f, &scene).unwrap().hash);
+        f.time_s = 0.06;
+        assert_ne!(a, r.render(&f, &scene).unwrap().hash);
+        let mut other = StateHashRenderer::new("face-1", Role::Face);
+        other.set_scene(1, scene.clone()).unwrap();
+        assert_ne!(
+            other.render(&f, &scene).unwrap().hash,
+            r.render(&f, &scene).unwrap().hash
+        );
+    }
+}
