@@ -8,6 +8,7 @@ mod codec;
 mod gpu;
 mod light;
 mod radiosity;
+mod render;
 mod scene_files;
 mod session;
 mod sim;
