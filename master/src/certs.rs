@@ -9,8 +9,7 @@ use rcgen::{
 };
 use std::path::{Path, PathBuf};
 
-/// The name nodes expect in the master's certificate.
-pub const MASTER_SERVER_NAME: &str = "showcase-master";
+pub use showcase_render::net::MASTER_SERVER_NAME;
 /// File stem of the master's certificate and key.
 pub const MASTER_FILE: &str = "master";
 

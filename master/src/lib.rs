@@ -4,6 +4,7 @@
 pub mod calibrate;
 pub mod certs;
 pub mod cli;
+pub mod cluster;
 pub mod demo;
 pub mod scene_file;
 pub mod tracking;

@@ -4,6 +4,7 @@
 mod alloc_track;
 mod calibration;
 mod capture;
+mod cluster;
 mod codec;
 mod gpu;
 mod light;

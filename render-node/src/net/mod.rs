@@ -4,5 +4,7 @@
 pub mod stream;
 pub mod tls;
 
-pub use stream::{MessageStream, StreamError};
-pub use tls::{ALPN, ClusterIdentity, TlsError, client_config, peer_is, server_config};
+pub use stream::{MessageReader, MessageStream, MessageWriter, StreamError};
+pub use tls::{
+    ALPN, ClusterIdentity, MASTER_SERVER_NAME, TlsError, client_config, peer_is, server_config,
+};

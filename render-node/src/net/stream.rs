@@ -23,32 +23,55 @@ pub enum StreamError {
 /// A framed message stream over a QUIC bidirectional stream.
 #[derive(Debug)]
 pub struct MessageStream {
-    send: quinn::SendStream,
-    recv: quinn::RecvStream,
-    decoder: FrameDecoder,
-    buf: Vec<u8>,
+    writer: MessageWriter,
+    reader: MessageReader,
 }
 
 impl MessageStream {
     /// Wrap an opened or accepted bidirectional stream.
     pub fn new(send: quinn::SendStream, recv: quinn::RecvStream) -> Self {
         Self {
-            send,
+            writer: MessageWriter::new(send),
+            reader: MessageReader::new(recv),
+        }
+    }
+
+    /// Send one message.
+    pub async fn send(&mut self, msg: &Message) -> Result<(), StreamError> {
+        self.writer.send(msg).await
+    }
+
+    /// Receive the next message. Cancel-safe: bytes already read stay
+    /// buffered in the decoder.
+    pub async fn recv(&mut self) -> Result<Message, StreamError> {
+        self.reader.recv().await
+    }
+
+    /// Split into the two halves, to read and write from different tasks.
+    pub fn split(self) -> (MessageWriter, MessageReader) {
+        (self.writer, self.reader)
+    }
+}
+
+/// The receiving half: framed, validated messages.
+#[derive(Debug)]
+pub struct MessageReader {
+    recv: quinn::RecvStream,
+    decoder: FrameDecoder,
+    buf: Vec<u8>,
+}
+
+impl MessageReader {
+    /// Wrap a receive stream.
+    pub fn new(recv: quinn::RecvStream) -> Self {
+        Self {
             recv,
             decoder: FrameDecoder::new(MAX_FRAME_LEN),
             buf: vec![0; 64 * 1024],
         }
     }
 
-    /// Send one message.
-    pub async fn send(&mut self, msg: &Message) -> Result<(), StreamError> {
-        let frame = encode_frame(msg, MAX_FRAME_LEN)?;
-        self.send.write_all(&frame).await?;
-        Ok(())
-    }
-
-    /// Receive the next message. Cancel-safe: bytes already read stay
-    /// buffered in the decoder.
+    /// The next message (cancel-safe).
     pub async fn recv(&mut self) -> Result<Message, StreamError> {
         loop {
             if let Some(msg) = self.decoder.next_message()? {
@@ -60,10 +83,29 @@ impl MessageStream {
             }
         }
     }
+}
 
-    /// Split into the raw halves (for drivers that read and write from
-    /// different tasks).
-    pub fn into_inner(self) -> (quinn::SendStream, quinn::RecvStream) {
-        (self.send, self.recv)
+/// The sending half.
+#[derive(Debug)]
+pub struct MessageWriter {
+    send: quinn::SendStream,
+}
+
+impl MessageWriter {
+    /// Wrap a send stream.
+    pub fn new(send: quinn::SendStream) -> Self {
+        Self { send }
+    }
+
+    /// Send one message.
+    pub async fn send(&mut self, msg: &Message) -> Result<(), StreamError> {
+        let frame = encode_frame(msg, MAX_FRAME_LEN)?;
+        self.send.write_all(&frame).await?;
+        Ok(())
+    }
+
+    /// Finish the stream (the peer reads to the end, then sees it closed).
+    pub fn finish(&mut self) {
+        let _ = self.send.finish();
     }
 }

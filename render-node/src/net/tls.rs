@@ -10,6 +10,9 @@ use rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// The name nodes expect in the master's certificate.
+pub const MASTER_SERVER_NAME: &str = "showcase-master";
+
 /// ALPN protocol identifier of the cluster protocol.
 pub const ALPN: &[u8] = b"showcase/1";
 

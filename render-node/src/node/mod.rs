@@ -1,8 +1,11 @@
 //! The render node's runtime: the [`Renderer`] seam and the tokio/quinn
 //! driver around the sans-IO `NodeCore`.
 
+pub mod driver;
+pub mod png_out;
 pub mod renderer;
 
+pub use driver::{NodeLog, NodeRunError, NodeRuntime, run_node};
 pub use renderer::{
     Fnv64, OutputImage, RenderError, RenderOutput, Renderer, StateHashRenderer, hash_pixels,
 };

@@ -1,0 +1,98 @@
+//! Per-frame cluster measurements: one JSON line per presented frame
+//! (`--metrics FILE`), and summaries (percentiles) for reports and the
+//! cluster benchmark.
+
+use serde::Serialize;
+use showcase_proto::FrameState;
+use showcase_proto::session::{PresentReport, SwapReport};
+
+/// One node's figures for one frame.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NodeMetric {
+    /// Node name.
+    pub name: String,
+    /// Render time (ms).
+    pub render_ms: f32,
+    /// Time between its Ready and the Swap (ms).
+    pub barrier_wait_ms: f32,
+    /// Its present time minus the swap time, on the master clock (ms).
+    pub present_offset_ms: Option<f64>,
+}
+
+/// One line of `--metrics`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrameMetrics {
+    /// Frame number.
+    pub frame: u64,
+    /// Head positions.
+    pub heads: Vec<[f32; 3]>,
+    /// Light positions.
+    pub lights: Vec<[f32; 3]>,
+    /// Per-node figures.
+    pub nodes: Vec<NodeMetric>,
+    /// Spread of the nodes' present times (ms).
+    pub swap_skew_ms: Option<f64>,
+    /// From the newest tracking sample to the swap (ms).
+    pub tracking_to_swap_ms: Option<f64>,
+    /// Nodes evicted at this frame's swap.
+    pub evicted: Vec<String>,
+}
+
+/// Build a frame's metrics from its state, swap and present reports.
+pub fn frame_metrics(
+    state: &FrameState,
+    swap: &SwapReport,
+    present: &PresentReport,
+) -> FrameMetrics {
+    FrameMetrics {
+        frame: present.frame,
+        heads: state.heads.iter().map(|h| h.position.to_array()).collect(),
+        lights: state
+            .lights
+            .iter()
+            .map(|l| l.light.position().to_array())
+            .collect(),
+        nodes: present
+            .nodes
+            .iter()
+            .map(|n| NodeMetric {
+                name: n.node.clone(),
+                render_ms: n.render_ms,
+                barrier_wait_ms: n.barrier_wait_ms,
+                present_offset_ms: n.present_offset_ns.map(|o| o as f64 / 1e6),
+            })
+            .collect(),
+        swap_skew_ms: present.swap_skew_ns.map(|s| s as f64 / 1e6),
+        tracking_to_swap_ms: swap
+            .tracking_time_ns
+            .map(|t| swap.swap_at_ns.saturating_sub(t) as f64 / 1e6),
+        evicted: swap.evicted.clone(),
+    }
+}
+
+/// The `p`-th percentile (0..=100) of `values` by nearest rank; `None` if empty.
+pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let rank = ((p / 100.0) * v.len() as f64).ceil().max(1.0) as usize;
+    Some(v[rank.min(v.len()) - 1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rank_percentiles() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(&v, 50.0), Some(50.0));
+        assert_eq!(percentile(&v, 99.0), Some(99.0));
+        assert_eq!(percentile(&v, 100.0), Some(100.0));
+        assert_eq!(percentile(&[3.0], 99.0), Some(3.0));
+        assert_eq!(percentile(&[], 50.0), None);
+        assert_eq!(percentile(&[f64::NAN, 2.0], 50.0), Some(2.0));
+    }
+}

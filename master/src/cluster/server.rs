@@ -1,0 +1,455 @@
+//! The master's driver: a tokio loop around the sans-IO `MasterCore`. It
+//! accepts QUIC connections (mutual TLS), checks that each Hello comes from
+//! the certificate of the node it names, moves messages between the
+//! connections and the core, runs the frame clock at the target rate,
+//! feeds DTrack datagrams to the show, and writes per-frame metrics.
+//! Every task it spawns lives in a `JoinSet` that ends with the run.
+
+use super::metrics::{FrameMetrics, frame_metrics};
+use super::show::Show;
+use showcase_proto::codec::{MAX_FRAME_LEN, encode_frame};
+use showcase_proto::session::{
+    ConnId, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, SwapReport,
+};
+use showcase_proto::{CodecError, FrameState, Message, Showcase};
+use showcase_render::net::{
+    ClusterIdentity, MessageReader, MessageStream, MessageWriter, StreamError, TlsError, peer_is,
+    server_config,
+};
+use std::collections::{BTreeMap, HashMap};
+use std::io::Write;
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+use tokio::task::JoinSet;
+use tokio_util::sync::CancellationToken;
+use tracing::{Instrument, debug, info, info_span, warn};
+
+/// How the master runs.
+pub struct ServerSettings {
+    /// QUIC listen address.
+    pub listen: SocketAddr,
+    /// The master's certificate and the cluster CA.
+    pub identity: ClusterIdentity,
+    /// Frame rate, deadline and the rest of the core's settings.
+    pub core: MasterConfig,
+    /// Stop after this many frames (run forever if `None`).
+    pub frames: Option<u64>,
+    /// Start the frame clock once this many nodes have joined (or after
+    /// `start_timeout`).
+    pub wait_for_nodes: usize,
+    /// Longest wait for `wait_for_nodes`.
+    pub start_timeout: Duration,
+    /// UDP address for DTrack datagrams.
+    pub tracking: Option<SocketAddr>,
+    /// Where to write one JSON line per frame.
+    pub metrics: Option<Box<dyn Write + Send>>,
+}
+
+/// Why the master could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    /// TLS material could not be used.
+    #[error(transparent)]
+    Tls(#[from] TlsError),
+    /// A socket could not be bound (e.g. the port is taken).
+    #[error("cannot listen on {addr} ({what}): {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// QUIC or tracking.
+        what: &'static str,
+        /// The IO error.
+        source: std::io::Error,
+    },
+    /// The core refused its settings or the scene.
+    #[error(transparent)]
+    Core(#[from] MasterError),
+    /// Metrics could not be written.
+    #[error("writing metrics: {0}")]
+    Metrics(std::io::Error),
+}
+
+/// What a run did.
+#[derive(Debug, Default)]
+pub struct ClusterRun {
+    /// One entry per presented frame.
+    pub frames: Vec<FrameMetrics>,
+    /// Frames submitted.
+    pub submitted: u64,
+    /// Frame-clock ticks at which no frame could be submitted (pipeline
+    /// full because a node was late).
+    pub dropped_ticks: u64,
+    /// Nodes evicted for missing a deadline.
+    pub evictions: u64,
+    /// `(node, master-clock ns)` of every join.
+    pub joins: Vec<(String, u64)>,
+    /// `(node, master-clock ns)` of every connection closed, with why.
+    pub closes: Vec<(Option<String>, u64, String)>,
+    /// Bytes of FrameState messages sent, in total.
+    pub frame_bytes: u64,
+    /// FrameState messages sent.
+    pub frame_messages: u64,
+    /// Master-clock ns when the frame clock started.
+    pub started_ns: u64,
+}
+
+enum Inbound {
+    Connected(ConnId, mpsc::UnboundedSender<Outbound>),
+    Message(ConnId, Message),
+    DecodeError(ConnId, CodecError),
+    Lost(ConnId, String),
+}
+
+enum Outbound {
+    Send(Message),
+    Close(String),
+}
+
+/// A bound master, ready to run.
+pub struct Server {
+    endpoint: quinn::Endpoint,
+    udp: Option<tokio::net::UdpSocket>,
+    settings: ServerSettings,
+}
+
+impl Server {
+    /// Bind the QUIC endpoint and the tracking socket. Must be called
+    /// inside a tokio runtime.
+    pub fn bind(settings: ServerSettings) -> Result<Self, ServerError> {
+        settings.core.check()?;
+        let cfg = server_config(&settings.identity)?;
+        let endpoint =
+            quinn::Endpoint::server(cfg, settings.listen).map_err(|source| ServerError::Bind {
+                addr: settings.listen,
+                what: "QUIC",
+                source,
+            })?;
+        let udp = match settings.tracking {
+            Some(addr) => {
+                let bind = |source| ServerError::Bind {
+                    addr,
+                    what: "DTrack tracking",
+                    source,
+                };
+                let s = std::net::UdpSocket::bind(addr).map_err(bind)?;
+                s.set_nonblocking(true).map_err(bind)?;
+                Some(tokio::net::UdpSocket::from_std(s).map_err(bind)?)
+            }
+            None => None,
+        };
+        Ok(Self {
+            endpoint,
+            udp,
+            settings,
+        })
+    }
+
+    /// The QUIC address nodes connect to.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.endpoint
+            .local_addr()
+            .expect("a bound endpoint has an address")
+    }
+
+    /// The UDP address DTrack sends to.
+    pub fn tracking_addr(&self) -> Option<SocketAddr> {
+        self.udp.as_ref().and_then(|u| u.local_addr().ok())
+    }
+
+    /// Run the show until `frames` are done or `shutdown` is cancelled.
+    pub async fn run(
+        self,
+        scene: Showcase,
+        mut show: Show,
+        shutdown: CancellationToken,
+    ) -> Result<ClusterRun, ServerError> {
+        let Server {
+            endpoint,
+            udp,
+            mut settings,
+        } = self;
+        let start = Instant::now();
+        let now = || start.elapsed().as_nanos() as u64;
+        let hz = settings.core.target_hz as f64;
+        let mut core = MasterCore::new(settings.core.clone(), scene)?;
+        let (tx, mut rx) = mpsc::unbounded_channel::<Inbound>();
+        let mut tasks = JoinSet::new();
+        let mut conns: HashMap<ConnId, mpsc::UnboundedSender<Outbound>> = HashMap::new();
+        let mut next_conn = 0u64;
+        let mut run = ClusterRun::default();
+        let mut states: BTreeMap<u64, FrameState> = BTreeMap::new();
+        let mut swaps: BTreeMap<u64, SwapReport> = BTreeMap::new();
+        let mut ticker = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
+        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        let mut started = false;
+        let mut next_frame = 0u64;
+        let mut last_swap_at: Option<Instant> = None;
+        let mut udp_buf = vec![0u8; 64 * 1024];
+
+        'run: loop {
+            while let Some(out) = core.poll() {
+                match out {
+                    MasterOutput::Transmit { conn, message } => {
+                        if let Message::FrameState(_) = &message
+                            && let Ok(f) = encode_frame(&message, MAX_FRAME_LEN)
+                        {
+                            run.frame_bytes += f.len() as u64;
+                            run.frame_messages += 1;
+                        }
+                        if let Some(c) = conns.get(&conn) {
+                            let _ = c.send(Outbound::Send(message));
+                        }
+                    }
+                    MasterOutput::Close { conn, reason } => {
+                        if let Some(c) = conns.remove(&conn) {
+                            let _ = c.send(Outbound::Close(reason.to_string()));
+                        }
+                    }
+                    MasterOutput::Event(ev) => match ev {
+                        MasterEvent::NodeJoined {
+                            node,
+                            role,
+                            current_frame,
+                            ..
+                        } => {
+                            info!(%node, %role, ?current_frame, "node joined");
+                            run.joins.push((node, now()));
+                        }
+                        MasterEvent::NodeClosed { node, reason, .. } => {
+                            info!(node = node.as_deref().unwrap_or("?"), %reason, "node closed");
+                            if matches!(
+                                reason,
+                                showcase_proto::session::CloseReason::MissedDeadline { .. }
+                            ) {
+                                run.evictions += 1;
+                            }
+                            run.closes.push((node, now(), reason.to_string()));
+                        }
+                        MasterEvent::FrameSwapped(s) => {
+                            last_swap_at = Some(Instant::now());
+                            swaps.insert(s.frame, s);
+                        }
+                        MasterEvent::FramePresented(p) => {
+                            let (Some(state), Some(swap)) =
+                                (states.remove(&p.frame), swaps.remove(&p.frame))
+                            else {
+                                continue;
+                            };
+                            let m = frame_metrics(&state, &swap, &p);
+                            if let Some(w) = settings.metrics.as_mut() {
+                                serde_json::to_writer(&mut *w, &m)
+                                    .map_err(|e| ServerError::Metrics(e.into()))?;
+                                w.write_all(b"\n").map_err(ServerError::Metrics)?;
+                            }
+                            run.frames.push(m);
+                        }
+                    },
+                }
+            }
+            if let Some(limit) = settings.frames {
+                let all_swapped = core.swapped_upto().is_some_and(|f| f + 1 >= limit);
+                let reports_in = states.is_empty()
+                    || last_swap_at.is_some_and(|t| t.elapsed() > Duration::from_millis(500));
+                if next_frame >= limit && all_swapped && reports_in {
+                    break 'run;
+                }
+            }
+            let timeout = core.poll_timeout();
+            let sleep = async {
+                match timeout {
+                    Some(t) => {
+                        tokio::time::sleep(Duration::from_nanos(t.saturating_sub(now()))).await
+                    }
+                    None => tokio::time::sleep(Duration::from_millis(100)).await,
+                }
+            };
+            let datagram = async {
+                match udp.as_ref() {
+                    Some(u) => u.recv_from(&mut udp_buf).await.map(|(n, _)| n),
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                _ = shutdown.cancelled() => break 'run,
+                Some(incoming) = endpoint.accept() => {
+                    let id = ConnId(next_conn);
+                    next_conn += 1;
+                    let tx = tx.clone();
+                    let span = info_span!("connection", conn = %id, peer = %incoming.remote_address());
+                    tasks.spawn(connection(incoming, id, tx).instrument(span));
+                }
+                Some(ev) = rx.recv() => match ev {
+                    Inbound::Connected(id, out) => {
+                        conns.insert(id, out);
+                        core.handle_connect(now(), id);
+                    }
+                    Inbound::Message(id, m) => if conns.contains_key(&id) { core.handle_message(now(), id, m) },
+                    Inbound::DecodeError(id, e) => if conns.contains_key(&id) { core.handle_decode_error(now(), id, &e) },
+                    Inbound::Lost(id, why) => if conns.remove(&id).is_some() {
+                        debug!(conn = %id, %why, "connection lost");
+                        core.handle_disconnect(now(), id);
+                    },
+                },
+                n = datagram => match n {
+                    Ok(n) => match std::str::from_utf8(&udp_buf[..n]) {
+                        Ok(text) => show.ingest_live(now() as f64 / 1e9, text),
+                        Err(_) => warn!("tracking datagram is not text"),
+                    },
+                    Err(e) => warn!(error = %e, "tracking socket"),
+                },
+                _ = ticker.tick() => {
+                    if !started {
+                        let joined = core.nodes().count();
+                        if joined >= settings.wait_for_nodes || start.elapsed() >= settings.start_timeout {
+                            started = true;
+                            run.started_ns = now();
+                            info!(nodes = joined, "frame clock started");
+                        } else {
+                            continue 'run;
+                        }
+                    }
+                    if settings.frames.is_some_and(|l| next_frame >= l) {
+                        continue 'run;
+                    }
+                    if !core.can_submit() {
+                        run.dropped_ticks += 1;
+                        continue 'run;
+                    }
+                    let t = now();
+                    let (mut state, sample) = show.frame_state(next_frame, t as f64 / 1e9, core.scene(), core.scene_version());
+                    state.tracking_time_ns = sample.map(|s| (s * 1e9) as u64);
+                    if show.is_live() || state.tracking_time_ns.is_none() {
+                        // Live samples are already on the master clock.
+                    } else {
+                        // Scripted and replayed samples are in show time:
+                        // their sample "arrives" as the frame is built.
+                        state.tracking_time_ns = Some(t);
+                    }
+                    states.insert(next_frame, state.clone());
+                    match core.submit_frame(t, state) {
+                        Ok(()) => {
+                            run.submitted += 1;
+                            next_frame += 1;
+                        }
+                        Err(e) => {
+                            states.remove(&next_frame);
+                            warn!(error = %e, "frame refused");
+                            run.dropped_ticks += 1;
+                        }
+                    }
+                }
+                _ = sleep => core.handle_timeout(now()),
+            }
+        }
+        core.shutdown(now(), "the master is shutting down");
+        while let Some(out) = core.poll() {
+            if let MasterOutput::Transmit { conn, message } = out {
+                if let Some(c) = conns.get(&conn) {
+                    let _ = c.send(Outbound::Send(message));
+                }
+            } else if let MasterOutput::Close { conn, reason } = out
+                && let Some(c) = conns.remove(&conn)
+            {
+                let _ = c.send(Outbound::Close(reason.to_string()));
+            }
+        }
+        drop(conns);
+        let _ = tokio::time::timeout(Duration::from_secs(2), async {
+            while tasks.join_next().await.is_some() {}
+        })
+        .await;
+        tasks.abort_all();
+        endpoint.close(0u32.into(), b"master shutting down");
+        let _ = tokio::time::timeout(Duration::from_secs(1), endpoint.wait_idle()).await;
+        Ok(run)
+    }
+}
+
+/// One node connection: TLS handshake, the name check, then a reader that
+/// forwards messages and a writer that sends what the core transmits.
+async fn connection(incoming: quinn::Incoming, id: ConnId, tx: mpsc::UnboundedSender<Inbound>) {
+    let conn = match incoming.await {
+        Ok(c) => c,
+        Err(e) => {
+            warn!(error = %e, "handshake refused");
+            return;
+        }
+    };
+    let (send, recv) = match tokio::time::timeout(Duration::from_secs(5), conn.accept_bi()).await {
+        Ok(Ok(s)) => s,
+        Ok(Err(e)) => {
+            debug!(error = %e, "no stream");
+            return;
+        }
+        Err(_) => {
+            conn.close(2u32.into(), b"no stream opened in 5 s");
+            return;
+        }
+    };
+    let (mut writer, mut reader): (MessageWriter, MessageReader) =
+        MessageStream::new(send, recv).split();
+    let (out_tx, mut out_rx) = mpsc::unbounded_channel();
+    if tx.send(Inbound::Connected(id, out_tx)).is_err() {
+        return;
+    }
+    let write_conn = conn.clone();
+    let writer_task = async move {
+        while let Some(o) = out_rx.recv().await {
+            match o {
+                Outbound::Send(m) => {
+                    if writer.send(&m).await.is_err() {
+                        break;
+                    }
+                }
+                Outbound::Close(reason) => {
+                    writer.finish();
+                    // Give the Bye a moment to leave before the close frame.
+                    tokio::time::sleep(Duration::from_millis(20)).await;
+                    let mut r = reason.into_bytes();
+                    r.truncate(1000);
+                    write_conn.close(1u32.into(), &r);
+                    break;
+                }
+            }
+        }
+    };
+    let reader_task = async {
+        loop {
+            match reader.recv().await {
+                Ok(Message::Hello(h)) if !peer_is(&conn, &h.node) => {
+                    warn!(node = %h.node, "Hello names a node whose certificate this peer lacks");
+                    conn.close(3u32.into(), b"certificate does not match the node name");
+                    let _ = tx.send(Inbound::Lost(
+                        id,
+                        format!("{} presented another certificate", h.node),
+                    ));
+                    return false;
+                }
+                Ok(m) => {
+                    if tx.send(Inbound::Message(id, m)).is_err() {
+                        return false;
+                    }
+                }
+                Err(StreamError::Codec(e)) => {
+                    // The core answers with Bye + Close: let the writer send them.
+                    let _ = tx.send(Inbound::DecodeError(id, e));
+                    return true;
+                }
+                Err(e) => {
+                    let _ = tx.send(Inbound::Lost(id, e.to_string()));
+                    return false;
+                }
+            }
+        }
+    };
+    let mut writer_task = std::pin::pin!(writer_task);
+    tokio::select! {
+        _ = &mut writer_task => {}
+        wait_for_writer = reader_task => if wait_for_writer {
+            let _ = tokio::time::timeout(Duration::from_secs(1), &mut writer_task).await;
+        }
+    }
+    // Whatever ended first, make sure the core hears the connection is gone.
+    let _ = tx.send(Inbound::Lost(id, "connection ended".into()));
+}

@@ -1,0 +1,255 @@
+//! The node's driver: a tokio task around the sans-IO `NodeCore`. It dials
+//! the master over QUIC (mutual TLS), feeds what arrives into the core,
+//! sleeps until `poll_timeout`, renders and presents through the
+//! [`Renderer`], and redials with the core's backoff when the master goes
+//! away. Shutdown is a cancellation token, so tests can stop it.
+
+use super::renderer::{RenderError, Renderer};
+use crate::net::{ClusterIdentity, MASTER_SERVER_NAME, MessageStream, TlsError, client_config};
+use showcase_proto::session::{NodeConfig, NodeCore, NodeEvent, NodeOutput};
+use showcase_proto::{Capabilities, Role};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tokio_util::sync::CancellationToken;
+use tracing::{Instrument, debug, info, info_span, warn};
+
+/// How a node runs.
+#[derive(Clone, Debug)]
+pub struct NodeRuntime {
+    /// The node's name (its certificate name).
+    pub name: String,
+    /// What it drives.
+    pub role: Role,
+    /// Where the master listens.
+    pub master: SocketAddr,
+    /// Its certificate, key and the cluster CA.
+    pub identity: ClusterIdentity,
+    /// Local address to bind (port 0: any).
+    pub bind: SocketAddr,
+    /// What it can do, sent in Hello.
+    pub capabilities: Capabilities,
+    /// Write the images of these frames as PNG into this folder.
+    pub write_frames: Option<(PathBuf, Vec<u64>)>,
+}
+
+/// What a node did, returned when it stops.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NodeLog {
+    /// `(frame, output hash)` of every presented frame, in order.
+    pub presented: Vec<(u64, u64)>,
+    /// Times the node (re)joined the master.
+    pub joins: u32,
+    /// Frame images written.
+    pub written: Vec<PathBuf>,
+    /// Rendered frames waiting for their swap.
+    pending: Vec<(u64, u64)>,
+}
+
+/// Why a node stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeRunError {
+    /// TLS material could not be used.
+    #[error(transparent)]
+    Tls(#[from] TlsError),
+    /// The local UDP socket could not be bound.
+    #[error("cannot bind {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// The IO error.
+        source: std::io::Error,
+    },
+    /// The renderer failed.
+    #[error("renderer: {0}")]
+    Render(#[from] RenderError),
+    /// A frame image could not be written.
+    #[error("writing frame image {path}: {problem}")]
+    WriteFrame {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+    },
+}
+
+struct Link {
+    conn: quinn::Connection,
+    stream: MessageStream,
+}
+
+async fn dial(ep: &quinn::Endpoint, addr: SocketAddr) -> Result<Link, String> {
+    let connecting = ep
+        .connect(addr, MASTER_SERVER_NAME)
+        .map_err(|e| format!("connect to {addr}: {e}"))?;
+    let conn = tokio::time::timeout(Duration::from_secs(3), connecting)
+        .await
+        .map_err(|_| format!("connect to {addr}: timed out"))?
+        .map_err(|e| format!("connect to {addr}: {e}"))?;
+    let (send, recv) = conn.open_bi().await.map_err(|e| e.to_string())?;
+    Ok(Link {
+        conn,
+        stream: MessageStream::new(send, recv),
+    })
+}
+
+/// Run a node until `shutdown` is cancelled.
+pub async fn run_node<R: Renderer>(
+    rt: NodeRuntime,
+    renderer: &mut R,
+    shutdown: CancellationToken,
+) -> Result<NodeLog, NodeRunError> {
+    let span = info_span!("node", node = %rt.name);
+    run_inner(rt, renderer, shutdown).instrument(span).await
+}
+
+async fn run_inner<R: Renderer>(
+    rt: NodeRuntime,
+    renderer: &mut R,
+    shutdown: CancellationToken,
+) -> Result<NodeLog, NodeRunError> {
+    let socket = std::net::UdpSocket::bind(rt.bind).map_err(|source| NodeRunError::Bind {
+        addr: rt.bind,
+        source,
+    })?;
+    let mut ep = quinn::Endpoint::new(
+        quinn::EndpointConfig::default(),
+        None,
+        socket,
+        std::sync::Arc::new(quinn::TokioRuntime),
+    )
+    .map_err(|source| NodeRunError::Bind {
+        addr: rt.bind,
+        source,
+    })?;
+    ep.set_default_client_config(client_config(&rt.identity)?);
+
+    let start = Instant::now();
+    let now = || start.elapsed().as_nanos() as u64;
+    let mut config = NodeConfig::new(rt.name.clone(), rt.role);
+    config.capabilities = rt.capabilities.clone();
+    let mut core = NodeCore::new(config);
+    let mut link: Option<Link> = None;
+    let mut log = NodeLog::default();
+
+    'run: loop {
+        while let Some(out) = core.poll() {
+            match out {
+                NodeOutput::Dial => {
+                    let dialled = tokio::select! {
+                        _ = shutdown.cancelled() => break 'run,
+                        d = dial(&ep, rt.master) => d,
+                    };
+                    match dialled {
+                        Ok(l) => {
+                            link = Some(l);
+                            core.connect(now());
+                        }
+                        Err(e) => {
+                            debug!(error = %e, "dial failed");
+                            core.handle_disconnect(now(), &e);
+                        }
+                    }
+                }
+                NodeOutput::Transmit(msg) => {
+                    if let Some(l) = link.as_mut()
+                        && let Err(e) = l.stream.send(&msg).await
+                    {
+                        link = None;
+                        core.handle_disconnect(now(), &e.to_string());
+                    }
+                }
+                NodeOutput::Close { reason } => {
+                    if let Some(l) = link.take() {
+                        let (mut writer, _) = l.stream.split();
+                        writer.finish();
+                        l.conn.close(0u32.into(), reason.as_bytes());
+                    }
+                }
+                NodeOutput::Event(ev) => handle_event(ev, &rt, renderer, &mut core, &mut log, now)?,
+            }
+        }
+        let deadline = core.poll_timeout();
+        let sleep = async {
+            match deadline {
+                Some(t) => tokio::time::sleep(Duration::from_nanos(t.saturating_sub(now()))).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            _ = shutdown.cancelled() => break 'run,
+            got = async {
+                match link.as_mut() {
+                    Some(l) => l.stream.recv().await,
+                    None => std::future::pending().await,
+                }
+            } => match got {
+                Ok(msg) => core.handle_message(now(), msg),
+                Err(e) => {
+                    link = None;
+                    core.handle_disconnect(now(), &e.to_string());
+                }
+            },
+            _ = sleep => core.handle_timeout(now()),
+        }
+    }
+    if let Some(l) = link.take() {
+        l.conn.close(0u32.into(), b"node shutting down");
+    }
+    let _ = tokio::time::timeout(Duration::from_secs(1), ep.wait_idle()).await;
+    Ok(log)
+}
+
+fn handle_event<R: Renderer>(
+    ev: NodeEvent,
+    rt: &NodeRuntime,
+    renderer: &mut R,
+    core: &mut NodeCore,
+    log: &mut NodeLog,
+    now: impl Fn() -> u64,
+) -> Result<(), NodeRunError> {
+    match ev {
+        NodeEvent::Connected { target_hz, .. } => {
+            log.joins += 1;
+            info!(target_hz, "joined the master");
+        }
+        NodeEvent::SceneChanged { version, scene } => renderer.set_scene(version, scene)?,
+        NodeEvent::Render { frame, scene } => {
+            let t0 = Instant::now();
+            let out = renderer.render(&frame, &scene)?;
+            let render_ns = t0.elapsed().as_nanos() as u64;
+            if let (Some((dir, frames)), Some(img)) = (&rt.write_frames, &out.image)
+                && frames.contains(&frame.frame)
+            {
+                let path = dir.join(format!("{}-{:05}.png", rt.name, frame.frame));
+                crate::node::png_out::write_png(&path, img).map_err(|problem| {
+                    NodeRunError::WriteFrame {
+                        path: path.clone(),
+                        problem,
+                    }
+                })?;
+                log.written.push(path);
+            }
+            log.pending.push((frame.frame, out.hash));
+            if let Err(e) = core.rendered(now(), frame.frame, out.hash, render_ns) {
+                warn!(error = %e, "core refused a rendered frame");
+            }
+        }
+        NodeEvent::Present { frame } => {
+            renderer.present(frame)?;
+            if let Some(i) = log.pending.iter().position(|(f, _)| *f == frame) {
+                let done = log.pending.remove(i);
+                log.presented.push(done);
+            }
+            if let Err(e) = core.presented(now(), frame) {
+                warn!(error = %e, "core refused a presented frame");
+            }
+        }
+        NodeEvent::Disconnected { reason, .. } => {
+            // Frames rendered but not presented are dropped by the core.
+            log.pending.clear();
+            info!(%reason, "left the master");
+        }
+    }
+    Ok(())
+}
