@@ -1,7 +1,7 @@
 //! The `showcase-master` command line: argument definitions and dispatch.
 //! The binary only parses, sets up tracing and calls [`run`].
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
 
@@ -61,6 +61,9 @@ pub struct RunArgs {
     /// Write one JSON line of measurements per frame to this file.
     #[arg(long)]
     pub metrics: Option<PathBuf>,
+    /// Record every tracking datagram to this session file.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
 }
 
 /// Calibration method.
@@ -123,9 +126,21 @@ pub struct RadiosityArgs {
 /// Arguments of `replay`.
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// Recorded session file.
+    /// Recorded session file (`demo` writes one: `showcase-out/session.jsonl`).
     #[arg(long)]
     pub session: PathBuf,
+    /// Scene file (default: the built-in demo cabinet).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Frame rate of the replay.
+    #[arg(long, default_value_t = 60.0)]
+    pub hz: f32,
+    /// Frames to run (default: the recording's length).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Write every node's per-frame output hashes to this JSON file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 }
 
 /// Arguments of `certs`.
@@ -166,6 +181,9 @@ pub struct BenchArgs {
     /// Report folder (without --json).
     #[arg(long, default_value = "showcase-bench")]
     pub out: PathBuf,
+    /// Frames per configuration (cluster bench).
+    #[arg(long, default_value_t = 600)]
+    pub frames: u64,
 }
 
 /// Subcommands of `sim`.
@@ -222,15 +240,63 @@ fn not_built(command: &'static str, capability: &'static str, issue: u32) -> any
     .into()
 }
 
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")
+}
+
+/// Print a bench's records as one JSON array, or write them as a report.
+fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()> {
+    let json = serde_json::to_string_pretty(records)?;
+    if args.json {
+        println!("{json}");
+    } else {
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("cannot create {}", args.out.display()))?;
+        let path = args
+            .out
+            .join(format!("{:?}.json", args.target).to_lowercase());
+        std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
 /// Execute a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Demo(args) => crate::demo::run(&args),
-        Command::Run(_) => Err(not_built("run", "the cluster master", 7)),
+        Command::Run(args) => runtime()?.block_on(crate::cluster::commands::run_master(
+            &args.config,
+            args.metrics.as_deref(),
+            args.record.as_deref(),
+        )),
         Command::Calibrate(_) => Err(not_built("calibrate", "device calibration", 4)),
         Command::Capture(_) => Err(not_built("capture", "reflectance capture", 3)),
         Command::Radiosity(_) => Err(not_built("radiosity", "augmented radiosity", 5)),
-        Command::Replay(_) => Err(not_built("replay", "session replay", 7)),
+        Command::Replay(args) => {
+            let scene_path = args
+                .scene
+                .clone()
+                .unwrap_or_else(crate::demo::default_scene);
+            let scene = crate::scene_file::load_scene(&scene_path)?;
+            let outcome = runtime()?.block_on(crate::cluster::commands::replay(
+                &scene,
+                &args.session,
+                args.hz,
+                args.frames,
+            ))?;
+            for n in &outcome.nodes {
+                println!("{} {} frames digest {}", n.name, n.hashes.len(), n.digest);
+            }
+            if let Some(out) = &args.out {
+                std::fs::write(out, serde_json::to_string_pretty(&outcome)?)
+                    .with_context(|| format!("cannot write {}", out.display()))?;
+            }
+            Ok(())
+        }
         Command::Certs(args) => {
             let certs = crate::certs::generate(&args.nodes)?;
             let files = crate::certs::write(&args.out, &certs)?;
@@ -253,7 +319,12 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             BenchTarget::Radiosity => Err(not_built("bench radiosity", "augmented radiosity", 5)),
             BenchTarget::Render => Err(not_built("bench render", "the real-time renderer", 6)),
-            BenchTarget::Cluster => Err(not_built("bench cluster", "the cluster runtime", 7)),
+            BenchTarget::Cluster => {
+                let scene = crate::scene_file::load_scene(&crate::demo::default_scene())?;
+                let records = runtime()?
+                    .block_on(crate::cluster::commands::bench_cluster(&scene, args.frames))?;
+                emit_bench(&args, &records)
+            }
         },
         Command::Sim(SimCommand::Render(_)) => {
             Err(not_built("sim render", "the simulated showcase", 3))
@@ -287,11 +358,13 @@ mod tests {
 
     #[test]
     fn unbuilt_commands_fail_naming_the_capability() {
-        let cli = Cli::try_parse_from(["showcase-master", "replay", "--session", "x"]).unwrap();
+        let cli =
+            Cli::try_parse_from(["showcase-master", "radiosity", "--scene", "x", "--out", "y"])
+                .unwrap();
         let err = run(cli).unwrap_err().to_string();
         assert_eq!(
             err,
-            "replay: session replay is not built yet (tracked in issue #7); nothing was done"
+            "radiosity: augmented radiosity is not built yet (tracked in issue #5); nothing was done"
         );
     }
 }

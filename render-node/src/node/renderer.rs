@@ -216,3 +216,19 @@ mod tests {
         );
     }
 }
+
+impl<R: Renderer + ?Sized> Renderer for Box<R> {
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
+        (**self).set_scene(version, scene)
+    }
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
+        (**self).render(frame, scene)
+    }
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        (**self).present(frame)
+    }
+}

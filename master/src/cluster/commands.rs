@@ -1,0 +1,350 @@
+//! The cluster's commands: `run` (a live master from a cluster config),
+//! `replay` (a recorded session through a loopback cluster) and
+//! `bench cluster`.
+
+use super::loopback::{LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
+use super::metrics::percentile;
+use super::server::{Server, ServerSettings};
+use super::show::{Show, Tracking};
+use crate::tracking::Tracker;
+use crate::tracking::recording;
+use crate::tracking::scripted::{FIRST_HEAD_BODY, LIGHT_BODY};
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use showcase_proto::config::{BodyMapping, ClusterConfig, TrackingConfig, TrackingSource};
+use showcase_proto::session::MasterConfig;
+use showcase_proto::{Role, Showcase};
+use showcase_render::net::ClusterIdentity;
+use showcase_render::node::{Fnv64, StateHashRenderer};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+/// The body mapping of the built-in walk: bodies 0 and 1 are the first two
+/// observers' heads, body 2 carries the first light.
+pub fn walk_tracking(scene: &Showcase, source: TrackingSource) -> TrackingConfig {
+    let mut bodies = Vec::new();
+    for (i, o) in scene.observers.iter().take(2).enumerate() {
+        bodies.push(BodyMapping {
+            id: FIRST_HEAD_BODY + i as u32,
+            target: format!("observer:{}", o.name),
+        });
+    }
+    if let Some(l) = scene.lights.first() {
+        bodies.push(BodyMapping {
+            id: LIGHT_BODY,
+            target: format!("light:{}", l.name),
+        });
+    }
+    TrackingConfig {
+        source,
+        port: None,
+        file: None,
+        room_translation: [0.0; 3],
+        room_rotation_deg: [0.0; 3],
+        predict_ms: 0.0,
+        bodies,
+    }
+}
+
+/// One node per face and projector of the scene.
+pub fn output_nodes(scene: &Showcase) -> Vec<(String, Role)> {
+    scene
+        .faces
+        .iter()
+        .map(|f| (f.name.clone(), Role::Face))
+        .chain(
+            scene
+                .projectors
+                .iter()
+                .map(|p| (p.name.clone(), Role::Projector)),
+        )
+        .collect()
+}
+
+/// Renderers that digest exactly the state each output would draw.
+pub fn state_hash_renderers() -> RendererFactory {
+    Arc::new(|name: &str, role: Role| Box::new(StateHashRenderer::new(name, role)))
+}
+
+/// One record of `bench cluster --json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClusterBenchRecord {
+    /// Render nodes.
+    pub nodes: usize,
+    /// Target frame rate.
+    pub hz: f32,
+    /// Frames run.
+    pub frames: u64,
+    /// Median spread of the nodes' present times (ms).
+    pub swap_skew_ms_p50: Option<f64>,
+    /// 99th percentile of the same.
+    pub swap_skew_ms_p99: Option<f64>,
+    /// Median time from the newest tracking sample to the swap (ms).
+    pub tracking_to_swap_ms_p50: Option<f64>,
+    /// 99th percentile of the same.
+    pub tracking_to_swap_ms_p99: Option<f64>,
+    /// Frame-clock ticks at which no frame could be submitted.
+    pub dropped_frames: u64,
+    /// FrameState bytes on the wire per frame, all nodes together.
+    pub bytes_per_frame: f64,
+    /// Nodes evicted for missing a deadline.
+    pub evictions: u64,
+    /// From restarting a killed node to its first rendered frame (ms).
+    pub rejoin_ms: Option<f64>,
+}
+
+/// Summarise a loopback run as a bench record.
+pub fn bench_record(nodes: usize, hz: f32, frames: u64, r: &LoopbackResult) -> ClusterBenchRecord {
+    let skew: Vec<f64> = r.run.frames.iter().filter_map(|f| f.swap_skew_ms).collect();
+    let lat: Vec<f64> = r
+        .run
+        .frames
+        .iter()
+        .filter_map(|f| f.tracking_to_swap_ms)
+        .collect();
+    ClusterBenchRecord {
+        nodes,
+        hz,
+        frames,
+        swap_skew_ms_p50: percentile(&skew, 50.0),
+        swap_skew_ms_p99: percentile(&skew, 99.0),
+        tracking_to_swap_ms_p50: percentile(&lat, 50.0),
+        tracking_to_swap_ms_p99: percentile(&lat, 99.0),
+        dropped_frames: r.run.dropped_ticks,
+        bytes_per_frame: r.run.frame_bytes as f64 / frames.max(1) as f64,
+        evictions: r.run.evictions,
+        rejoin_ms: r.rejoin.map(|d| d.as_secs_f64() * 1e3),
+    }
+}
+
+/// `bench cluster`: loopback clusters of 2, 4 and 8 nodes at 60 and 120
+/// Hz on the demo scene with the scripted walk; one node is killed and
+/// restarted a third of the way in.
+pub async fn bench_cluster(scene: &Showcase, frames: u64) -> Result<Vec<ClusterBenchRecord>> {
+    let mut out = Vec::new();
+    for nodes in [2usize, 4, 8] {
+        for hz in [60.0f32, 120.0] {
+            let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
+            let plan = LoopbackPlan {
+                scene: scene.clone(),
+                show: Show::new(Tracking::Scripted(tracker), hz as f64),
+                nodes: (0..nodes)
+                    .map(|i| {
+                        (
+                            format!("node-{i}"),
+                            if i % 2 == 0 {
+                                Role::Face
+                            } else {
+                                Role::Projector
+                            },
+                        )
+                    })
+                    .collect(),
+                frames,
+                core: MasterConfig {
+                    target_hz: hz,
+                    ..MasterConfig::default()
+                },
+                renderers: state_hash_renderers(),
+                restart: Some((0, frames / 3)),
+                metrics: None,
+                write_frames: None,
+            };
+            let r = run_loopback(plan).await?;
+            eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
+            out.push(bench_record(nodes, hz, frames, &r));
+        }
+    }
+    Ok(out)
+}
+
+/// What a replay produced: every node's per-frame output hashes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReplayOutcome {
+    /// Frames run.
+    pub frames: u64,
+    /// Per node: name, frames presented, and the hashes in frame order.
+    pub nodes: Vec<ReplayNode>,
+}
+
+/// One node of a replay.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReplayNode {
+    /// Node name.
+    pub name: String,
+    /// A digest of all its per-frame hashes.
+    pub digest: String,
+    /// `(frame, output hash)` per presented frame.
+    pub hashes: Vec<(u64, u64)>,
+}
+
+/// Replay a recorded session through a loopback cluster of the scene's
+/// outputs and return each node's per-frame output hashes.
+pub async fn replay(
+    scene: &Showcase,
+    session: &Path,
+    hz: f32,
+    frames: Option<u64>,
+) -> Result<ReplayOutcome> {
+    let entries = recording::read(session)?;
+    let Some(last) = entries.last() else {
+        bail!("{}: the recording has no datagrams", session.display());
+    };
+    let frames = frames.unwrap_or(((last.t * hz as f64).floor() as u64 + 1).max(1));
+    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Recording), scene)?;
+    let show = Show::new(
+        Tracking::Replay {
+            tracker,
+            entries,
+            next: 0,
+        },
+        hz as f64,
+    );
+    let r = run_loopback(LoopbackPlan {
+        scene: scene.clone(),
+        show,
+        nodes: output_nodes(scene),
+        frames,
+        core: MasterConfig {
+            target_hz: hz,
+            ..MasterConfig::default()
+        },
+        renderers: state_hash_renderers(),
+        restart: None,
+        metrics: None,
+        write_frames: None,
+    })
+    .await?;
+    let nodes = r
+        .logs
+        .into_iter()
+        .map(|(name, log)| {
+            let mut h = Fnv64::default();
+            for (f, x) in &log.presented {
+                h.write(&f.to_le_bytes());
+                h.write(&x.to_le_bytes());
+            }
+            ReplayNode {
+                name,
+                digest: format!("{:016x}", h.finish()),
+                hashes: log.presented,
+            }
+        })
+        .collect();
+    Ok(ReplayOutcome { frames, nodes })
+}
+
+/// `run --config FILE`: the live master of a cluster, until Ctrl-C.
+pub async fn run_master(
+    config: &Path,
+    metrics: Option<&Path>,
+    record: Option<&Path>,
+) -> Result<()> {
+    let text = std::fs::read_to_string(config)
+        .with_context(|| format!("cannot read cluster config {}", config.display()))?;
+    let label = config.display().to_string();
+    let cfg = ClusterConfig::parse(&text, &label)?;
+    let base = config.parent().unwrap_or(Path::new("."));
+    let scene = crate::scene_file::load_scene(&base.join(&cfg.master.scene))?;
+    check_outputs(&cfg, &scene, base, &label)?;
+    let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
+    let tracking = match &cfg.tracking {
+        None => Tracking::None,
+        Some(t) => {
+            let tracker = Tracker::new(t, &scene)?;
+            match t.source {
+                TrackingSource::Dtrack => Tracking::Live(tracker),
+                TrackingSource::Scripted => Tracking::Scripted(tracker),
+                TrackingSource::Recording => {
+                    let file = base.join(t.file.as_ref().expect("checked by the config"));
+                    Tracking::Replay {
+                        tracker,
+                        entries: recording::read(&file)?,
+                        next: 0,
+                    }
+                }
+            }
+        }
+    };
+    let mut show = Show::new(tracking, cfg.master.target_hz as f64);
+    if let Some(path) = record {
+        let f = std::fs::File::create(path)
+            .with_context(|| format!("cannot create recording {}", path.display()))?;
+        show.record_to(Box::new(std::io::BufWriter::new(f)), &label)?;
+    }
+    let metrics_out: Option<Box<dyn std::io::Write + Send>> = match metrics {
+        Some(p) => Some(Box::new(std::io::BufWriter::new(
+            std::fs::File::create(p)
+                .with_context(|| format!("cannot create metrics file {}", p.display()))?,
+        ))),
+        None => None,
+    };
+    let tracking_addr = match &cfg.tracking {
+        Some(t) if t.source == TrackingSource::Dtrack => Some(std::net::SocketAddr::new(
+            cfg.master.listen.ip(),
+            t.port.unwrap_or(5000),
+        )),
+        _ => None,
+    };
+    let server = Server::bind(ServerSettings {
+        listen: cfg.master.listen,
+        identity,
+        core: MasterConfig {
+            target_hz: cfg.master.target_hz,
+            deadline_ns: (cfg.master.deadline_ms as f64 * 1e6) as u64,
+            ..MasterConfig::default()
+        },
+        frames: None,
+        wait_for_nodes: cfg.nodes.len(),
+        start_timeout: Duration::from_secs(30),
+        tracking: tracking_addr,
+        metrics: metrics_out,
+    })?;
+    eprintln!(
+        "master listening on {} for {} nodes; Ctrl-C stops",
+        server.local_addr(),
+        cfg.nodes.len()
+    );
+    let stop = CancellationToken::new();
+    let s = stop.clone();
+    tokio::spawn(async move {
+        let _ = tokio::signal::ctrl_c().await;
+        s.cancel();
+    });
+    let run = server.run(scene, show, stop).await?;
+    eprintln!(
+        "master stopped after {} frames ({} ticks dropped, {} evictions)",
+        run.submitted, run.dropped_ticks, run.evictions
+    );
+    Ok(())
+}
+
+/// Every node's output exists in the scene, and calibration files exist.
+fn check_outputs(cfg: &ClusterConfig, scene: &Showcase, base: &Path, label: &str) -> Result<()> {
+    for n in &cfg.nodes {
+        let found = match n.role {
+            Role::Face => scene.faces.iter().any(|f| f.name == n.output),
+            Role::Projector => scene.projectors.iter().any(|p| p.name == n.output),
+            Role::Camera => scene.cameras.iter().any(|c| c.name == n.output),
+        };
+        if !found {
+            bail!(
+                "{label}: node {:?} drives {} {:?}, which the scene does not have",
+                n.name,
+                n.role,
+                n.output
+            );
+        }
+        if let Some(c) = n.calibration.as_deref().filter(|c| *c != "scene")
+            && !base.join(c).is_file()
+        {
+            bail!(
+                "{label}: node {:?}: calibration file {c} is missing",
+                n.name
+            );
+        }
+    }
+    Ok(())
+}
