@@ -6,8 +6,11 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+                // The demo and replay run nodes in-process: keep their
+                // per-connection chatter out of the console.
+                tracing_subscriber::EnvFilter::new("info,showcase_proto=warn,showcase_render=warn")
+            }),
         )
         .with_writer(std::io::stderr)
         .init();

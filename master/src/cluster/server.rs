@@ -35,8 +35,8 @@ pub struct ServerSettings {
     pub core: MasterConfig,
     /// Stop after this many frames (run forever if `None`).
     pub frames: Option<u64>,
-    /// Start the frame clock once this many nodes have joined (or after
-    /// `start_timeout`).
+    /// Start the frame clock once this many nodes have joined and hold
+    /// the scene (or after `start_timeout`).
     pub wait_for_nodes: usize,
     /// Longest wait for `wait_for_nodes`.
     pub start_timeout: Duration,
@@ -300,7 +300,10 @@ impl Server {
                 },
                 _ = ticker.tick() => {
                     if !started {
-                        let joined = core.nodes().count();
+                        // A node that answered a clock probe (queued after its
+                        // snapshot) has the scene; starting earlier would put
+                        // frame 0 behind a snapshot still in flight.
+                        let joined = core.nodes().filter(|n| n.clock.is_some()).count();
                         if joined >= settings.wait_for_nodes || start.elapsed() >= settings.start_timeout {
                             started = true;
                             run.started_ns = now();
