@@ -4,7 +4,9 @@
 
 use super::io::rms;
 use super::simulate::{fiducial_plate, fiducial_rig, projector_in_showcase, simulate_fiducials};
-use super::{CalibrateOptions, Calibration, CalibrationInput, Correspondence, Intrinsics, Method, calibrate};
+use super::{
+    CalibrateOptions, Calibration, CalibrationInput, Correspondence, Intrinsics, Method, calibrate,
+};
 use glam::{DMat3, DVec3};
 use serde::Serialize;
 use showcase_proto::scene::PinholeDevice;
@@ -107,7 +109,11 @@ pub fn heldout_rms(calibration: &Calibration, points: &[Correspondence]) -> f64 
 /// Angle between two rotations in degrees (accurate for small angles).
 pub fn rotation_angle_deg(a: &DMat3, b: &DMat3) -> f64 {
     let d = *a * b.transpose();
-    let v = DVec3::new(d.y_axis.z - d.z_axis.y, d.z_axis.x - d.x_axis.z, d.x_axis.y - d.y_axis.x);
+    let v = DVec3::new(
+        d.y_axis.z - d.z_axis.y,
+        d.z_axis.x - d.x_axis.z,
+        d.x_axis.y - d.y_axis.x,
+    );
     let trace = d.x_axis.x + d.y_axis.y + d.z_axis.z;
     (0.5 * v.length()).atan2(0.5 * (trace - 1.0)).to_degrees()
 }
@@ -137,7 +143,12 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// One configuration, medians over seeds; `None` when every seed failed.
-pub fn bench_configuration(method: Method, points: usize, noise_px: f64, coplanar: bool) -> Option<BenchRecord> {
+pub fn bench_configuration(
+    method: Method,
+    points: usize,
+    noise_px: f64,
+    coplanar: bool,
+) -> Option<BenchRecord> {
     let opts = CalibrateOptions::with_method(method);
     let mut cols: [Vec<f64>; 5] = Default::default();
     for seed in 0..BENCH_SEEDS {
@@ -239,7 +250,10 @@ pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Resul
     md.push_str("\n## Powell time / LM time\n\n| points | noise px | coplanar | speed-up | LM held-out px | Powell held-out px |\n|---|---|---|---|---|---|\n");
     for lm in records.iter().filter(|r| r.method == Method::Lm) {
         if let Some(pw) = records.iter().find(|r| {
-            r.method == Method::Powell && r.points == lm.points && r.noise_px == lm.noise_px && r.coplanar == lm.coplanar
+            r.method == Method::Powell
+                && r.points == lm.points
+                && r.noise_px == lm.noise_px
+                && r.coplanar == lm.coplanar
         }) {
             let _ = writeln!(
                 md,
@@ -266,9 +280,21 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
         .filter(|r| r.seconds > 0.0 && r.rms_heldout_px > 0.0 && r.rms_heldout_px.is_finite())
         .collect();
     let range = |f: &dyn Fn(&BenchRecord) -> f64| {
-        let lo = finite.iter().map(|r| f(r).log10()).fold(f64::INFINITY, f64::min).floor();
-        let hi = finite.iter().map(|r| f(r).log10()).fold(f64::NEG_INFINITY, f64::max).ceil();
-        if lo.is_finite() && hi > lo { (lo, hi) } else { (0.0, 1.0) }
+        let lo = finite
+            .iter()
+            .map(|r| f(r).log10())
+            .fold(f64::INFINITY, f64::min)
+            .floor();
+        let hi = finite
+            .iter()
+            .map(|r| f(r).log10())
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil();
+        if lo.is_finite() && hi > lo {
+            (lo, hi)
+        } else {
+            (0.0, 1.0)
+        }
     };
     let (x0, x1) = range(&|r| r.seconds);
     let (y0, y1) = range(&|r| r.rms_heldout_px);
@@ -286,11 +312,19 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
     );
     for d in x0 as i32..=x1 as i32 {
         let x = px(10f64.powi(d));
-        let _ = writeln!(svg, "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">1e{d} s</text>", h - m + 18.0);
+        let _ = writeln!(
+            svg,
+            "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">1e{d} s</text>",
+            h - m + 18.0
+        );
     }
     for d in y0 as i32..=y1 as i32 {
         let y = py(10f64.powi(d));
-        let _ = writeln!(svg, "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">1e{d} px</text>", m - 6.0);
+        let _ = writeln!(
+            svg,
+            "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">1e{d} px</text>",
+            m - 6.0
+        );
     }
     let _ = writeln!(
         svg,
@@ -301,7 +335,11 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
         h / 2.0
     );
     for r in &finite {
-        let colour = if r.method == Method::Lm { "#1f77b4" } else { "#d62728" };
+        let colour = if r.method == Method::Lm {
+            "#1f77b4"
+        } else {
+            "#d62728"
+        };
         let (x, y) = (px(r.seconds), py(r.rms_heldout_px));
         if r.coplanar {
             let _ = writeln!(

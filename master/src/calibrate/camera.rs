@@ -56,7 +56,11 @@ fn cross_matrix(a: &Vector3<f64>) -> Matrix3<f64> {
 
 impl CameraModel {
     /// Intrinsics from an upper-triangular `K` with `K[2][2] = 1`.
-    pub(crate) fn from_k(k: &Matrix3<f64>, rotation: Matrix3<f64>, translation: Vector3<f64>) -> Self {
+    pub(crate) fn from_k(
+        k: &Matrix3<f64>,
+        rotation: Matrix3<f64>,
+        translation: Vector3<f64>,
+    ) -> Self {
         Self {
             fx: k[(0, 0)],
             fy: k[(1, 1)],
@@ -72,7 +76,9 @@ impl CameraModel {
 
     /// The intrinsic matrix K.
     pub(crate) fn k(&self) -> Matrix3<f64> {
-        Matrix3::new(self.fx, self.skew, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
+        Matrix3::new(
+            self.fx, self.skew, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0,
+        )
     }
 
     /// Device-space position `R X + t`.
@@ -93,7 +99,10 @@ impl CameraModel {
         let r2 = x * x + y * y;
         let d = 1.0 + self.k1 * r2 + self.k2 * r2 * r2;
         let (xd, yd) = (x * d, y * d);
-        Vector2::new(self.fx * xd + self.skew * yd + self.cx, self.fy * yd + self.cy)
+        Vector2::new(
+            self.fx * xd + self.skew * yd + self.cx,
+            self.fy * yd + self.cy,
+        )
     }
 
     /// Sum of squared pixel residuals over `obs`; `None` when a point is
@@ -141,12 +150,19 @@ impl CameraModel {
         let (a21, a22) = (2.0 * x * y * dd, d + 2.0 * y * y * dd);
         // d(u, v) / d(x, y)
         let b = [
-            [self.fx * a11 + self.skew * a21, self.fx * a12 + self.skew * a22],
+            [
+                self.fx * a11 + self.skew * a21,
+                self.fx * a12 + self.skew * a22,
+            ],
             [self.fy * a21, self.fy * a22],
         ];
         // d(x, y) / d(x_cam) = [[1/z, 0, -x/z], [0, 1/z, -y/z]]
         let g: [[f64; 3]; 2] = std::array::from_fn(|r| {
-            [b[r][0] * iz, b[r][1] * iz, -(b[r][0] * x + b[r][1] * y) * iz]
+            [
+                b[r][0] * iz,
+                b[r][1] * iz,
+                -(b[r][0] * x + b[r][1] * y) * iz,
+            ]
         });
         // d(x_cam) / d(omega) = -[R X]_x for the update R <- exp(omega) R.
         let dw = -cross_matrix(&rx);
@@ -172,7 +188,10 @@ impl CameraModel {
                 jac[i + 1] = [pu * r2 * r2, pv * r2 * r2];
             }
         }
-        Some(Vector2::new(self.fx * xd + self.skew * yd + self.cx, self.fy * yd + self.cy))
+        Some(Vector2::new(
+            self.fx * xd + self.skew * yd + self.cx,
+            self.fy * yd + self.cy,
+        ))
     }
 
     /// The model moved by `delta` (`layout.len()` entries): rotation vector
@@ -203,11 +222,13 @@ impl CameraModel {
 
     /// All parameters finite.
     pub(crate) fn is_finite(&self) -> bool {
-        [self.fx, self.fy, self.cx, self.cy, self.skew, self.k1, self.k2]
-            .iter()
-            .chain(self.rotation.iter())
-            .chain(self.translation.iter())
-            .all(|v| v.is_finite())
+        [
+            self.fx, self.fy, self.cx, self.cy, self.skew, self.k1, self.k2,
+        ]
+        .iter()
+        .chain(self.rotation.iter())
+        .chain(self.translation.iter())
+        .all(|v| v.is_finite())
     }
 }
 
@@ -265,6 +286,12 @@ mod tests {
         let m = model();
         let behind = m.rotation.transpose() * (Vector3::new(0.0, 0.0, -1.0) - m.translation);
         assert!(m.project(&behind).is_none());
-        assert!(m.cost(&[Observation { world: behind, pixel: Vector2::zeros() }]).is_none());
+        assert!(
+            m.cost(&[Observation {
+                world: behind,
+                pixel: Vector2::zeros()
+            }])
+            .is_none()
+        );
     }
 }

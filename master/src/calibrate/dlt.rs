@@ -66,7 +66,17 @@ fn normalise_2d(points: impl Iterator<Item = Vector2<f64>> + Clone) -> Option<Ma
         return None;
     }
     let s = std::f64::consts::SQRT_2 / mean;
-    Some(Matrix3::new(s, 0.0, -s * c.x, 0.0, s, -s * c.y, 0.0, 0.0, 1.0))
+    Some(Matrix3::new(
+        s,
+        0.0,
+        -s * c.x,
+        0.0,
+        s,
+        -s * c.y,
+        0.0,
+        0.0,
+        1.0,
+    ))
 }
 
 /// Unit null vector of `a` (the right singular vector of the smallest
@@ -98,10 +108,15 @@ pub(crate) fn projection_dlt(obs: &[Observation]) -> Result<Matrix3x4<f64>, Cali
     let degenerate = |reason: &str| CalibrationError::Degenerate {
         reason: reason.to_string(),
     };
-    let t2 = normalise_2d(obs.iter().map(|o| o.pixel)).ok_or_else(|| degenerate("all pixels coincide"))?;
+    let t2 = normalise_2d(obs.iter().map(|o| o.pixel))
+        .ok_or_else(|| degenerate("all pixels coincide"))?;
     let sp = spread(obs);
     let n = obs.len() as f64;
-    let mean3 = obs.iter().map(|o| (o.world - sp.centroid).norm()).sum::<f64>() / n;
+    let mean3 = obs
+        .iter()
+        .map(|o| (o.world - sp.centroid).norm())
+        .sum::<f64>()
+        / n;
     let s3 = 3f64.sqrt() / mean3;
     let mut a = DMatrix::zeros(2 * obs.len(), 12);
     for (i, o) in obs.iter().enumerate() {
@@ -125,9 +140,26 @@ pub(crate) fn projection_dlt(obs: &[Observation]) -> Result<Matrix3x4<f64>, Cali
     // Undo the normalisations: P = T2^-1 Pn T3.
     let c = sp.centroid;
     let t3 = nalgebra::Matrix4::new(
-        s3, 0.0, 0.0, -s3 * c.x, 0.0, s3, 0.0, -s3 * c.y, 0.0, 0.0, s3, -s3 * c.z, 0.0, 0.0, 0.0, 1.0,
+        s3,
+        0.0,
+        0.0,
+        -s3 * c.x,
+        0.0,
+        s3,
+        0.0,
+        -s3 * c.y,
+        0.0,
+        0.0,
+        s3,
+        -s3 * c.z,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
     );
-    let t2_inv = t2.try_inverse().ok_or_else(|| degenerate("singular pixel normalisation"))?;
+    let t2_inv = t2
+        .try_inverse()
+        .ok_or_else(|| degenerate("singular pixel normalisation"))?;
     Ok(t2_inv * pn * t3)
 }
 
@@ -174,9 +206,11 @@ pub(crate) fn decompose_projection(
     let (k_raw, r) = rq(&m);
     let scale = k_raw[(2, 2)];
     let k = k_raw / scale;
-    let k_inv = k_raw.try_inverse().ok_or_else(|| CalibrationError::Degenerate {
-        reason: "the DLT camera matrix is singular".to_string(),
-    })?;
+    let k_inv = k_raw
+        .try_inverse()
+        .ok_or_else(|| CalibrationError::Degenerate {
+            reason: "the DLT camera matrix is singular".to_string(),
+        })?;
     let t = k_inv * p.column(3);
     Ok(CameraModel::from_k(&k, r, t))
 }
@@ -188,8 +222,10 @@ pub(crate) fn homography(
     image: &[Vector2<f64>],
 ) -> Result<Matrix3<f64>, CalibrationError> {
     let degenerate = |reason: String| CalibrationError::Degenerate { reason };
-    let ta = normalise_2d(plane.iter().copied()).ok_or_else(|| degenerate("all plane points coincide".into()))?;
-    let tb = normalise_2d(image.iter().copied()).ok_or_else(|| degenerate("all image points coincide".into()))?;
+    let ta = normalise_2d(plane.iter().copied())
+        .ok_or_else(|| degenerate("all plane points coincide".into()))?;
+    let tb = normalise_2d(image.iter().copied())
+        .ok_or_else(|| degenerate("all image points coincide".into()))?;
     let mut a = DMatrix::zeros(2 * plane.len(), 9);
     for (i, (x, u)) in plane.iter().zip(image).enumerate() {
         let x = ta * x.push(1.0);
@@ -201,14 +237,17 @@ pub(crate) fn homography(
             a[(2 * i + 1, 6 + j)] = -u.x * x[j];
         }
     }
-    let (v, ratio) = null_vector(a).ok_or_else(|| degenerate("the homography system has no SVD".into()))?;
+    let (v, ratio) =
+        null_vector(a).ok_or_else(|| degenerate("the homography system has no SVD".into()))?;
     if ratio < NULL_SPACE_RATIO {
         return Err(degenerate(format!(
             "the homography is not unique (singular value ratio {ratio:.3e})"
         )));
     }
     let hn = Matrix3::from_row_slice(&v);
-    let tb_inv = tb.try_inverse().ok_or_else(|| degenerate("singular image normalisation".into()))?;
+    let tb_inv = tb
+        .try_inverse()
+        .ok_or_else(|| degenerate("singular image normalisation".into()))?;
     Ok(tb_inv * hn * ta)
 }
 
@@ -241,11 +280,21 @@ mod tests {
         };
         let line = obs(&[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]);
         assert!(spread(&line).line_ratio < COLLINEAR_RATIO);
-        let plane = obs(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let plane = obs(&[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ]);
         let s = spread(&plane);
         assert!(s.line_ratio > 0.5 && s.plane_ratio < COPLANAR_RATIO);
         assert!((s.axes.column(2).z.abs() - 1.0).abs() < 1e-12);
-        let solid = obs(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        let solid = obs(&[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]);
         assert!(spread(&solid).plane_ratio > 0.5);
     }
 }

@@ -108,13 +108,24 @@ impl Calibration {
             evaluations: 0,
             converged: true,
         };
-        Self::from_model(device, pinhole.width, pinhole.height, &model, &obs, Method::Lm, &refined, true)
+        Self::from_model(
+            device,
+            pinhole.width,
+            pinhole.height,
+            &model,
+            &obs,
+            Method::Lm,
+            &refined,
+            true,
+        )
     }
 
     /// Pixel of a world point under this calibration (with its k1, k2
     /// distortion); `None` behind the device.
     pub fn project(&self, world: DVec3) -> Option<glam::DVec2> {
-        let p = self.model().project(&Vector3::new(world.x, world.y, world.z))?;
+        let p = self
+            .model()
+            .project(&Vector3::new(world.x, world.y, world.z))?;
         Some(glam::DVec2::new(p.x, p.y))
     }
 }
@@ -124,7 +135,11 @@ pub(super) fn model_of_device(pinhole: &PinholeDevice) -> CameraModel {
     let mut m = CameraModel::from_k(
         &from_dmat3(&pinhole.k),
         from_dmat3(&pinhole.rotation),
-        Vector3::new(pinhole.translation.x, pinhole.translation.y, pinhole.translation.z),
+        Vector3::new(
+            pinhole.translation.x,
+            pinhole.translation.y,
+            pinhole.translation.z,
+        ),
     );
     (m.k1, m.k2) = (pinhole.dist_coeffs[0], pinhole.dist_coeffs[1]);
     m
@@ -138,10 +153,15 @@ pub(super) fn rms(residuals: &[f64]) -> f64 {
     (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt()
 }
 
-pub(super) fn run_calibrate_file(points: &Path, out: &Path, method: Method) -> anyhow::Result<Calibration> {
-    let text = std::fs::read_to_string(points).with_context(|| format!("reading {}", points.display()))?;
-    let input: CalibrationInput =
-        serde_json::from_str(&text).with_context(|| format!("parsing calibration points {}", points.display()))?;
+pub(super) fn run_calibrate_file(
+    points: &Path,
+    out: &Path,
+    method: Method,
+) -> anyhow::Result<Calibration> {
+    let text =
+        std::fs::read_to_string(points).with_context(|| format!("reading {}", points.display()))?;
+    let input: CalibrationInput = serde_json::from_str(&text)
+        .with_context(|| format!("parsing calibration points {}", points.display()))?;
     let calibration = calibrate(&input, &CalibrateOptions::with_method(method))
         .with_context(|| format!("calibrating {} from {}", input.device, points.display()))?;
     let json = serde_json::to_string_pretty(&calibration).context("serialising the calibration")?;

@@ -19,16 +19,21 @@ mod camera;
 mod dlt;
 mod io;
 mod lm;
+#[cfg(test)]
+mod measure_tmp;
 mod pnp;
 mod powell;
 mod simulate;
 
 pub use bench::{
-    BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, HELDOUT_POINTS, SyntheticCase, bench_calibration,
-    bench_configuration, heldout_rms, rotation_angle_deg, synthetic_case, write_bench_report,
+    BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, HELDOUT_POINTS, SyntheticCase,
+    bench_calibration, bench_configuration, heldout_rms, rotation_angle_deg, synthetic_case,
+    write_bench_report,
 };
 pub use io::{DEVICE_FAR_M, DEVICE_NEAR_M};
-pub use simulate::{RIG_CENTER, RIG_SIZE, fiducial_plate, fiducial_rig, projector_in_showcase, simulate_fiducials};
+pub use simulate::{
+    RIG_CENTER, RIG_SIZE, fiducial_plate, fiducial_rig, projector_in_showcase, simulate_fiducials,
+};
 
 use camera::{CameraModel, Layout, Observation};
 use nalgebra::{Matrix3, Vector2, Vector3};
@@ -198,7 +203,9 @@ pub enum CalibrationError {
         what: String,
     },
     /// The world points lie on a line.
-    #[error("the fiducials are collinear (spread ratio {ratio:.3e}); no pose is determined by points on a line")]
+    #[error(
+        "the fiducials are collinear (spread ratio {ratio:.3e}); no pose is determined by points on a line"
+    )]
     Collinear {
         /// Second over first singular value of the centred points.
         ratio: f64,
@@ -261,7 +268,9 @@ fn parse_camera_matrix(rows: &[Vec<f64>]) -> Result<Matrix3<f64>, CalibrationErr
     let invalid = |reason: String| CalibrationError::InvalidCameraMatrix { reason };
     if rows.len() != 3 || rows.iter().any(|r| r.len() != 3) {
         let shape: Vec<usize> = rows.iter().map(Vec::len).collect();
-        return Err(invalid(format!("expected 3 rows of 3, got rows of lengths {shape:?}")));
+        return Err(invalid(format!(
+            "expected 3 rows of 3, got rows of lengths {shape:?}"
+        )));
     }
     if rows.iter().flatten().any(|v| !v.is_finite()) {
         return Err(CalibrationError::NonFinite {
@@ -277,7 +286,10 @@ fn parse_camera_matrix(rows: &[Vec<f64>]) -> Result<Matrix3<f64>, CalibrationErr
     let magnitude = k.abs().max();
     for (r, c) in [(1, 0), (2, 0), (2, 1)] {
         if k[(r, c)].abs() > 1e-12 * magnitude {
-            return Err(invalid(format!("K[{r}][{c}] is {}, expected 0 (K is upper triangular)", k[(r, c)])));
+            return Err(invalid(format!(
+                "K[{r}][{c}] is {}, expected 0 (K is upper triangular)",
+                k[(r, c)]
+            )));
         }
     }
     if !(k[(0, 0)] > 0.0 && k[(1, 1)] > 0.0) {
@@ -293,7 +305,10 @@ fn parse_camera_matrix(rows: &[Vec<f64>]) -> Result<Matrix3<f64>, CalibrationErr
 fn parse_dist_coeffs(coeffs: &[f64]) -> Result<(f64, f64), CalibrationError> {
     let invalid = |reason: String| CalibrationError::InvalidDistCoeffs { reason };
     if coeffs.is_empty() || coeffs.len() > 5 {
-        return Err(invalid(format!("expected 1 to 5 values [k1, k2, p1, p2, k3], got {}", coeffs.len())));
+        return Err(invalid(format!(
+            "expected 1 to 5 values [k1, k2, p1, p2, k3], got {}",
+            coeffs.len()
+        )));
     }
     if coeffs.iter().any(|v| !v.is_finite()) {
         return Err(CalibrationError::NonFinite {
@@ -301,14 +316,18 @@ fn parse_dist_coeffs(coeffs: &[f64]) -> Result<(f64, f64), CalibrationError> {
         });
     }
     if coeffs.iter().skip(2).any(|&v| v != 0.0) {
-        return Err(invalid(format!("only k1 and k2 are modelled; p1, p2, k3 must be 0, got {coeffs:?}")));
+        return Err(invalid(format!(
+            "only k1 and k2 are modelled; p1, p2, k3 must be 0, got {coeffs:?}"
+        )));
     }
     Ok((coeffs[0], coeffs.get(1).copied().unwrap_or(0.0)))
 }
 
 /// Validated observations and, if given, the known intrinsics as a model
 /// (with an identity pose).
-fn validate(input: &CalibrationInput) -> Result<(Vec<Observation>, Option<CameraModel>), CalibrationError> {
+fn validate(
+    input: &CalibrationInput,
+) -> Result<(Vec<Observation>, Option<CameraModel>), CalibrationError> {
     if input.width == 0 || input.height == 0 {
         return Err(CalibrationError::InvalidImageSize {
             width: input.width,
@@ -329,7 +348,14 @@ fn validate(input: &CalibrationInput) -> Result<(Vec<Observation>, Option<Camera
         }
         let [u, v] = p.pixel;
         if !(0.0..=input.width as f64).contains(&u) || !(0.0..=input.height as f64).contains(&v) {
-            tracing::warn!(point = i, u, v, "fiducial pixel lies outside the {}x{} image", input.width, input.height);
+            tracing::warn!(
+                point = i,
+                u,
+                v,
+                "fiducial pixel lies outside the {}x{} image",
+                input.width,
+                input.height
+            );
         }
         obs.push(Observation {
             world: Vector3::from(p.world),
@@ -355,7 +381,10 @@ fn validate(input: &CalibrationInput) -> Result<(Vec<Observation>, Option<Camera
 /// Errors, never a wrong answer, for too few points, collinear points,
 /// coplanar points without intrinsics, non-finite values, a bad
 /// `camera_matrix`, and a point that ends behind the device.
-pub fn calibrate(input: &CalibrationInput, opts: &CalibrateOptions) -> Result<Calibration, CalibrationError> {
+pub fn calibrate(
+    input: &CalibrationInput,
+    opts: &CalibrateOptions,
+) -> Result<Calibration, CalibrationError> {
     let (obs, known) = validate(input)?;
     let layout = Layout {
         intrinsics: known.is_none(),
@@ -365,7 +394,10 @@ pub fn calibrate(input: &CalibrationInput, opts: &CalibrateOptions) -> Result<Ca
     let (needed, why) = if known.is_some() {
         (4, "for a pose with known intrinsics")
     } else {
-        (6.max(layout.len() / 2 + 1), "for a DLT with unknown intrinsics")
+        (
+            6.max(layout.len() / 2 + 1),
+            "for a DLT with unknown intrinsics",
+        )
     };
     if obs.len() < needed {
         return Err(CalibrationError::TooFewPoints {
@@ -420,7 +452,10 @@ pub fn calibrate(input: &CalibrationInput, opts: &CalibrateOptions) -> Result<Ca
     }
     if !model.is_finite() || !(model.fx > 0.0 && model.fy > 0.0) {
         return Err(CalibrationError::Degenerate {
-            reason: format!("the refinement ended at an invalid K (fx {}, fy {})", model.fx, model.fy),
+            reason: format!(
+                "the refinement ended at an invalid K (fx {}, fy {})",
+                model.fx, model.fy
+            ),
         });
     }
     Ok(Calibration::from_model(
@@ -437,6 +472,10 @@ pub fn calibrate(input: &CalibrationInput, opts: &CalibrateOptions) -> Result<Ca
 
 /// Read a points file, calibrate, and write the result as JSON to `out`.
 /// Errors name the file.
-pub fn run_calibrate_file(points: &Path, out: &Path, method: Method) -> anyhow::Result<Calibration> {
+pub fn run_calibrate_file(
+    points: &Path,
+    out: &Path,
+    method: Method,
+) -> anyhow::Result<Calibration> {
     io::run_calibrate_file(points, out, method)
 }

@@ -5,19 +5,25 @@
 use super::CalibrationError;
 use super::camera::{CameraModel, Observation};
 use super::dlt::{Spread, homography};
-use nalgebra::{DMatrix, DVector, Matrix4, Matrix3, SymmetricEigen, Vector2, Vector3, Vector4};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, SymmetricEigen, Vector2, Vector3, Vector4};
 
 /// The rotation nearest to `m` in the Frobenius norm.
 pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = m.svd(true, true);
-    let (u, v_t) = (svd.u.unwrap_or_else(Matrix3::identity), svd.v_t.unwrap_or_else(Matrix3::identity));
+    let (u, v_t) = (
+        svd.u.unwrap_or_else(Matrix3::identity),
+        svd.v_t.unwrap_or_else(Matrix3::identity),
+    );
     let d = (u * v_t).determinant().signum();
     u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t
 }
 
 /// Rigid transform `(R, t)` with `cam ~ R world + t` in the least-squares
 /// sense (Kabsch / Umeyama without scale).
-fn absolute_orientation(world: &[Vector3<f64>], cam: &[Vector3<f64>]) -> (Matrix3<f64>, Vector3<f64>) {
+fn absolute_orientation(
+    world: &[Vector3<f64>],
+    cam: &[Vector3<f64>],
+) -> (Matrix3<f64>, Vector3<f64>) {
     let n = world.len() as f64;
     let mw = world.iter().sum::<Vector3<f64>>() / n;
     let mc = cam.iter().sum::<Vector3<f64>>() / n;
@@ -30,10 +36,17 @@ fn absolute_orientation(world: &[Vector3<f64>], cam: &[Vector3<f64>]) -> (Matrix
 }
 
 /// Undistortion-free normalised image coordinates `K^-1 [u, v, 1]`.
-fn normalised_points(intrinsics: &CameraModel, obs: &[Observation]) -> Result<Vec<Vector2<f64>>, CalibrationError> {
-    let k_inv = intrinsics.k().try_inverse().ok_or_else(|| CalibrationError::InvalidCameraMatrix {
-        reason: "the matrix is singular".to_string(),
-    })?;
+fn normalised_points(
+    intrinsics: &CameraModel,
+    obs: &[Observation],
+) -> Result<Vec<Vector2<f64>>, CalibrationError> {
+    let k_inv =
+        intrinsics
+            .k()
+            .try_inverse()
+            .ok_or_else(|| CalibrationError::InvalidCameraMatrix {
+                reason: "the matrix is singular".to_string(),
+            })?;
     Ok(obs
         .iter()
         .map(|o| {
@@ -43,7 +56,11 @@ fn normalised_points(intrinsics: &CameraModel, obs: &[Observation]) -> Result<Ve
         .collect())
 }
 
-fn with_pose(intrinsics: &CameraModel, rotation: Matrix3<f64>, translation: Vector3<f64>) -> CameraModel {
+fn with_pose(
+    intrinsics: &CameraModel,
+    rotation: Matrix3<f64>,
+    translation: Vector3<f64>,
+) -> CameraModel {
     CameraModel {
         rotation,
         translation,
@@ -112,16 +129,22 @@ fn refine_betas(mut beta: [f64; 4], deltas: &[Vec<Vector3<f64>>], dist2: &[f64])
 
 /// EPnP: the pose of a device with known intrinsics from at least four
 /// non-coplanar fiducials, expressed through four control points.
-pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Spread) -> Result<CameraModel, CalibrationError> {
+pub(crate) fn epnp(
+    intrinsics: &CameraModel,
+    obs: &[Observation],
+    spread: &Spread,
+) -> Result<CameraModel, CalibrationError> {
     let c0 = spread.centroid;
     let mut ctrl = [c0; 4];
     for i in 0..3 {
         ctrl[i + 1] = c0 + spread.variances[i].sqrt() * spread.axes.column(i);
     }
     let basis = Matrix3::from_columns(&[ctrl[1] - c0, ctrl[2] - c0, ctrl[3] - c0]);
-    let basis_inv = basis.try_inverse().ok_or_else(|| CalibrationError::Degenerate {
-        reason: "the EPnP control points are coplanar".to_string(),
-    })?;
+    let basis_inv = basis
+        .try_inverse()
+        .ok_or_else(|| CalibrationError::Degenerate {
+            reason: "the EPnP control points are coplanar".to_string(),
+        })?;
     let alphas: Vec<[f64; 4]> = obs
         .iter()
         .map(|o| {
@@ -148,14 +171,23 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
         .collect();
 
     let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-    let dist2: Vec<f64> = pairs.iter().map(|&(i, j)| (ctrl[i] - ctrl[j]).norm_squared()).collect();
+    let dist2: Vec<f64> = pairs
+        .iter()
+        .map(|&(i, j)| (ctrl[i] - ctrl[j]).norm_squared())
+        .collect();
     // deltas[p][k]: control-point difference of pair p in kernel vector k.
     let deltas: Vec<Vec<Vector3<f64>>> = pairs
         .iter()
         .map(|&(i, j)| {
             kernel
                 .iter()
-                .map(|v| Vector3::new(v[3 * i] - v[3 * j], v[3 * i + 1] - v[3 * j + 1], v[3 * i + 2] - v[3 * j + 2]))
+                .map(|v| {
+                    Vector3::new(
+                        v[3 * i] - v[3 * j],
+                        v[3 * i + 1] - v[3 * j + 1],
+                        v[3 * i + 2] - v[3 * j + 2],
+                    )
+                })
                 .collect()
         })
         .collect();
@@ -165,12 +197,17 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
     // EPnP's choice, the others are extra starts for four or five points,
     // where the kernel has more than one dimension.
     for k in 0..4 {
-        let (num, den) = deltas.iter().zip(&dist2).fold((0.0, 0.0), |(n, d), (dp, d2)| {
-            let len = dp[k].norm();
-            (n + len * d2.sqrt(), d + len * len)
-        });
+        let (num, den) = deltas
+            .iter()
+            .zip(&dist2)
+            .fold((0.0, 0.0), |(n, d), (dp, d2)| {
+                let len = dp[k].norm();
+                (n + len * d2.sqrt(), d + len * len)
+            });
         if den > 0.0 {
-            starts.push(std::array::from_fn(|j| if j == k { num / den } else { 0.0 }));
+            starts.push(std::array::from_fn(
+                |j| if j == k { num / den } else { 0.0 },
+            ));
         }
     }
     // N = 2, 3: linearised products b_i b_j from the six distances.
@@ -179,7 +216,11 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
         let l = DMatrix::from_fn(6, terms.len(), |p, c| {
             let (a, b) = terms[c];
             let d = &deltas[p];
-            if a == b { d[a].dot(&d[a]) } else { 2.0 * d[a].dot(&d[b]) }
+            if a == b {
+                d[a].dot(&d[a])
+            } else {
+                2.0 * d[a].dot(&d[b])
+            }
         });
         let rho = DVector::from_vec(dist2.clone());
         let Ok(b) = l.svd(true, true).solve(&rho, 1e-12) else {
@@ -198,7 +239,11 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
     let candidates: Vec<Vec<f64>> = starts
         .iter()
         .flat_map(|beta| [*beta, refine_betas(*beta, &deltas, &dist2)])
-        .map(|beta| (0..12).map(|r| (0..4).map(|k| beta[k] * kernel[k][r]).sum()).collect())
+        .map(|beta| {
+            (0..12)
+                .map(|r| (0..4).map(|k| beta[k] * kernel[k][r]).sum())
+                .collect()
+        })
         .collect();
 
     let world: Vec<Vector3<f64>> = obs.iter().map(|o| o.world).collect();
@@ -206,7 +251,11 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
     for x in candidates {
         let mut cam: Vec<Vector3<f64>> = alphas
             .iter()
-            .map(|a| (0..4).map(|j| a[j] * Vector3::new(x[3 * j], x[3 * j + 1], x[3 * j + 2])).sum())
+            .map(|a| {
+                (0..4)
+                    .map(|j| a[j] * Vector3::new(x[3 * j], x[3 * j + 1], x[3 * j + 2]))
+                    .sum()
+            })
             .collect();
         if cam.iter().map(|c| c.z).sum::<f64>() < 0.0 {
             cam.iter_mut().for_each(|c| *c = -*c);
@@ -219,9 +268,10 @@ pub(crate) fn epnp(intrinsics: &CameraModel, obs: &[Observation], spread: &Sprea
             best = Some((cost, model));
         }
     }
-    best.map(|(_, m)| m).ok_or_else(|| CalibrationError::Degenerate {
-        reason: "EPnP found no pose with every point in front".to_string(),
-    })
+    best.map(|(_, m)| m)
+        .ok_or_else(|| CalibrationError::Degenerate {
+            reason: "EPnP found no pose with every point in front".to_string(),
+        })
 }
 
 #[cfg(test)]
@@ -248,7 +298,10 @@ mod tests {
                 let m = epnp(&tm, &obs, &spread(&obs)).unwrap();
                 let dr = (m.rotation - tm.rotation).abs().max();
                 let dt = (m.translation - tm.translation).norm();
-                assert!(dr < 1e-9 && dt < 1e-9, "seed {seed}, {n} points: R {dr:.2e}, t {dt:.2e}");
+                assert!(
+                    dr < 1e-9 && dt < 1e-9,
+                    "seed {seed}, {n} points: R {dr:.2e}, t {dt:.2e}"
+                );
             }
         }
     }

@@ -70,7 +70,14 @@ fn bracket(f: &mut impl FnMut(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64,
 
 /// Brent's parabolic-interpolation line minimisation inside the bracket
 /// `(a, b, c)` to relative tolerance `tol`; returns `(x_min, f_min)`.
-fn brent(f: &mut impl FnMut(f64) -> f64, ax: f64, bx: f64, cx: f64, fbx: f64, tol: f64) -> (f64, f64) {
+fn brent(
+    f: &mut impl FnMut(f64) -> f64,
+    ax: f64,
+    bx: f64,
+    cx: f64,
+    fbx: f64,
+    tol: f64,
+) -> (f64, f64) {
     const ZEPS: f64 = 1e-12;
     let (mut a, mut b) = (ax.min(cx), ax.max(cx));
     let (mut x, mut w, mut v) = (bx, bx, bx);
@@ -109,7 +116,11 @@ fn brent(f: &mut impl FnMut(f64) -> f64, ax: f64, bx: f64, cx: f64, fbx: f64, to
             e = golden(x);
             d = CGOLD * e;
         }
-        let u = if d.abs() >= tol1 { x + d } else { x + tol1.copysign(d) };
+        let u = if d.abs() >= tol1 {
+            x + d
+        } else {
+            x + tol1.copysign(d)
+        };
         let fu = f(u);
         if fu <= fx {
             if u >= x {
@@ -166,13 +177,21 @@ fn scales(layout: Layout) -> DVector<f64> {
 
 /// Minimise the summed squared pixel error with Powell's method from
 /// `start` (parameters are offsets from `start`, scaled by [`scales`]).
-pub(crate) fn refine(start: &CameraModel, obs: &[Observation], layout: Layout, settings: PowellSettings) -> Refined {
+pub(crate) fn refine(
+    start: &CameraModel,
+    obs: &[Observation],
+    layout: Layout,
+    settings: PowellSettings,
+) -> Refined {
     let n = layout.len();
     let scale = scales(layout);
     let mut evaluations = 0usize;
     let mut cost_at = |x: &DVector<f64>| {
         evaluations += 1;
-        start.apply(&x.component_mul(&scale), layout).cost(obs).unwrap_or(BEHIND)
+        start
+            .apply(&x.component_mul(&scale), layout)
+            .cost(obs)
+            .unwrap_or(BEHIND)
     };
     let mut p = DVector::zeros(n);
     let mut dirs: Vec<DVector<f64>> = (0..n)
@@ -207,7 +226,8 @@ pub(crate) fn refine(start: &CameraModel, obs: &[Observation], layout: Layout, s
         pt = p.clone();
         let fptt = cost_at(&extrapolated);
         if fptt < fp {
-            let t = 2.0 * (fp - 2.0 * fret + fptt) * (fp - fret - del).powi(2) - del * (fp - fptt).powi(2);
+            let t = 2.0 * (fp - 2.0 * fret + fptt) * (fp - fret - del).powi(2)
+                - del * (fp - fptt).powi(2);
             if t < 0.0 {
                 fret = line_minimise(&mut cost_at, &mut p, &mut xit, settings.line_tol);
                 dirs[ibig] = dirs[n - 1].clone();

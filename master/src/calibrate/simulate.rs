@@ -56,7 +56,13 @@ pub fn fiducial_rig(count: usize, seed: u64) -> Vec<DVec3> {
 pub fn fiducial_plate(count: usize, seed: u64) -> Vec<DVec3> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..count)
-        .map(|_| DVec3::new(rng.random_range(-0.3..0.3), 0.0, rng.random_range(-0.3..0.3)))
+        .map(|_| {
+            DVec3::new(
+                rng.random_range(-0.3..0.3),
+                0.0,
+                rng.random_range(-0.3..0.3),
+            )
+        })
         .collect()
 }
 
@@ -69,9 +75,15 @@ pub fn projector_in_showcase(seed: u64) -> PinholeDevice {
     let distance = rng.random_range(0.5..1.5);
     let elevation = rng.random_range(35.0f64..75.0).to_radians();
     let azimuth = rng.random_range(0.0..std::f64::consts::TAU);
-    let dir = DVec3::new(elevation.cos() * azimuth.cos(), elevation.sin(), elevation.cos() * azimuth.sin());
+    let dir = DVec3::new(
+        elevation.cos() * azimuth.cos(),
+        elevation.sin(),
+        elevation.cos() * azimuth.sin(),
+    );
     let eye = RIG_CENTER + distance * dir;
-    let fov_x = (2.0 * (0.45 / distance).atan()).to_degrees().clamp(30.0, 80.0);
+    let fov_x = (2.0 * (0.45 / distance).atan())
+        .to_degrees()
+        .clamp(30.0, 80.0);
     let mut device = PinholeDevice::look_at(eye, RIG_CENTER, DVec3::Y, fov_x, 1024, 768);
     let f = device.k.x_axis.x;
     device.k.y_axis.y = f * rng.random_range(0.99..1.01);
@@ -85,10 +97,20 @@ pub fn projector_in_showcase(seed: u64) -> PinholeDevice {
 /// their input order, with Gaussian pixel noise of standard deviation
 /// `noise_px` per axis (seeded, reproducible). Distortion k1, k2 of the
 /// device is applied. A negative or non-finite `noise_px` counts as 0.
-pub fn simulate_fiducials(device: &PinholeDevice, fiducials: &[DVec3], noise_px: f64, seed: u64) -> CalibrationInput {
+pub fn simulate_fiducials(
+    device: &PinholeDevice,
+    fiducials: &[DVec3],
+    noise_px: f64,
+    seed: u64,
+) -> CalibrationInput {
     let model = model_of_device(device);
-    let sigma = if noise_px.is_finite() { noise_px.max(0.0) } else { 0.0 };
-    let noise = Normal::new(0.0, sigma).unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sigma is valid"));
+    let sigma = if noise_px.is_finite() {
+        noise_px.max(0.0)
+    } else {
+        0.0
+    };
+    let noise = Normal::new(0.0, sigma)
+        .unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sigma is valid"));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (w, h) = (device.width as f64, device.height as f64);
     let points = fiducials
