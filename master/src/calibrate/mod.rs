@@ -19,8 +19,6 @@ mod camera;
 mod dlt;
 mod io;
 mod lm;
-#[cfg(test)]
-mod measure_tmp;
 mod pnp;
 mod powell;
 mod simulate;
