@@ -1,7 +1,7 @@
 //! The pinhole model being fitted: intrinsics, two radial distortion terms
 //! and a pose, with its projection and the analytic Jacobian of a pixel.
 
-use nalgebra::{DVector, Matrix3, Rotation3, Vector2, Vector3};
+use nalgebra::{Matrix3, Rotation3, Vector2, Vector3};
 
 /// One fiducial: its world position (metres) and its marked pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -197,7 +197,7 @@ impl CameraModel {
     /// The model moved by `delta` (`layout.len()` entries): rotation vector
     /// increment (applied on the left), translation, then fx, fy, cx, cy,
     /// skew and k1, k2 where free.
-    pub(crate) fn apply(&self, delta: &DVector<f64>, layout: Layout) -> Self {
+    pub(crate) fn apply(&self, delta: &[f64], layout: Layout) -> Self {
         let omega = Vector3::new(delta[0], delta[1], delta[2]);
         let mut m = self.clone();
         m.rotation = Rotation3::new(omega).matrix() * self.rotation;
@@ -263,7 +263,7 @@ mod tests {
         m.project_with_jacobian(&x, layout, &mut jac).unwrap();
         for (k, col) in jac.iter().enumerate() {
             let h = if k >= 11 { 1e-7 } else { 1e-6 };
-            let mut d = DVector::zeros(layout.len());
+            let mut d = vec![0.0; layout.len()];
             d[k] = h;
             let plus = m.apply(&d, layout).project(&x).unwrap();
             d[k] = -h;

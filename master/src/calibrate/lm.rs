@@ -3,7 +3,6 @@
 //! Marquardt's diagonal scaling (parameters mix pixels, radians, metres).
 
 use super::camera::{CameraModel, Layout, Observation};
-use nalgebra::{DMatrix, DVector};
 
 /// The outcome of a refinement.
 #[derive(Clone, Debug)]
@@ -18,30 +17,98 @@ pub(crate) struct Refined {
     pub(crate) converged: bool,
 }
 
-/// Normal equations `J^T J` and `J^T r` at `model`, and the cost `r^T r`.
+/// Most free parameters of any layout.
+const MAX: usize = 13;
+
+/// The Gauss-Newton normal equations at one model, in fixed-size arrays
+/// (this is the refinement's hot path; nothing here allocates).
+struct NormalEquations {
+    /// Free parameters.
+    p: usize,
+    /// `J^T J`, full symmetric.
+    jtj: [[f64; MAX]; MAX],
+    /// `J^T r`.
+    jtr: [f64; MAX],
+    /// `r^T r`.
+    cost: f64,
+}
+
+/// Normal equations at `model`; `None` when a point is behind the device.
 fn normal_equations(
     model: &CameraModel,
     obs: &[Observation],
     layout: Layout,
-) -> Option<(DMatrix<f64>, DVector<f64>, f64)> {
+) -> Option<NormalEquations> {
     let p = layout.len();
-    let mut jtj = DMatrix::zeros(p, p);
-    let mut jtr = DVector::zeros(p);
-    let mut cost = 0.0;
-    let mut jac = vec![[0.0; 2]; p];
+    let mut ne = NormalEquations {
+        p,
+        jtj: [[0.0; MAX]; MAX],
+        jtr: [0.0; MAX],
+        cost: 0.0,
+    };
+    let mut jac = [[0.0f64; 2]; MAX];
     for o in obs {
-        let px = model.project_with_jacobian(&o.world, layout, &mut jac)?;
+        let px = model.project_with_jacobian(&o.world, layout, &mut jac[..p])?;
         let r = px - o.pixel;
-        cost += r.norm_squared();
+        ne.cost += r.norm_squared();
         for a in 0..p {
-            jtr[a] += jac[a][0] * r.x + jac[a][1] * r.y;
-            for b in 0..=a {
-                jtj[(a, b)] += jac[a][0] * jac[b][0] + jac[a][1] * jac[b][1];
+            let ja = jac[a];
+            ne.jtr[a] += ja[0] * r.x + ja[1] * r.y;
+            for (b, jb) in jac[..=a].iter().enumerate() {
+                ne.jtj[a][b] += ja[0] * jb[0] + ja[1] * jb[1];
             }
         }
     }
-    jtj.fill_upper_triangle_with_lower_triangle();
-    cost.is_finite().then_some((jtj, jtr, cost))
+    for a in 0..p {
+        for b in 0..a {
+            ne.jtj[b][a] = ne.jtj[a][b];
+        }
+    }
+    ne.cost.is_finite().then_some(ne)
+}
+
+/// Solve `(J^T J + lambda diag(J^T J)) d = -J^T r` by Cholesky; `None`
+/// when the damped matrix is not positive definite.
+fn damped_step(ne: &NormalEquations, lambda: f64) -> Option<[f64; MAX]> {
+    let p = ne.p;
+    let mut l = ne.jtj;
+    for (i, row) in l.iter_mut().enumerate().take(p) {
+        row[i] += lambda * ne.jtj[i][i].max(1e-12);
+    }
+    for j in 0..p {
+        let mut d = l[j][j];
+        for k in 0..j {
+            d -= l[j][k] * l[j][k];
+        }
+        if !(d > 0.0) {
+            return None;
+        }
+        let d = d.sqrt();
+        l[j][j] = d;
+        for i in j + 1..p {
+            let mut v = l[i][j];
+            for k in 0..j {
+                v -= l[i][k] * l[j][k];
+            }
+            l[i][j] = v / d;
+        }
+    }
+    let mut x = [0.0; MAX];
+    for i in 0..p {
+        let mut v = -ne.jtr[i];
+        for k in 0..i {
+            v -= l[i][k] * x[k];
+        }
+        x[i] = v / l[i][i];
+    }
+    for i in (0..p).rev() {
+        let mut v = x[i];
+        for k in i + 1..p {
+            v -= l[k][i] * x[k];
+        }
+        x[i] = v / l[i][i];
+    }
+    x[..p].iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Stop when every Jacobian column is this close to orthogonal to the
@@ -69,45 +136,42 @@ pub(crate) fn refine(
         evaluations,
         converged,
     };
-    let Some((mut jtj, mut jtr, mut cost)) = normal_equations(&model, obs, layout) else {
+    let Some(mut ne) = normal_equations(&model, obs, layout) else {
         return done(model, iterations, evaluations, false);
     };
+    let p = ne.p;
     let mut lambda = 1e-3;
     while iterations < max_iterations {
-        let cosine = (0..jtr.len())
-            .map(|i| jtr[i].abs() / (jtj[(i, i)] * cost).sqrt().max(f64::MIN_POSITIVE))
+        let cosine = (0..p)
+            .map(|i| ne.jtr[i].abs() / (ne.jtj[i][i] * ne.cost).sqrt().max(f64::MIN_POSITIVE))
             .fold(0.0, f64::max);
-        if cost <= f64::MIN_POSITIVE || cosine <= GRADIENT_COSINE {
+        if ne.cost <= f64::MIN_POSITIVE || cosine <= GRADIENT_COSINE {
             return done(model, iterations, evaluations, true);
         }
         iterations += 1;
-        let mut a = jtj.clone();
-        for i in 0..a.nrows() {
-            a[(i, i)] += lambda * jtj[(i, i)].max(1e-12);
-        }
-        let step = a
-            .cholesky()
-            .map(|c| c.solve(&(-&jtr)))
-            .filter(|d| d.iter().all(|v| v.is_finite()));
         let mut trial = None;
-        if let Some(d) = step {
+        if let Some(d) = damped_step(&ne, lambda) {
             // cost(x + d) ~ cost + 2 d.J^T r + d.J^T J d (linearised model).
-            let predicted = -(2.0 * d.dot(&jtr) + d.dot(&(&jtj * &d)));
-            if predicted <= PREDICTED_DECREASE * cost {
+            let mut predicted = 0.0;
+            for a in 0..p {
+                let jd: f64 = (0..p).map(|b| ne.jtj[a][b] * d[b]).sum();
+                predicted -= d[a] * (2.0 * ne.jtr[a] + jd);
+            }
+            if predicted <= PREDICTED_DECREASE * ne.cost {
                 // Nothing left to gain beyond rounding.
                 return done(model, iterations, evaluations, true);
             }
             evaluations += 1;
-            let m = model.apply(&d, layout);
-            trial = normal_equations(&m, obs, layout).map(|ne| (m, ne));
+            let m = model.apply(&d[..p], layout);
+            trial = normal_equations(&m, obs, layout).map(|n| (m, n));
         }
         match trial {
-            Some((m, (j2, r2, c2))) if c2 < cost => {
-                let gain = cost - c2;
+            Some((m, n)) if n.cost < ne.cost => {
+                let gain = ne.cost - n.cost;
                 model = m;
-                (jtj, jtr, cost) = (j2, r2, c2);
+                ne = n;
                 lambda = (lambda * 0.1).max(1e-12);
-                if gain <= PREDICTED_DECREASE * cost {
+                if gain <= PREDICTED_DECREASE * ne.cost {
                     return done(model, iterations, evaluations, true);
                 }
             }

@@ -189,7 +189,7 @@ pub(crate) fn refine(
     let mut cost_at = |x: &DVector<f64>| {
         evaluations += 1;
         start
-            .apply(&x.component_mul(&scale), layout)
+            .apply(x.component_mul(&scale).as_slice(), layout)
             .cost(obs)
             .unwrap_or(BEHIND)
     };
@@ -235,7 +235,7 @@ pub(crate) fn refine(
             }
         }
     }
-    let model = start.apply(&p.component_mul(&scale), layout);
+    let model = start.apply(p.component_mul(&scale).as_slice(), layout);
     Refined {
         model,
         iterations: sweeps,
