@@ -471,8 +471,14 @@ fn json_files_round_trip() {
     let back: Calibration = serde_json::from_value(written.clone()).unwrap();
     // serde_json parses floats to within one ulp (exact with its
     // float_roundtrip feature).
-    assert_json_close(&serde_json::to_value(&back).unwrap(), &serde_json::to_value(&cal).unwrap());
-    assert_eq!((back.device.as_str(), back.method, back.residuals_px.len()), ("projector-sim-5", Method::Lm, 20));
+    assert_json_close(
+        &serde_json::to_value(&back).unwrap(),
+        &serde_json::to_value(&cal).unwrap(),
+    );
+    assert_eq!(
+        (back.device.as_str(), back.method, back.residuals_px.len()),
+        ("projector-sim-5", Method::Lm, 20)
+    );
     // P = K [R | t].
     let d = cal.to_device();
     let p = d.projection();

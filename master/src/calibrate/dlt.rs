@@ -62,7 +62,7 @@ fn normalise_2d(points: impl Iterator<Item = Vector2<f64>> + Clone) -> Option<Ma
     let n = points.clone().count() as f64;
     let c = points.clone().sum::<Vector2<f64>>() / n;
     let mean = points.map(|p| (p - c).norm()).sum::<f64>() / n;
-    if !(mean > 0.0) {
+    if mean.is_nan() || mean <= 0.0 {
         return None;
     }
     let s = std::f64::consts::SQRT_2 / mean;

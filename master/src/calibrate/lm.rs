@@ -76,21 +76,15 @@ fn damped_step(ne: &NormalEquations, lambda: f64) -> Option<[f64; MAX]> {
         row[i] += lambda * ne.jtj[i][i].max(1e-12);
     }
     for j in 0..p {
-        let mut d = l[j][j];
-        for k in 0..j {
-            d -= l[j][k] * l[j][k];
-        }
-        if !(d > 0.0) {
+        let d = l[j][j] - l[j][..j].iter().map(|v| v * v).sum::<f64>();
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();
         l[j][j] = d;
         for i in j + 1..p {
-            let mut v = l[i][j];
-            for k in 0..j {
-                v -= l[i][k] * l[j][k];
-            }
-            l[i][j] = v / d;
+            let dot: f64 = l[i][..j].iter().zip(&l[j][..j]).map(|(a, b)| a * b).sum();
+            l[i][j] = (l[i][j] - dot) / d;
         }
     }
     let mut x = [0.0; MAX];

@@ -277,7 +277,7 @@ fn parse_camera_matrix(rows: &[Vec<f64>]) -> Result<Matrix3<f64>, CalibrationErr
     }
     let k = Matrix3::from_fn(|r, c| rows[r][c]);
     let scale = k[(2, 2)];
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return Err(invalid(format!("K[2][2] is {scale}, expected 1")));
     }
     let k = k / scale;
@@ -440,7 +440,7 @@ pub fn calibrate(
     let model = &refined.model;
     for (index, o) in obs.iter().enumerate() {
         let depth = model.to_device(&o.world).z;
-        if !(depth > 0.0) {
+        if depth.is_nan() || depth <= 0.0 {
             return Err(CalibrationError::PointBehindDevice {
                 index,
                 world: o.world.into(),
@@ -448,7 +448,7 @@ pub fn calibrate(
             });
         }
     }
-    if !model.is_finite() || !(model.fx > 0.0 && model.fy > 0.0) {
+    if !(model.is_finite() && model.fx > 0.0 && model.fy > 0.0) {
         return Err(CalibrationError::Degenerate {
             reason: format!(
                 "the refinement ended at an invalid K (fx {}, fy {})",

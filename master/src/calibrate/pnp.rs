@@ -226,7 +226,7 @@ pub(crate) fn epnp(
         let Ok(b) = l.svd(true, true).solve(&rho, 1e-12) else {
             continue;
         };
-        if !(b[0] > 0.0) {
+        if b[0].is_nan() || b[0] <= 0.0 {
             continue;
         }
         let b1 = b[0].sqrt();
