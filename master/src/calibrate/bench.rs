@@ -1,0 +1,379 @@
+//! The calibration benchmark behind `showcase-master bench calibration`:
+//! error against run time for LM and Powell over noise, point count and
+//! coplanarity, on synthetic projectors inside a showcase, plus its report.
+
+use super::io::rms;
+use super::simulate::{fiducial_plate, fiducial_rig, projector_in_showcase, simulate_fiducials};
+use super::{
+    CalibrateOptions, Calibration, CalibrationInput, Correspondence, Intrinsics, Method, calibrate,
+};
+use glam::{DMat3, DVec3};
+use serde::Serialize;
+use showcase_proto::scene::PinholeDevice;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// Pixel noise levels of the sweep (standard deviation per axis).
+pub const BENCH_NOISE_PX: [f64; 4] = [0.1, 0.5, 1.0, 2.0];
+/// Fit point counts of the sweep.
+pub const BENCH_POINTS: [usize; 5] = [6, 10, 20, 50, 100];
+/// Seeds per configuration; records hold the median over them.
+pub const BENCH_SEEDS: u64 = 5;
+/// Held-out points per case, never used in the fit.
+pub const HELDOUT_POINTS: usize = 50;
+
+/// One line of the benchmark: medians over [`BENCH_SEEDS`] seeds.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BenchRecord {
+    /// `lm` or `powell`.
+    pub method: Method,
+    /// Fit points.
+    pub points: usize,
+    /// Pixel noise (standard deviation per axis).
+    pub noise_px: f64,
+    /// Coplanar fiducials with known intrinsics (else a non-coplanar rig, unknown intrinsics).
+    pub coplanar: bool,
+    /// RMS pixel error on the fit points.
+    pub rms_fit_px: f64,
+    /// RMS pixel error on held-out points.
+    pub rms_heldout_px: f64,
+    /// Distance of the solved centre of projection from the truth (metres).
+    pub center_error_m: f64,
+    /// Angle between the solved and the true rotation (degrees).
+    pub rotation_error_deg: f64,
+    /// Solve time (seconds).
+    pub seconds: f64,
+}
+
+/// A synthetic calibration problem with its ground truth.
+#[derive(Clone, Debug)]
+pub struct SyntheticCase {
+    /// The true device.
+    pub truth: PinholeDevice,
+    /// The fit input (coplanar cases carry the true intrinsics).
+    pub fit: CalibrationInput,
+    /// Noisy held-out correspondences from the same fiducial set.
+    pub heldout: Vec<Correspondence>,
+}
+
+/// A projector from [`projector_in_showcase`] with `points` fit and
+/// [`HELDOUT_POINTS`] held-out fiducials, on the rig or (coplanar) on the
+/// floor plate with the true intrinsics given.
+pub fn synthetic_case(points: usize, noise_px: f64, coplanar: bool, seed: u64) -> SyntheticCase {
+    let truth = projector_in_showcase(seed);
+    let wanted = points + HELDOUT_POINTS;
+    let mut candidates = 2 * wanted;
+    let mut all = loop {
+        let fiducials = if coplanar {
+            fiducial_plate(candidates, seed)
+        } else {
+            fiducial_rig(candidates, seed)
+        };
+        let marked = simulate_fiducials(&truth, &fiducials, noise_px, seed.wrapping_add(1));
+        if marked.points.len() >= wanted || candidates > 64 * wanted {
+            break marked;
+        }
+        candidates *= 2;
+    };
+    let heldout = all.points.split_off(points.min(all.points.len()));
+    all.points.truncate(points);
+    all.device = format!("projector-sim-{seed}");
+    if coplanar {
+        let k = truth.k.transpose().to_cols_array_2d();
+        all.intrinsics = Some(Intrinsics {
+            camera_matrix: k.iter().map(|r| r.to_vec()).collect(),
+            dist_coeffs: None,
+        });
+    }
+    SyntheticCase {
+        truth,
+        fit: all,
+        heldout: heldout.into_iter().take(HELDOUT_POINTS).collect(),
+    }
+}
+
+/// RMS pixel distance of `points` under `calibration` (points behind it
+/// count as infinitely far).
+pub fn heldout_rms(calibration: &Calibration, points: &[Correspondence]) -> f64 {
+    let residuals: Vec<f64> = points
+        .iter()
+        .map(|p| match calibration.project(DVec3::from_array(p.world)) {
+            Some(px) => (px - glam::DVec2::from_array(p.pixel)).length(),
+            None => f64::INFINITY,
+        })
+        .collect();
+    rms(&residuals)
+}
+
+/// Angle between two rotations in degrees (accurate for small angles).
+pub fn rotation_angle_deg(a: &DMat3, b: &DMat3) -> f64 {
+    let d = *a * b.transpose();
+    let v = DVec3::new(
+        d.y_axis.z - d.z_axis.y,
+        d.z_axis.x - d.x_axis.z,
+        d.x_axis.y - d.y_axis.x,
+    );
+    let trace = d.x_axis.x + d.y_axis.y + d.z_axis.z;
+    (0.5 * v.length()).atan2(0.5 * (trace - 1.0)).to_degrees()
+}
+
+/// The solve time of `f`: the fastest of five blocks, each averaging
+/// enough calls to span a millisecond (the minimum is the least disturbed
+/// by other load on the machine).
+fn time_per_call<T>(mut f: impl FnMut() -> T) -> (T, f64) {
+    let out = f();
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let start = Instant::now();
+        let mut reps = 0u32;
+        while reps == 0 || start.elapsed() < Duration::from_millis(1) {
+            std::hint::black_box(f());
+            reps += 1;
+        }
+        best = best.min(start.elapsed().as_secs_f64() / f64::from(reps));
+    }
+    (out, best)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// One configuration, medians over seeds; `None` when every seed failed.
+pub fn bench_configuration(
+    method: Method,
+    points: usize,
+    noise_px: f64,
+    coplanar: bool,
+) -> Option<BenchRecord> {
+    let opts = CalibrateOptions::with_method(method);
+    let mut cols: [Vec<f64>; 5] = Default::default();
+    for seed in 0..BENCH_SEEDS {
+        let case = synthetic_case(points, noise_px, coplanar, seed);
+        let (result, seconds) = time_per_call(|| calibrate(&case.fit, &opts));
+        let cal = match result {
+            Ok(cal) => cal,
+            Err(e) => {
+                tracing::warn!(%method, points, noise_px, coplanar, seed, error = %e, "calibration failed");
+                continue;
+            }
+        };
+        let device = cal.to_device();
+        let values = [
+            cal.rms_px,
+            heldout_rms(&cal, &case.heldout),
+            (device.center() - case.truth.center()).length(),
+            rotation_angle_deg(&device.rotation, &case.truth.rotation),
+            seconds,
+        ];
+        for (c, v) in cols.iter_mut().zip(values) {
+            c.push(v);
+        }
+    }
+    if cols[0].is_empty() {
+        return None;
+    }
+    let [fit, heldout, center, rotation, seconds] = cols.map(median);
+    Some(BenchRecord {
+        method,
+        points,
+        noise_px,
+        coplanar,
+        rms_fit_px: fit,
+        rms_heldout_px: heldout,
+        center_error_m: center,
+        rotation_error_deg: rotation,
+        seconds,
+    })
+}
+
+/// The whole sweep: both methods, coplanar and not, every noise level and
+/// point count of [`BENCH_NOISE_PX`] and [`BENCH_POINTS`].
+pub fn bench_calibration() -> Vec<BenchRecord> {
+    let mut records = Vec::new();
+    for coplanar in [false, true] {
+        for points in BENCH_POINTS {
+            for noise_px in BENCH_NOISE_PX {
+                for method in [Method::Lm, Method::Powell] {
+                    records.extend(bench_configuration(method, points, noise_px, coplanar));
+                }
+            }
+        }
+    }
+    records
+}
+
+/// Write `calibration.csv`, `calibration.md` (a table plus the LM/Powell
+/// speed ratios) and `calibration.svg` (held-out error against time, log
+/// axes) into `dir`, creating it.
+pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let mut csv = String::from(
+        "method,points,noise_px,coplanar,rms_fit_px,rms_heldout_px,center_error_m,rotation_error_deg,seconds\n",
+    );
+    let mut md = String::from(
+        "# Calibration: error against time\n\nMedians over seeds. LM = Levenberg-Marquardt, Powell = the paper's baseline.\n\n\
+         | method | points | noise px | coplanar | rms fit px | rms held-out px | centre err m | rot err deg | seconds |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in records {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{:.6},{:.6},{:.6e},{:.6e},{:.6e}",
+            r.method,
+            r.points,
+            r.noise_px,
+            r.coplanar,
+            r.rms_fit_px,
+            r.rms_heldout_px,
+            r.center_error_m,
+            r.rotation_error_deg,
+            r.seconds
+        );
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.4} | {:.4} | {:.2e} | {:.2e} | {:.2e} |",
+            r.method,
+            r.points,
+            r.noise_px,
+            r.coplanar,
+            r.rms_fit_px,
+            r.rms_heldout_px,
+            r.center_error_m,
+            r.rotation_error_deg,
+            r.seconds
+        );
+    }
+    md.push_str("\n## Powell time / LM time\n\n| points | noise px | coplanar | speed-up | LM held-out px | Powell held-out px |\n|---|---|---|---|---|---|\n");
+    for lm in records.iter().filter(|r| r.method == Method::Lm) {
+        if let Some(pw) = records.iter().find(|r| {
+            r.method == Method::Powell
+                && r.points == lm.points
+                && r.noise_px == lm.noise_px
+                && r.coplanar == lm.coplanar
+        }) {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.0}x | {:.4} | {:.4} |",
+                lm.points,
+                lm.noise_px,
+                lm.coplanar,
+                pw.seconds / lm.seconds,
+                lm.rms_heldout_px,
+                pw.rms_heldout_px
+            );
+        }
+    }
+    std::fs::write(dir.join("calibration.csv"), csv)?;
+    std::fs::write(dir.join("calibration.md"), md)?;
+    std::fs::write(dir.join("calibration.svg"), scatter_svg(records))
+}
+
+/// A hand-written log-log scatter of held-out error against time.
+fn scatter_svg(records: &[BenchRecord]) -> String {
+    let (w, h, m) = (720.0, 480.0, 60.0);
+    let finite: Vec<&BenchRecord> = records
+        .iter()
+        .filter(|r| r.seconds > 0.0 && r.rms_heldout_px > 0.0 && r.rms_heldout_px.is_finite())
+        .collect();
+    let range = |f: &dyn Fn(&BenchRecord) -> f64| {
+        let lo = finite
+            .iter()
+            .map(|r| f(r).log10())
+            .fold(f64::INFINITY, f64::min)
+            .floor();
+        let hi = finite
+            .iter()
+            .map(|r| f(r).log10())
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil();
+        if lo.is_finite() && hi > lo {
+            (lo, hi)
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    let (x0, x1) = range(&|r| r.seconds);
+    let (y0, y1) = range(&|r| r.rms_heldout_px);
+    let px = |s: f64| m + (s.log10() - x0) / (x1 - x0) * (w - 2.0 * m);
+    let py = |e: f64| h - m - (e.log10() - y0) / (y1 - y0) * (h - 2.0 * m);
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <line x1=\"{m}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n\
+         <line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{}\" stroke=\"black\"/>\n",
+        h - m,
+        w - m,
+        h - m,
+        h - m
+    );
+    for d in x0 as i32..=x1 as i32 {
+        let x = px(10f64.powi(d));
+        let _ = writeln!(
+            svg,
+            "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">1e{d} s</text>",
+            h - m + 18.0
+        );
+    }
+    for d in y0 as i32..=y1 as i32 {
+        let y = py(10f64.powi(d));
+        let _ = writeln!(
+            svg,
+            "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">1e{d} px</text>",
+            m - 6.0
+        );
+    }
+    let _ = writeln!(
+        svg,
+        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">solve time (s)</text>\n<text x=\"14\" y=\"{}\" transform=\"rotate(-90 14 {})\" text-anchor=\"middle\">held-out RMS (px)</text>",
+        w / 2.0,
+        h - 20.0,
+        h / 2.0,
+        h / 2.0
+    );
+    for r in &finite {
+        let colour = if r.method == Method::Lm {
+            "#1f77b4"
+        } else {
+            "#d62728"
+        };
+        let (x, y) = (px(r.seconds), py(r.rms_heldout_px));
+        if r.coplanar {
+            let _ = writeln!(
+                svg,
+                "<rect x=\"{}\" y=\"{}\" width=\"6\" height=\"6\" fill=\"none\" stroke=\"{colour}\"><title>{} {} pts {} px coplanar</title></rect>",
+                x - 3.0,
+                y - 3.0,
+                r.method,
+                r.points,
+                r.noise_px
+            );
+        } else {
+            let _ = writeln!(
+                svg,
+                "<circle cx=\"{x}\" cy=\"{y}\" r=\"3\" fill=\"{colour}\"><title>{} {} pts {} px</title></circle>",
+                r.method, r.points, r.noise_px
+            );
+        }
+    }
+    let _ = writeln!(
+        svg,
+        "<text x=\"{}\" y=\"{}\" fill=\"#1f77b4\">LM</text><text x=\"{}\" y=\"{}\" fill=\"#d62728\">Powell</text>\n<text x=\"{}\" y=\"{}\">circle: rig, square: coplanar (known K)</text>\n</svg>",
+        w - m - 200.0,
+        m - 20.0,
+        w - m - 170.0,
+        m - 20.0,
+        w - m - 200.0,
+        m - 6.0
+    );
+    svg
+}
