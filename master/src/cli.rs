@@ -273,7 +273,21 @@ pub fn run(cli: Cli) -> Result<()> {
             args.metrics.as_deref(),
             args.record.as_deref(),
         )),
-        Command::Calibrate(_) => Err(not_built("calibrate", "device calibration", 4)),
+        Command::Calibrate(args) => {
+            let method = match args.method {
+                CalibrationMethod::Lm => crate::calibrate::Method::Lm,
+                CalibrationMethod::Powell => crate::calibrate::Method::Powell,
+            };
+            let c = crate::calibrate::run_calibrate_file(&args.points, &args.out, method)?;
+            eprintln!(
+                "calibrated {} from {} points: rms {:.4} px; wrote {}",
+                args.points.display(),
+                c.residuals_px.len(),
+                c.rms_px,
+                args.out.display()
+            );
+            Ok(())
+        }
         Command::Capture(_) => Err(not_built("capture", "reflectance capture", 3)),
         Command::Radiosity(_) => Err(not_built("radiosity", "augmented radiosity", 5)),
         Command::Replay(args) => {
