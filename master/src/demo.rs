@@ -227,7 +227,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
         frames: args.frames,
         core: showcase_proto::session::MasterConfig {
             target_hz: HZ,
-            ..Default::default()
+            ..crate::cluster::cluster_core_defaults()
         },
         renderers: state_hash_renderers(),
         restart: None,

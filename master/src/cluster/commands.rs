@@ -2,6 +2,7 @@
 //! `replay` (a recorded session through a loopback cluster) and
 //! `bench cluster`.
 
+use super::cluster_core_defaults;
 use super::loopback::{LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
 use super::metrics::percentile;
 use super::server::{Server, ServerSettings};
@@ -145,7 +146,7 @@ pub async fn bench_cluster(scene: &Showcase, frames: u64) -> Result<Vec<ClusterB
                 frames,
                 core: MasterConfig {
                     target_hz: hz,
-                    ..MasterConfig::default()
+                    ..cluster_core_defaults()
                 },
                 renderers: state_hash_renderers(),
                 restart: Some((0, frames / 3)),
@@ -209,7 +210,7 @@ pub async fn replay(
         frames,
         core: MasterConfig {
             target_hz: hz,
-            ..MasterConfig::default()
+            ..cluster_core_defaults()
         },
         renderers: state_hash_renderers(),
         restart: None,
@@ -294,7 +295,7 @@ pub async fn run_master(
         core: MasterConfig {
             target_hz: cfg.master.target_hz,
             deadline_ns: (cfg.master.deadline_ms as f64 * 1e6) as u64,
-            ..MasterConfig::default()
+            ..cluster_core_defaults()
         },
         frames: None,
         wait_for_nodes: cfg.nodes.len(),

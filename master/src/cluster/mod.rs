@@ -11,3 +11,13 @@ pub use loopback::{LoopbackError, LoopbackPlan, LoopbackResult, RendererFactory,
 pub use metrics::{FrameMetrics, NodeMetric, percentile};
 pub use server::{ClusterRun, Server, ServerError, ServerSettings};
 pub use show::{Show, Tracking};
+
+/// Core settings the drivers use: the proto defaults with clock probes
+/// every 20 ms, so offsets (and so swap-skew figures) settle within a few
+/// frames of a join instead of seconds.
+pub fn cluster_core_defaults() -> showcase_proto::session::MasterConfig {
+    showcase_proto::session::MasterConfig {
+        clock_probe_interval_ns: 20_000_000,
+        ..Default::default()
+    }
+}

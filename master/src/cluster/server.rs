@@ -303,7 +303,13 @@ impl Server {
                         // A node that answered a clock probe (queued after its
                         // snapshot) has the scene; starting earlier would put
                         // frame 0 behind a snapshot still in flight.
-                        let joined = core.nodes().filter(|n| n.clock.is_some()).count();
+                        // Also wait for a clock estimate good to 1 ms, or the
+                        // first frames' skew figures would measure the
+                        // estimate's error rather than the cluster's.
+                        let joined = core
+                            .nodes()
+                            .filter(|n| n.clock.is_some_and(|c| c.error_bound_ns() < 1_000_000))
+                            .count();
                         if joined >= settings.wait_for_nodes || start.elapsed() >= settings.start_timeout {
                             started = true;
                             run.started_ns = now();
