@@ -7,3 +7,5 @@ pub mod gpu;
 pub mod light;
 pub mod mirror_view;
 pub mod net;
+pub mod reflectance;
+pub mod sim;

@@ -1,0 +1,1 @@
+//! Reflectance maps (paper section 3.4): pure math.
