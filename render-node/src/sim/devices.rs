@@ -71,10 +71,10 @@ struct Shared {
 struct State {
     /// Shown pixel values per projector (`None`: all black).
     shown: Vec<Option<RgbImage>>,
-    /// Bumped on every `show`.
+    /// Content hash of each projector's shown image.
     version: Vec<u64>,
-    /// `(camera, projector) -> (version, transport)`.
-    cache: HashMap<(usize, usize), (u64, Arc<TransportImage>)>,
+    /// `(camera, projector, content hash) -> transport`.
+    cache: HashMap<(usize, usize, u64), Arc<TransportImage>>,
     /// `camera -> emitter transport`.
     emitter_cache: HashMap<usize, Arc<RgbImage>>,
 }
@@ -189,9 +189,7 @@ impl Shared {
         })?;
         let mut state = self.lock();
         let version = state.version[projector];
-        if let Some((v, t)) = state.cache.get(&(camera, projector))
-            && *v == version
-        {
+        if let Some(t) = state.cache.get(&(camera, projector, version)) {
             return Ok(t.clone());
         }
         let rays = DeviceRays::new(&proj.device)?;
@@ -201,14 +199,14 @@ impl Shared {
             None => Image::new(w, h, projector_intensity(&proj.response, Vec3::ZERO)),
         };
         let light = ProjectorLight::new(rays, intensity)?;
-        let seed = pixel_seed(self.config.seed, ((camera as u64) << 40) ^ ((projector as u64) << 20) ^ version);
+        let seed = pixel_seed(self.config.seed, ((camera as u64) << 40) ^ ((projector as u64) << 20));
         let t = Arc::new(self.world.render(
             &DeviceRays::new(&cam.device)?,
             Some(&light),
             self.config.samples_per_pixel,
             seed,
         ));
-        state.cache.insert((camera, projector), (version, t.clone()));
+        state.cache.insert((camera, projector, version), t.clone());
         Ok(t)
     }
 
@@ -329,9 +327,10 @@ impl Projector for SimProjector {
         let clamped = image.map(|v| {
             Vec3::from(v.to_array().map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }))
         });
+        let hash = content_hash(&clamped);
         let mut state = self.shared.lock();
         state.shown[self.index] = Some(clamped);
-        state.version[self.index] += 1;
+        state.version[self.index] = hash;
         Ok(())
     }
 
@@ -418,6 +417,17 @@ impl Camera for SimCamera {
             bits,
         })
     }
+}
+
+/// A hash of an image's pixel values (the transport cache key).
+fn content_hash(image: &RgbImage) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    (image.width, image.height).hash(&mut h);
+    for v in &image.data {
+        v.to_array().map(f32::to_bits).hash(&mut h);
+    }
+    h.finish()
 }
 
 fn finite_or(v: f64, fallback: f64) -> f64 {
