@@ -135,7 +135,7 @@ fn bench_scene(name: &str, scene: &Showcase, sim: &SimShowcase, options: &BenchO
                 let t = Instant::now();
                 let mut projector = sim.projector(0)?;
                 let outcome = capture_map(scene, &mut projector, &mut sim.camera(0)?, eta, black, &config)?;
-                let maps = if method == Method::Piecewise { truth.pieces } else { 1 };
+                let maps = if method == Method::Piecewise { outcome.pieces } else { 1 };
                 let mut seconds = t.elapsed().as_secs_f64() + (maps * frames as usize) as f64 * frame_s;
                 if estimated {
                     seconds += fit_seconds;
@@ -178,8 +178,6 @@ struct GroundTruth {
     interreflection: Image<bool>,
     /// Visible object pixels.
     visible: usize,
-    /// Objects seen (the pieces of a piecewise capture).
-    pieces: usize,
 }
 
 impl GroundTruth {
@@ -200,14 +198,10 @@ impl GroundTruth {
                 .map(|(d, i)| i.element_sum() > 0.1 * d.element_sum())
                 .collect(),
         };
-        let mut seen: Vec<u32> = objects.data.iter().flatten().copied().collect();
-        seen.sort_unstable();
-        seen.dedup();
         Ok(Self {
             albedo,
             interreflection,
             visible: objects.data.iter().filter(|o| o.is_some()).count(),
-            pieces: seen.len(),
         })
     }
 }

@@ -69,6 +69,11 @@ pub struct CaptureConfig {
     /// Projector pixels by which a piece's light mask is grown, so the
     /// piece's edges are fully lit.
     pub piece_dilate_px: u32,
+    /// Piecewise capture lights one object within one tile of an
+    /// `n x n` grid over the projector image at a time: the smaller the
+    /// piece, the less of its own light comes back to it from the rest of
+    /// a concave scene.
+    pub piece_tiles: u32,
     /// Width in pixels of the blend-weight ramp at blank borders.
     pub border_px: f64,
     /// Samples per pixel of the reference target's sim.
@@ -84,6 +89,7 @@ impl Default for CaptureConfig {
             extract: ExtractParams::default(),
             correction: CorrectionParams::default(),
             piece_dilate_px: 2,
+            piece_tiles: 4,
             border_px: 3.0,
             reference_samples: 4,
         }
@@ -101,6 +107,8 @@ pub struct CaptureOutcome {
     pub map: ReflectanceMap,
     /// The intensity image of the whole scene (surfaces per pixel).
     pub intensity: IntensityImage,
+    /// Radiance maps captured (one per piece for piecewise capture).
+    pub pieces: usize,
     /// Eta used.
     pub eta: f64,
     /// Black level used.
@@ -241,6 +249,7 @@ pub fn capture_map<P: Projector, C: Camera>(
     let light = IntensityLight::projector(&pdev, Vec3::ONE, eta + black_level)?;
     let intensity = render_intensity(&geometry, &rays, &light, &ObjectFilter::Real);
     let white = Image::new(pdev.width, pdev.height, Vec3::ONE);
+    let mut radiance_maps = 1;
     let (reflectance, valid) = match config.method {
         Method::Naive | Method::Corrected => {
             let i_rad = capture_radiance(projector, camera, &white, config.frames)?;
@@ -267,24 +276,40 @@ pub fn capture_map<P: Projector, C: Camera>(
         }
         Method::Piecewise => {
             let prays = DeviceRays::new(&pdev)?;
-            let seen_by_projector: Image<Option<u32>> = Image::from_fn(pdev.width, pdev.height, |x, y| {
+            let n = config.piece_tiles.max(1);
+            let tile_of = |x: u32, y: u32| (x * n / pdev.width) * n + y * n / pdev.height;
+            // Piece of each projector pixel: (object its centre ray hits, tile).
+            let piece_of: Image<Option<(u32, u32)>> = Image::from_fn(pdev.width, pdev.height, |x, y| {
                 let ray = prays.pixel_ray(x, y)?;
-                geometry.closest_hit(&ray, 0.0, f64::INFINITY).map(|h| h.object)
+                geometry.closest_hit(&ray, 0.0, f64::INFINITY).map(|h| (h.object, tile_of(x, y)))
             });
-            let mut pieces: Vec<u32> = intensity.surface.data.iter().flatten().map(|s| s.object).collect();
+            // Piece of each camera pixel: its object and the tile its point
+            // projects to.
+            let camera_piece: Vec<Option<(u32, u32)>> = intensity
+                .surface
+                .data
+                .iter()
+                .map(|s| {
+                    let s = (*s)?;
+                    let (x, y) = prays.pixel_of(s.point)?;
+                    Some((s.object, tile_of(x, y)))
+                })
+                .collect();
+            let mut pieces: Vec<(u32, u32)> = camera_piece.iter().flatten().copied().collect();
             pieces.sort_unstable();
             pieces.dedup();
             let mut rho = Image::new(rays.device().width, rays.device().height, Vec3::ZERO);
             let mut valid = Image::new(rho.width, rho.height, false);
+            radiance_maps = pieces.len();
             for piece in pieces {
-                let mask = dilate(&seen_by_projector.map(|o| *o == Some(piece)), config.piece_dilate_px);
+                let mask = dilate(&piece_of.map(|p| *p == Some(piece)), config.piece_dilate_px);
                 let image = mask.map(|m| if *m { Vec3::ONE } else { Vec3::ZERO });
                 let i_rad = capture_radiance(projector, camera, &image, config.frames)?;
-                let lit = ObjectFilter::Indices(vec![piece as usize]);
+                let lit = ObjectFilter::Indices(vec![piece.0 as usize]);
                 let piece_int = render_intensity(&geometry, &rays, &light, &lit);
                 let (r, v) = extract_reflectance(&i_rad, &piece_int.intensity, &piece_int, &config.extract)?;
-                for (k, s) in intensity.surface.data.iter().enumerate() {
-                    if s.is_some_and(|s| s.object == piece) {
+                for (k, p) in camera_piece.iter().enumerate() {
+                    if *p == Some(piece) {
                         rho.data[k] = r.data[k];
                         valid.data[k] = v.data[k];
                     }
@@ -305,6 +330,7 @@ pub fn capture_map<P: Projector, C: Camera>(
         valid,
         map,
         intensity,
+        pieces: radiance_maps,
         eta,
         black_level,
     })

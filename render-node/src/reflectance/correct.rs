@@ -115,7 +115,9 @@ pub fn indirect_irradiance(
                 if hit.geometric_normal == DVec3::ZERO {
                     continue;
                 }
-                // Seen by the camera at the projected pixel?
+                // Seen by the camera: the pixel it projects to sees the same
+                // object at the same depth (within the footprint times the
+                // slope at phi_max): use the measured exitance there.
                 let z = d.to_device(hit.point).z;
                 if let Some((qx, qy)) = camera.pixel_of(hit.point) {
                     let q = (qy * w + qx) as usize;

@@ -446,3 +446,49 @@ pub fn pixel_seed(seed: u64, index: u64) -> u64 {
 fn finite(v: DVec3) -> DVec3 {
     if v.is_finite() { v } else { DVec3::ZERO }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+    use showcase_proto::{Mesh, Object, ObjectKind, PinholeDevice, Transform};
+
+    /// A floor and a wall meeting at a corner, the wall emitting.
+    fn corner() -> Showcase {
+        let mut s = Showcase::default();
+        let floor = s.add_mesh(Mesh {
+            positions: vec![Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        });
+        let wall = s.add_mesh(Mesh {
+            positions: vec![Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 0.0, 1.0)],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        });
+        for (name, mesh, emission) in [("floor", floor, Vec3::ZERO), ("wall", wall, Vec3::ONE)] {
+            let mut material = Material::diffuse(Vec3::splat(0.7));
+            material.emission = emission;
+            s.objects.push(Object { name: name.into(), mesh, material, kind: ObjectKind::Real, transform: Transform::IDENTITY });
+        }
+        s
+    }
+
+    #[test]
+    fn renders_are_reproducible_per_seed_whatever_the_thread_count() {
+        let world = SimWorld::new(&corner(), &ObjectFilter::All, true).unwrap();
+        let camera = PinholeDevice::look_at(DVec3::new(0.5, 0.8, -0.5), DVec3::new(0.5, 0.2, 0.8), DVec3::Y, 60.0, 9, 7);
+        let rays = DeviceRays::new(&camera).unwrap();
+        let run = |threads: usize, seed: u64| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| world.render(&rays, None, 4, seed))
+        };
+        let a = run(1, 9);
+        assert!(a.indirect.data.iter().any(|v| *v != Vec3::ZERO));
+        assert_eq!(a, run(3, 9));
+        assert_ne!(a, run(2, 10));
+    }
+}
