@@ -4,7 +4,7 @@
 
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
-use showcase_master::capture::scenes::{cornell_scene, plate_scene, quad_mesh};
+use showcase_master::capture::scenes::{plate_scene, quad_mesh};
 use showcase_proto::{Material, Mesh, Object, ObjectKind, PinholeDevice, ProjectorResponse, Showcase, Transform};
 use showcase_render::light::{
     DeviceRays, Image, IntensityLight, ObjectFilter, SceneGeometry, polygon_irradiance, render_intensity,
@@ -13,7 +13,7 @@ use showcase_render::sim::{
     Camera, Projector, SimConfig, SimShowcase, SimWorld, read_pfm, render_view, wheel_weights,
 };
 
-const CORNELL: &str = "../shared/data/cornell-box.obj";
+const CORNELL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/cornell-box.obj");
 
 fn add(scene: &mut Showcase, name: &str, mesh: Mesh, material: Material) {
     let id = scene.add_mesh(mesh);
@@ -86,7 +86,7 @@ fn direct_light_from_a_polygon_emitter_matches_lambert() {
     let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
     let camera = PinholeDevice::look_at(DVec3::new(0.0, 1.2, -1.4), DVec3::ZERO, DVec3::Y, 60.0, 12, 10);
     let rays = DeviceRays::new(&camera).unwrap();
-    let img = world.render(&rays, None, 256, 5);
+    let img = world.render(&rays, None, 1024, 5);
     let geometry = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
     let polygon: Vec<DVec3> = [corner, corner + u, corner + u + v, corner + v].iter().map(|p| p.as_dvec3()).collect();
     let (mut n, mut sum_err, mut sum_expect, mut max_err) = (0, 0.0, 0.0, 0.0f64);
@@ -163,21 +163,22 @@ fn colour_wheel_integrates_only_the_segments_an_exposure_overlaps() {
         ..ProjectorResponse::default()
     };
     let phase = 0.05;
-    let full = wheel_weights(&r, phase, 1.234, 0.3);
+    let p = r.wheel_period_s as f64;
+    let full = wheel_weights(&r, phase, 1.234, p);
     assert!((full - DVec3::ONE).abs().max_element() < 1e-9, "{full}");
-    let red = wheel_weights(&r, phase, phase + 0.3 * 7.0, 0.1);
+    let red = wheel_weights(&r, phase, phase + p * 7.0, p / 3.0);
     assert!((red - DVec3::new(3.0, 0.0, 0.0)).abs().max_element() < 1e-9, "{red}");
     // Half of green and half of blue.
-    let gb = wheel_weights(&r, phase, phase + 0.15, 0.1);
+    let gb = wheel_weights(&r, phase, phase + p / 2.0, p / 3.0);
     assert!((gb - DVec3::new(0.0, 1.5, 1.5)).abs().max_element() < 1e-9, "{gb}");
     // Instantaneous exposure: the segment in front of the lamp.
-    assert_eq!(wheel_weights(&r, phase, phase + 0.25, 0.0), DVec3::new(0.0, 0.0, 3.0));
+    assert_eq!(wheel_weights(&r, phase, phase + 0.85 * p, 0.0), DVec3::new(0.0, 0.0, 3.0));
     // No wheel: always 1.
     assert_eq!(wheel_weights(&ProjectorResponse::default(), 0.0, 0.1, 0.01), DVec3::ONE);
     // K frames spread evenly over the phase average to a full turn.
     let k = 16;
     let avg = (0..k)
-        .map(|i| wheel_weights(&r, phase, i as f64 * (4.0 + 1.0 / k as f64) * 0.3, 0.75 * 0.3))
+        .map(|i| wheel_weights(&r, phase, i as f64 * (4.0 + 1.0 / k as f64) * p, 0.75 * p))
         .sum::<DVec3>()
         / k as f64;
     assert!((avg - DVec3::ONE).abs().max_element() < 0.01, "{avg}");

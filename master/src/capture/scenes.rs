@@ -71,7 +71,9 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
             if let Some(kd) = mat.diffuse {
                 material.albedo = Vec3::from(kd);
             }
-            if let Some(ke) = mat.unknown_param.get("Ke") {
+            if let Some(ke) = mat.emissive {
+                material.emission = Vec3::from(ke);
+            } else if let Some(ke) = mat.unknown_param.get("Ke") {
                 let v: Vec<f32> = ke.split_whitespace().filter_map(|t| t.parse().ok()).collect();
                 if v.len() == 3 {
                     material.emission = Vec3::new(v[0], v[1], v[2]);
