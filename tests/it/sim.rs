@@ -5,15 +5,21 @@
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use showcase_master::capture::scenes::{plate_scene, quad_mesh};
-use showcase_proto::{Material, Mesh, Object, ObjectKind, PinholeDevice, ProjectorResponse, Showcase, Transform};
+use showcase_proto::{
+    Material, Mesh, Object, ObjectKind, PinholeDevice, ProjectorResponse, Showcase, Transform,
+};
 use showcase_render::light::{
-    DeviceRays, Image, IntensityLight, ObjectFilter, SceneGeometry, polygon_irradiance, render_intensity,
+    DeviceRays, Image, IntensityLight, ObjectFilter, SceneGeometry, polygon_irradiance,
+    render_intensity,
 };
 use showcase_render::sim::{
     Camera, Projector, SimConfig, SimShowcase, SimWorld, read_pfm, render_view, wheel_weights,
 };
 
-const CORNELL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/cornell-box.obj");
+const CORNELL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/cornell-box.obj"
+);
 
 fn add(scene: &mut Showcase, name: &str, mesh: Mesh, material: Material) {
     let id = scene.add_mesh(mesh);
@@ -44,14 +50,25 @@ fn closed_emitting_box_conserves_energy() {
     for (i, (corner, u, v)) in faces.into_iter().enumerate() {
         let centre = corner + 0.5 * (u + v);
         // Wind every face so its front looks into the box.
-        let (u, v) = if u.cross(v).dot(c - centre) > 0.0 { (u, v) } else { (v, u) };
+        let (u, v) = if u.cross(v).dot(c - centre) > 0.0 {
+            (u, v)
+        } else {
+            (v, u)
+        };
         let mut m = Material::diffuse(Vec3::splat(rho));
         m.emission = le;
         add(&mut s, &format!("face-{i}"), quad_mesh(corner, u, v), m);
     }
     let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
     assert_eq!(world.emitter_count(), 12);
-    let camera = PinholeDevice::look_at(DVec3::splat(0.5), DVec3::new(0.6, 0.4, 1.0), DVec3::Y, 100.0, 6, 6);
+    let camera = PinholeDevice::look_at(
+        DVec3::splat(0.5),
+        DVec3::new(0.6, 0.4, 1.0),
+        DVec3::Y,
+        100.0,
+        6,
+        6,
+    );
     let img = world.render(&DeviceRays::new(&camera).unwrap(), None, 256, 3);
     let total = img.total();
     let mean = total.data.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / total.data.len() as f64;
@@ -60,9 +77,18 @@ fn closed_emitting_box_conserves_energy() {
     assert!(err < 0.02, "mean {mean} vs {expect}");
     // Every bounce order is present: the indirect part alone is
     // le * rho^2 / (1 - rho) on average.
-    let ind = img.indirect.data.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / total.data.len() as f64;
+    let ind = img
+        .indirect
+        .data
+        .iter()
+        .map(|v| v.as_dvec3())
+        .sum::<DVec3>()
+        / total.data.len() as f64;
     let expect_ind = expect * (rho as f64).powi(2);
-    assert!(((ind - expect_ind) / expect_ind).abs().max_element() < 0.03, "{ind} vs {expect_ind}");
+    assert!(
+        ((ind - expect_ind) / expect_ind).abs().max_element() < 0.03,
+        "{ind} vs {expect_ind}"
+    );
 }
 
 /// Direct light from a square emitter on a floor matches Lambert's closed
@@ -84,20 +110,36 @@ fn direct_light_from_a_polygon_emitter_matches_lambert() {
     light.emission = Vec3::splat(2.0);
     add(&mut s, "light", quad_mesh(corner, u, v), light);
     let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
-    let camera = PinholeDevice::look_at(DVec3::new(0.0, 1.2, -1.4), DVec3::ZERO, DVec3::Y, 60.0, 12, 10);
+    let camera = PinholeDevice::look_at(
+        DVec3::new(0.0, 1.2, -1.4),
+        DVec3::ZERO,
+        DVec3::Y,
+        60.0,
+        12,
+        10,
+    );
     let rays = DeviceRays::new(&camera).unwrap();
     let img = world.render(&rays, None, 1024, 5);
     let geometry = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
-    let polygon: Vec<DVec3> = [corner, corner + u, corner + u + v, corner + v].iter().map(|p| p.as_dvec3()).collect();
+    let polygon: Vec<DVec3> = [corner, corner + u, corner + u + v, corner + v]
+        .iter()
+        .map(|p| p.as_dvec3())
+        .collect();
     let (mut n, mut sum_err, mut sum_expect, mut max_err) = (0, 0.0, 0.0, 0.0f64);
     for y in 0..camera.height {
         for x in 0..camera.width {
             let ray = rays.pixel_ray(x, y).unwrap();
-            let Some(hit) = geometry.closest_hit(&ray, 0.0, f64::INFINITY) else { continue };
+            let Some(hit) = geometry.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                continue;
+            };
             let i = (y * camera.width + x) as usize;
             assert_eq!(img.indirect.data[i], Vec3::ZERO);
             if hit.object != 0 {
-                assert_eq!(img.emitted.data[i], Vec3::ZERO, "the light's back is seen, not its front");
+                assert_eq!(
+                    img.emitted.data[i],
+                    Vec3::ZERO,
+                    "the light's back is seen, not its front"
+                );
                 continue;
             }
             let e = polygon_irradiance(hit.point, DVec3::Y, &polygon, 2.0).unwrap();
@@ -112,7 +154,11 @@ fn direct_light_from_a_polygon_emitter_matches_lambert() {
     }
     assert!(n > 60, "{n} floor pixels");
     assert!(max_err < 0.05, "worst pixel {max_err}");
-    assert!((sum_err / sum_expect).abs() < 0.01, "bias {}", sum_err / sum_expect);
+    assert!(
+        (sum_err / sum_expect).abs() < 0.01,
+        "bias {}",
+        sum_err / sum_expect
+    );
 }
 
 /// The projector's direct light is equation 3.1 times rho/pi exactly, and
@@ -127,7 +173,14 @@ fn projector_direct_light_is_equation_3_1() {
         wheel_segments: Vec::new(),
         wheel_period_s: 1.0 / 120.0,
     };
-    let sim = SimShowcase::new(&scene, SimConfig { samples_per_pixel: 4, ..SimConfig::default() }).unwrap();
+    let sim = SimShowcase::new(
+        &scene,
+        SimConfig {
+            samples_per_pixel: 4,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
     let mut p = sim.projector(0).unwrap();
     let d = p.device().clone();
     p.show(&Image::new(d.width, d.height, Vec3::ONE)).unwrap();
@@ -139,14 +192,19 @@ fn projector_direct_light_is_equation_3_1() {
     let (albedo, _) = sim.ground_truth(0).unwrap();
     let mut lit = 0;
     for i in 0..t.direct.data.len() {
-        let expect = albedo.data[i].as_dvec3() * int.intensity.data[i].as_dvec3() / std::f64::consts::PI;
-        assert!((t.direct.data[i].as_dvec3() - expect).abs().max_element() <= 1e-6 * expect.max_element().max(1e-3));
+        let expect =
+            albedo.data[i].as_dvec3() * int.intensity.data[i].as_dvec3() / std::f64::consts::PI;
+        assert!(
+            (t.direct.data[i].as_dvec3() - expect).abs().max_element()
+                <= 1e-6 * expect.max_element().max(1e-3)
+        );
         assert_eq!(t.indirect.data[i], Vec3::ZERO);
         lit += (expect.max_element() > 0.0) as usize;
     }
     assert!(lit > 200, "{lit} lit pixels");
     // Half the pixel value: eta * 0.5^2.2 + black.
-    p.show(&Image::new(d.width, d.height, Vec3::splat(0.5))).unwrap();
+    p.show(&Image::new(d.width, d.height, Vec3::splat(0.5)))
+        .unwrap();
     let half = sim.transport(0, 0).unwrap();
     let ratio = (2.0 * 0.5f64.powf(2.2) + 0.1) / 2.1;
     for i in 0..t.direct.data.len() {
@@ -167,14 +225,26 @@ fn colour_wheel_integrates_only_the_segments_an_exposure_overlaps() {
     let full = wheel_weights(&r, phase, 1.234, p);
     assert!((full - DVec3::ONE).abs().max_element() < 1e-9, "{full}");
     let red = wheel_weights(&r, phase, phase + p * 7.0, p / 3.0);
-    assert!((red - DVec3::new(3.0, 0.0, 0.0)).abs().max_element() < 1e-9, "{red}");
+    assert!(
+        (red - DVec3::new(3.0, 0.0, 0.0)).abs().max_element() < 1e-9,
+        "{red}"
+    );
     // Half of green and half of blue.
     let gb = wheel_weights(&r, phase, phase + p / 2.0, p / 3.0);
-    assert!((gb - DVec3::new(0.0, 1.5, 1.5)).abs().max_element() < 1e-9, "{gb}");
+    assert!(
+        (gb - DVec3::new(0.0, 1.5, 1.5)).abs().max_element() < 1e-9,
+        "{gb}"
+    );
     // Instantaneous exposure: the segment in front of the lamp.
-    assert_eq!(wheel_weights(&r, phase, phase + 0.85 * p, 0.0), DVec3::new(0.0, 0.0, 3.0));
+    assert_eq!(
+        wheel_weights(&r, phase, phase + 0.85 * p, 0.0),
+        DVec3::new(0.0, 0.0, 3.0)
+    );
     // No wheel: always 1.
-    assert_eq!(wheel_weights(&ProjectorResponse::default(), 0.0, 0.1, 0.01), DVec3::ONE);
+    assert_eq!(
+        wheel_weights(&ProjectorResponse::default(), 0.0, 0.1, 0.01),
+        DVec3::ONE
+    );
     // K frames spread evenly over the phase average to a full turn.
     let k = 16;
     let avg = (0..k)
@@ -188,7 +258,15 @@ fn colour_wheel_integrates_only_the_segments_an_exposure_overlaps() {
 fn camera_sees_one_colour_in_a_short_exposure_and_has_the_configured_noise() {
     let mut scene = plate_scene((8, 8), false);
     scene.cameras[0].response.gain = 2000.0;
-    let sim = SimShowcase::new(&scene, SimConfig { samples_per_pixel: 1, wheel_phase_s: 0.0, ..SimConfig::default() }).unwrap();
+    let sim = SimShowcase::new(
+        &scene,
+        SimConfig {
+            samples_per_pixel: 1,
+            wheel_phase_s: 0.0,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
     let mut p = sim.projector(0).unwrap();
     let d = p.device().clone();
     p.show(&Image::new(d.width, d.height, Vec3::ONE)).unwrap();
@@ -196,7 +274,10 @@ fn camera_sees_one_colour_in_a_short_exposure_and_has_the_configured_noise() {
     let period = p.wheel_period_s();
     let frame = cam.capture(0.0, period / 3.0).unwrap();
     let centre = frame.codes.get(4, 4).unwrap();
-    assert!(centre[0] > 20 && centre[1] == 0 && centre[2] == 0, "{centre:?}");
+    assert!(
+        centre[0] > 20 && centre[1] == 0 && centre[2] == 0,
+        "{centre:?}"
+    );
     assert!(cam.capture(f64::NAN, 0.01).is_err());
     assert!(cam.capture(0.0, -1.0).is_err());
     // Read noise of 2% of full scale on a mid-grey signal.
@@ -204,7 +285,14 @@ fn camera_sees_one_colour_in_a_short_exposure_and_has_the_configured_noise() {
     let r = &mut scene.cameras[0].response;
     r.read_noise = 0.02;
     r.gain = 0.0; // a black image: pure read noise around 0.3 after offset below
-    let sim = SimShowcase::new(&scene, SimConfig { samples_per_pixel: 1, ..SimConfig::default() }).unwrap();
+    let sim = SimShowcase::new(
+        &scene,
+        SimConfig {
+            samples_per_pixel: 1,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
     let mut p = sim.projector(0).unwrap();
     p.show(&Image::new(d.width, d.height, Vec3::ONE)).unwrap();
     let mut cam = sim.camera(0).unwrap();
@@ -220,14 +308,19 @@ fn camera_sees_one_colour_in_a_short_exposure_and_has_the_configured_noise() {
         }
     }
     let expect = 0.02 / (2.0 * std::f64::consts::PI).sqrt() * 255.0;
-    assert!((sum / n - expect).abs() < 0.15 * expect, "{} vs {expect}", sum / n);
+    assert!(
+        (sum / n - expect).abs() < 0.15 * expect,
+        "{} vs {expect}",
+        sum / n
+    );
 }
 
 /// The classic Cornell-box view: the light quad shows its `Ke`, the left
 /// wall is red and the right green, and the command writes a readable PFM.
 #[test]
 fn cornell_box_renders_with_its_own_light() {
-    let scene = showcase_master::capture::scenes::load_obj_showcase(std::path::Path::new(CORNELL)).unwrap();
+    let scene =
+        showcase_master::capture::scenes::load_obj_showcase(std::path::Path::new(CORNELL)).unwrap();
     let device = PinholeDevice::look_at(
         DVec3::new(0.278, 0.273, -0.8),
         DVec3::new(0.278, 0.273, 0.0),
@@ -244,7 +337,10 @@ fn cornell_box_renders_with_its_own_light() {
     assert!(light.x >= 17.0 && light.x < 17.0 * 1.1, "{light}");
     let left = img.get(1, 12).unwrap();
     let right = img.get(22, 12).unwrap();
-    assert!(left.x > 2.0 * left.y && right.y > 2.0 * right.x, "{left} {right}");
+    assert!(
+        left.x > 2.0 * left.y && right.y > 2.0 * right.x,
+        "{left} {right}"
+    );
     let dir = std::env::temp_dir().join(format!("showcase-sim-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("cornell.pfm");

@@ -17,6 +17,7 @@ use glam::Vec3;
 use serde::Serialize;
 use showcase_proto::Showcase;
 use showcase_render::light::{Image, metrics::relative_rmse};
+use showcase_render::reflectance::CorrectionParams;
 use showcase_render::sim::{Projector, SimConfig, SimShowcase};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -63,6 +64,10 @@ pub struct BenchOptions {
     pub scenes: Vec<String>,
     /// Camera noise on (the setting).
     pub noise: bool,
+    /// Methods to run.
+    pub methods: Vec<Method>,
+    /// Gather rays per pixel of the interreflection correction.
+    pub gather_samples: u32,
 }
 
 impl Default for BenchOptions {
@@ -74,6 +79,8 @@ impl Default for BenchOptions {
             frames: vec![1, 2, 4, 8, 16, 32, 64],
             scenes: vec!["plate".into(), "cornell".into()],
             noise: true,
+            methods: vec![Method::Naive, Method::Piecewise, Method::Corrected],
+            gather_samples: 1024,
         }
     }
 }
@@ -100,54 +107,109 @@ pub fn bench_reflectance(options: &BenchOptions) -> anyhow::Result<Vec<Record>> 
     Ok(records)
 }
 
-fn bench_scene(name: &str, scene: &Showcase, sim: &SimShowcase, options: &BenchOptions) -> anyhow::Result<Vec<Record>> {
+fn bench_scene(
+    name: &str,
+    scene: &Showcase,
+    sim: &SimShowcase,
+    options: &BenchOptions,
+) -> anyhow::Result<Vec<Record>> {
     let truth = GroundTruth::new(sim)?;
     let response = &scene.projectors[0].response;
     let (eta_true, black_true) = (response.eta as f64, response.black_level as f64);
     let period = sim.projector(0)?.wheel_period_s();
-    let methods = [Method::Naive, Method::Piecewise, Method::Corrected];
+    let methods = options.methods.clone();
+    let correction = CorrectionParams {
+        gather_samples: options.gather_samples,
+        ..CorrectionParams::default()
+    };
     // Warm the sim's transport cache for every projector image.
-    for method in methods {
+    for &method in &methods {
         let config = CaptureConfig {
             frames: 1,
             method,
-            eta: EtaMode::Known { eta: eta_true, black_level: black_true },
+            eta: EtaMode::Known {
+                eta: eta_true,
+                black_level: black_true,
+            },
             ..CaptureConfig::default()
         };
-        capture_map(scene, &mut sim.projector(0)?, &mut sim.camera(0)?, eta_true, black_true, &config)?;
+        capture_map(
+            scene,
+            &mut sim.projector(0)?,
+            &mut sim.camera(0)?,
+            eta_true,
+            black_true,
+            &config,
+        )?;
     }
     let mut records = Vec::new();
     for &frames in &options.frames {
-        let frame_s = if period > 0.0 { (4.0 + 1.0 / frames as f64) * period } else { 1.0 / 30.0 };
+        let frame_s = if period > 0.0 {
+            (4.0 + 1.0 / frames as f64) * period
+        } else {
+            1.0 / 30.0
+        };
         // The projector fit is shared by the methods; timed once per K.
         let t = Instant::now();
         let fit = calibrate_reference(scene, frames, 4)?;
         let fit_seconds = t.elapsed().as_secs_f64() + 2.0 * frames as f64 * frame_s;
-        for method in methods {
+        for &method in &methods {
             for estimated in [false, true] {
-                let (eta, black) = if estimated { (fit.eta, fit.black_level) } else { (eta_true, black_true) };
+                let (eta, black) = if estimated {
+                    (fit.eta, fit.black_level)
+                } else {
+                    (eta_true, black_true)
+                };
                 let config = CaptureConfig {
                     frames,
                     method,
-                    eta: if estimated { EtaMode::Estimated } else { EtaMode::Known { eta, black_level: black } },
+                    eta: if estimated {
+                        EtaMode::Estimated
+                    } else {
+                        EtaMode::Known {
+                            eta,
+                            black_level: black,
+                        }
+                    },
+                    correction,
                     ..CaptureConfig::default()
                 };
                 let t = Instant::now();
                 let mut projector = sim.projector(0)?;
-                let outcome = capture_map(scene, &mut projector, &mut sim.camera(0)?, eta, black, &config)?;
-                let maps = if method == Method::Piecewise { outcome.pieces } else { 1 };
-                let mut seconds = t.elapsed().as_secs_f64() + (maps * frames as usize) as f64 * frame_s;
+                let outcome = capture_map(
+                    scene,
+                    &mut projector,
+                    &mut sim.camera(0)?,
+                    eta,
+                    black,
+                    &config,
+                )?;
+                let maps = if method == Method::Piecewise {
+                    outcome.pieces
+                } else {
+                    1
+                };
+                let mut seconds =
+                    t.elapsed().as_secs_f64() + (maps * frames as usize) as f64 * frame_s;
                 if estimated {
                     seconds += fit_seconds;
                 }
-                let rel = relative_rmse(&outcome.reflectance, &truth.albedo, Some(&outcome.valid)).unwrap_or(f64::NAN);
+                let rel = relative_rmse(&outcome.reflectance, &truth.albedo, Some(&outcome.valid))
+                    .unwrap_or(f64::NAN);
                 let ir_mask = Image {
                     width: outcome.valid.width,
                     height: outcome.valid.height,
-                    data: outcome.valid.data.iter().zip(&truth.interreflection.data).map(|(a, b)| *a && *b).collect(),
+                    data: outcome
+                        .valid
+                        .data
+                        .iter()
+                        .zip(&truth.interreflection.data)
+                        .map(|(a, b)| *a && *b)
+                        .collect(),
                 };
                 let rel_ir = if ir_mask.data.iter().any(|v| *v) {
-                    relative_rmse(&outcome.reflectance, &truth.albedo, Some(&ir_mask)).unwrap_or(f64::NAN)
+                    relative_rmse(&outcome.reflectance, &truth.albedo, Some(&ir_mask))
+                        .unwrap_or(f64::NAN)
                 } else {
                     0.0
                 };
@@ -211,7 +273,10 @@ impl GroundTruth {
 /// `dir`.
 pub fn write_report(records: &[Record], dir: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
-    std::fs::write(dir.join("records.json"), serde_json::to_string_pretty(records)?)?;
+    std::fs::write(
+        dir.join("records.json"),
+        serde_json::to_string_pretty(records)?,
+    )?;
     let mut md = String::from(
         "# Reflectance bench\n\n| scene | method | eta | frames | rel_rmse | rel_rmse_interreflection | coverage | eta_rel_error | black_level_error | seconds |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
@@ -219,7 +284,16 @@ pub fn write_report(records: &[Record], dir: &Path) -> anyhow::Result<()> {
         let _ = writeln!(
             md,
             "| {} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.4} | {:.4} | {:.3} |",
-            r.scene, r.method, r.eta, r.frames, r.rel_rmse, r.rel_rmse_interreflection, r.coverage, r.eta_rel_error, r.black_level_error, r.seconds
+            r.scene,
+            r.method,
+            r.eta,
+            r.frames,
+            r.rel_rmse,
+            r.rel_rmse_interreflection,
+            r.coverage,
+            r.eta_rel_error,
+            r.black_level_error,
+            r.seconds
         );
     }
     std::fs::write(dir.join("report.md"), md)?;
@@ -232,7 +306,9 @@ pub fn svg_plot(records: &[Record]) -> String {
     let (w, h, m) = (900.0, 560.0, 70.0);
     let pts: Vec<(f64, f64)> = records
         .iter()
-        .filter(|r| r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite())
+        .filter(|r| {
+            r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite()
+        })
         .map(|r| (r.seconds.log10(), r.rel_rmse.log10()))
         .collect();
     let (x0, x1) = bounds(pts.iter().map(|p| p.0));
@@ -241,25 +317,47 @@ pub fn svg_plot(records: &[Record]) -> String {
     let sy = |y: f64| h - m - (y - y0) / (y1 - y0) * (h - 2.0 * m);
     let mut s = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"24\" text-anchor=\"middle\" font-size=\"16\">Reflectance error against capture time</text>\n<line x1=\"{m}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n<line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{}\" stroke=\"black\"/>\n<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">seconds (log)</text>\n<text x=\"18\" y=\"{}\" transform=\"rotate(-90 18 {})\" text-anchor=\"middle\">rel_rmse (log)</text>\n",
-        w / 2.0, h - m, w - m, h - m, h - m, w / 2.0, h - 20.0, h / 2.0, h / 2.0
+        w / 2.0,
+        h - m,
+        w - m,
+        h - m,
+        h - m,
+        w / 2.0,
+        h - 20.0,
+        h / 2.0,
+        h / 2.0
     );
     for k in (x0.floor() as i32)..=(x1.ceil() as i32) {
         let x = k as f64;
         if x >= x0 && x <= x1 {
-            let _ = writeln!(s, "<text x=\"{:.1}\" y=\"{}\" text-anchor=\"middle\">1e{k}</text>", sx(x), h - m + 16.0);
+            let _ = writeln!(
+                s,
+                "<text x=\"{:.1}\" y=\"{}\" text-anchor=\"middle\">1e{k}</text>",
+                sx(x),
+                h - m + 16.0
+            );
         }
     }
     for k in (y0.floor() as i32)..=(y1.ceil() as i32) {
         let y = k as f64;
         if y >= y0 && y <= y1 {
-            let _ = writeln!(s, "<text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">1e{k}</text>", m - 6.0, sy(y) + 4.0);
+            let _ = writeln!(
+                s,
+                "<text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">1e{k}</text>",
+                m - 6.0,
+                sy(y) + 4.0
+            );
         }
     }
-    let colours = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#000000", "#aa4499"];
+    let colours = [
+        "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+        "#bcbd22", "#17becf", "#000000", "#aa4499",
+    ];
     let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for r in records {
         let key = format!("{} {} eta {}", r.scene, r.method, r.eta);
-        if !(r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite()) {
+        if !(r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite())
+        {
             continue;
         }
         let p = (r.seconds.log10(), r.rel_rmse.log10());
@@ -270,21 +368,44 @@ pub fn svg_plot(records: &[Record]) -> String {
     }
     for (i, (key, pts)) in series.iter().enumerate() {
         let c = colours[i % colours.len()];
-        let path: Vec<String> = pts.iter().map(|p| format!("{:.1},{:.1}", sx(p.0), sy(p.1))).collect();
-        let _ = writeln!(s, "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\"/>", path.join(" "));
+        let path: Vec<String> = pts
+            .iter()
+            .map(|p| format!("{:.1},{:.1}", sx(p.0), sy(p.1)))
+            .collect();
+        let _ = writeln!(
+            s,
+            "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\"/>",
+            path.join(" ")
+        );
         for p in pts {
-            let _ = writeln!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{c}\"/>", sx(p.0), sy(p.1));
+            let _ = writeln!(
+                s,
+                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{c}\"/>",
+                sx(p.0),
+                sy(p.1)
+            );
         }
-        let _ = writeln!(s, "<text x=\"{}\" y=\"{}\" fill=\"{c}\">{key}</text>", w - m - 150.0, m + 14.0 * i as f64);
+        let _ = writeln!(
+            s,
+            "<text x=\"{}\" y=\"{}\" fill=\"{c}\">{key}</text>",
+            w - m - 150.0,
+            m + 14.0 * i as f64
+        );
     }
     s.push_str("</svg>\n");
     s
 }
 
 fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
     if !(lo.is_finite() && hi.is_finite()) {
         return (0.0, 1.0);
     }
-    if hi - lo < 1e-6 { (lo - 0.5, hi + 0.5) } else { (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)) }
+    if hi - lo < 1e-6 {
+        (lo - 0.5, hi + 0.5)
+    } else {
+        (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
+    }
 }

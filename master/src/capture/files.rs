@@ -28,7 +28,11 @@ struct Sidecar {
 }
 
 /// Write `map` as `NAME.*` into `dir`; returns the file names written.
-pub fn write_reflectance_map(dir: &Path, name: &str, map: &ReflectanceMap) -> anyhow::Result<Vec<String>> {
+pub fn write_reflectance_map(
+    dir: &Path,
+    name: &str,
+    map: &ReflectanceMap,
+) -> anyhow::Result<Vec<String>> {
     let files = [
         (format!("{name}.pfm"), encode_pfm(&map.reflectance)),
         (format!("{name}.weight.pfm"), encode_pfm_grey(&map.weight)),
@@ -42,14 +46,19 @@ pub fn write_reflectance_map(dir: &Path, name: &str, map: &ReflectanceMap) -> an
             serde_json::to_vec_pretty(&Sidecar {
                 format: FORMAT.into(),
                 camera: map.camera.clone(),
-                object_transforms: map.object_transforms.iter().map(|m| m.to_cols_array()).collect(),
+                object_transforms: map
+                    .object_transforms
+                    .iter()
+                    .map(|m| m.to_cols_array())
+                    .collect(),
             })?,
         ),
     ];
     let mut names = Vec::new();
     for (file, bytes) in files {
         let path = dir.join(&file);
-        std::fs::write(&path, bytes).with_context(|| format!("{}: cannot write", path.display()))?;
+        std::fs::write(&path, bytes)
+            .with_context(|| format!("{}: cannot write", path.display()))?;
         names.push(file);
     }
     Ok(names)
@@ -59,26 +68,45 @@ pub fn write_reflectance_map(dir: &Path, name: &str, map: &ReflectanceMap) -> an
 pub fn read_reflectance_map(dir: &Path, name: &str) -> anyhow::Result<ReflectanceMap> {
     let read = |suffix: &str| -> anyhow::Result<showcase_render::light::RgbImage> {
         let path = dir.join(format!("{name}{suffix}"));
-        let bytes = std::fs::read(&path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let bytes =
+            std::fs::read(&path).with_context(|| format!("{}: cannot read", path.display()))?;
         decode_pfm(&bytes).with_context(|| path.display().to_string())
     };
     let reflectance = read(".pfm")?;
     let grey = |img: showcase_render::light::RgbImage| img.map(|v| v.x);
     let weight = grey(read(".weight.pfm")?);
     let depth = grey(read(".depth.pfm")?);
-    let object: Image<Option<u32>> =
-        grey(read(".object.pfm")?).map(|v| (*v >= 0.0 && *v < u32::MAX as f32).then_some(*v as u32));
+    let object: Image<Option<u32>> = grey(read(".object.pfm")?)
+        .map(|v| (*v >= 0.0 && *v < u32::MAX as f32).then_some(*v as u32));
     let path = dir.join(format!("{name}.json"));
     let sidecar: Sidecar = serde_json::from_slice(
         &std::fs::read(&path).with_context(|| format!("{}: cannot read", path.display()))?,
     )
     .with_context(|| path.display().to_string())?;
-    anyhow::ensure!(sidecar.format == FORMAT, "{}: format {:?}, expected {FORMAT:?}", path.display(), sidecar.format);
+    anyhow::ensure!(
+        sidecar.format == FORMAT,
+        "{}: format {:?}, expected {FORMAT:?}",
+        path.display(),
+        sidecar.format
+    );
     let (w, h) = (sidecar.camera.width, sidecar.camera.height);
-    for (what, img) in [("reflectance", (reflectance.width, reflectance.height)), ("weight", (weight.width, weight.height)), ("depth", (depth.width, depth.height)), ("object", (object.width, object.height))] {
-        anyhow::ensure!(img == (w, h), "{name}: {what} is {img:?}, the camera has {:?}", (w, h));
+    for (what, img) in [
+        ("reflectance", (reflectance.width, reflectance.height)),
+        ("weight", (weight.width, weight.height)),
+        ("depth", (depth.width, depth.height)),
+        ("object", (object.width, object.height)),
+    ] {
+        anyhow::ensure!(
+            img == (w, h),
+            "{name}: {what} is {img:?}, the camera has {:?}",
+            (w, h)
+        );
     }
-    let object_transforms: Vec<DMat4> = sidecar.object_transforms.iter().map(DMat4::from_cols_array).collect();
+    let object_transforms: Vec<DMat4> = sidecar
+        .object_transforms
+        .iter()
+        .map(DMat4::from_cols_array)
+        .collect();
     anyhow::ensure!(
         object_transforms.iter().all(|m| m.is_finite()),
         "{}: object transform is not finite",

@@ -33,7 +33,10 @@ use std::path::Path;
 /// Load a scene for the sim: an `.obj` file directly (as real objects),
 /// anything else through the scene-file loader.
 pub fn load_any_scene(path: &Path) -> anyhow::Result<Showcase> {
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    {
         scenes::load_obj_showcase(path)
     } else {
         crate::scene_file::load_scene(path)
@@ -64,7 +67,11 @@ pub fn sim_render_command(
         "fov {fov_deg} degrees is not in (0, 180)"
     );
     anyhow::ensure!(
-        (target - eye).normalize().cross(up.normalize_or_zero()).length() > 1e-9,
+        (target - eye)
+            .normalize()
+            .cross(up.normalize_or_zero())
+            .length()
+            > 1e-9,
         "up {up} is parallel to the view direction"
     );
     let showcase = load_any_scene(scene)?;
@@ -152,6 +159,9 @@ pub fn run_capture(scene: &Showcase, out: &Path) -> anyhow::Result<CaptureSummar
             files
         },
     };
-    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary)?)?;
+    std::fs::write(
+        out.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
     Ok(summary)
 }

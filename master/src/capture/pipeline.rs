@@ -11,7 +11,7 @@ use showcase_render::light::{
     render_intensity, world_matrix,
 };
 use showcase_render::reflectance::{
-    CalibrationLevel, CorrectionParams, ExtractParams, ProjectorFit, ReflectanceMap,
+    CalibrationLevel, CorrectionParams, ExtractParams, ProjectorFit, ReflectanceMap, WholeCapture,
     blend_weights, estimate_projector, extract_reflectance, indirect_irradiance,
 };
 use showcase_render::sim::{Camera, Projector, SimConfig, SimShowcase};
@@ -129,8 +129,16 @@ pub fn capture_radiance<P: Projector, C: Camera>(
     let r = camera.response().clone();
     let exposure = r.exposure_s as f64;
     let scale = std::f64::consts::PI / (r.gain as f64 * exposure);
-    anyhow::ensure!(scale.is_finite() && scale > 0.0, "camera gain {} / exposure {exposure} s", r.gain);
-    let gamma = if r.gamma.is_finite() && r.gamma > 0.0 { r.gamma as f64 } else { 1.0 };
+    anyhow::ensure!(
+        scale.is_finite() && scale > 0.0,
+        "camera gain {} / exposure {exposure} s",
+        r.gain
+    );
+    let gamma = if r.gamma.is_finite() && r.gamma > 0.0 {
+        r.gamma as f64
+    } else {
+        1.0
+    };
     let d = camera.device().clone();
     let mut sum = vec![DVec3::ZERO; (d.width * d.height) as usize];
     for i in 0..k {
@@ -148,7 +156,10 @@ pub fn capture_radiance<P: Projector, C: Camera>(
     Ok(Image {
         width: d.width,
         height: d.height,
-        data: sum.iter().map(|s| (*s * scale / k as f64).as_vec3()).collect(),
+        data: sum
+            .iter()
+            .map(|s| (*s * scale / k as f64).as_vec3())
+            .collect(),
     })
 }
 
@@ -165,7 +176,12 @@ pub fn adjust_camera_gain(scene: &mut Showcase, sim: &SimShowcase) -> anyhow::Re
         Vec3::ONE,
         (projector.response.eta + projector.response.black_level) as f64,
     )?;
-    let img = render_intensity(&geometry, &DeviceRays::new(&camera.device)?, &light, &ObjectFilter::Real);
+    let img = render_intensity(
+        &geometry,
+        &DeviceRays::new(&camera.device)?,
+        &light,
+        &ObjectFilter::Real,
+    );
     let (truth, _) = sim.ground_truth(0)?;
     let peak = img
         .intensity
@@ -207,14 +223,21 @@ pub fn calibrate_projector<P: Projector, C: Camera>(
             .data
             .iter()
             .zip(&g.intensity.data)
-            .map(|(s, e)| s.is_some_and(|s| s.lit && s.phi <= phi_max) && e.min_element() as f64 > floor)
+            .map(|(s, e)| {
+                s.is_some_and(|s| s.lit && s.phi <= phi_max) && e.min_element() as f64 > floor
+            })
             .collect(),
     };
     let rho = Image::new(g.intensity.width, g.intensity.height, albedo);
     let (pw, ph) = (projector.device().width, projector.device().height);
     let mut levels = Vec::new();
     for v in [1.0f32, 0.5] {
-        let i_rad = capture_radiance(projector, camera, &Image::new(pw, ph, Vec3::splat(v)), frames)?;
+        let i_rad = capture_radiance(
+            projector,
+            camera,
+            &Image::new(pw, ph, Vec3::splat(v)),
+            frames,
+        )?;
         levels.push(CalibrationLevel {
             response: (v as f64).powf(gamma),
             i_rad,
@@ -228,8 +251,18 @@ pub fn calibrate_projector<P: Projector, C: Camera>(
             den += (rho.data[k] * g.intensity.data[k]).as_dvec3().element_sum();
         }
     }
-    let guess = if den > 0.0 && num > 0.0 { num / den } else { 1.0 };
-    Ok(estimate_projector(&levels, &g.intensity, &rho, &mask, guess)?)
+    let guess = if den > 0.0 && num > 0.0 {
+        num / den
+    } else {
+        1.0
+    };
+    Ok(estimate_projector(
+        &levels,
+        &g.intensity,
+        &rho,
+        &mask,
+        guess,
+    )?)
 }
 
 /// Capture the reflectance of `model`'s real objects (the registered
@@ -253,7 +286,8 @@ pub fn capture_map<P: Projector, C: Camera>(
     let (reflectance, valid) = match config.method {
         Method::Naive | Method::Corrected => {
             let i_rad = capture_radiance(projector, camera, &white, config.frames)?;
-            let (rho, valid) = extract_reflectance(&i_rad, &intensity.intensity, &intensity, &config.extract)?;
+            let (rho, valid) =
+                extract_reflectance(&i_rad, &intensity.intensity, &intensity, &config.extract)?;
             if config.method == Method::Naive {
                 (rho, valid)
             } else {
@@ -261,10 +295,12 @@ pub fn capture_map<P: Projector, C: Camera>(
                     &geometry,
                     &rays,
                     &light,
-                    &i_rad,
-                    &intensity.intensity,
-                    &rho,
-                    &valid,
+                    &WholeCapture {
+                        i_rad: &i_rad,
+                        i_int: &intensity.intensity,
+                        rho: &rho,
+                        valid: &valid,
+                    },
                     &config.correction,
                 )?;
                 let mut irradiance = intensity.intensity.clone();
@@ -279,10 +315,13 @@ pub fn capture_map<P: Projector, C: Camera>(
             let n = config.piece_tiles.max(1);
             let tile_of = |x: u32, y: u32| (x * n / pdev.width) * n + y * n / pdev.height;
             // Piece of each projector pixel: (object its centre ray hits, tile).
-            let piece_of: Image<Option<(u32, u32)>> = Image::from_fn(pdev.width, pdev.height, |x, y| {
-                let ray = prays.pixel_ray(x, y)?;
-                geometry.closest_hit(&ray, 0.0, f64::INFINITY).map(|h| (h.object, tile_of(x, y)))
-            });
+            let piece_of: Image<Option<(u32, u32)>> =
+                Image::from_fn(pdev.width, pdev.height, |x, y| {
+                    let ray = prays.pixel_ray(x, y)?;
+                    geometry
+                        .closest_hit(&ray, 0.0, f64::INFINITY)
+                        .map(|h| (h.object, tile_of(x, y)))
+                });
             // Piece of each camera pixel: its object and the tile its point
             // projects to.
             let camera_piece: Vec<Option<(u32, u32)>> = intensity
@@ -307,7 +346,8 @@ pub fn capture_map<P: Projector, C: Camera>(
                 let i_rad = capture_radiance(projector, camera, &image, config.frames)?;
                 let lit = ObjectFilter::Indices(vec![piece.0 as usize]);
                 let piece_int = render_intensity(&geometry, &rays, &light, &lit);
-                let (r, v) = extract_reflectance(&i_rad, &piece_int.intensity, &piece_int, &config.extract)?;
+                let (r, v) =
+                    extract_reflectance(&i_rad, &piece_int.intensity, &piece_int, &config.extract)?;
                 for (k, p) in camera_piece.iter().enumerate() {
                     if *p == Some(piece) {
                         rho.data[k] = r.data[k];
@@ -318,13 +358,24 @@ pub fn capture_map<P: Projector, C: Camera>(
             (rho, valid)
         }
     };
-    let weight = blend_weights(&valid, &intensity.surface, config.extract.phi_max_deg, config.border_px)?;
+    let weight = blend_weights(
+        &valid,
+        &intensity.surface,
+        config.extract.phi_max_deg,
+        config.border_px,
+    )?;
     let transforms = model
         .objects
         .iter()
         .map(|o| world_matrix(&o.transform).unwrap_or(glam::DMat4::IDENTITY))
         .collect();
-    let map = ReflectanceMap::new(reflectance.clone(), weight, &intensity, camera.device().clone(), transforms)?;
+    let map = ReflectanceMap::new(
+        reflectance.clone(),
+        weight,
+        &intensity,
+        camera.device().clone(),
+        transforms,
+    )?;
     Ok(CaptureOutcome {
         reflectance,
         valid,
@@ -344,7 +395,12 @@ pub fn capture_reflectance(
     sim: &SimShowcase,
     config: &CaptureConfig,
 ) -> anyhow::Result<CaptureOutcome> {
-    let gamma = scene.projectors.first().context("no projector")?.response.gamma as f64;
+    let gamma = scene
+        .projectors
+        .first()
+        .context("no projector")?
+        .response
+        .gamma as f64;
     let (eta, black) = match config.eta {
         EtaMode::Known { eta, black_level } => (eta, black_level),
         EtaMode::Estimated => {
@@ -364,8 +420,17 @@ pub fn capture_reflectance(
 
 /// The projector fit on the reference target of `scene`'s rig (a separate
 /// sim of the target alone).
-pub fn calibrate_reference(scene: &Showcase, frames: u32, samples: u32) -> anyhow::Result<ProjectorFit> {
-    let gamma = scene.projectors.first().context("no projector")?.response.gamma as f64;
+pub fn calibrate_reference(
+    scene: &Showcase,
+    frames: u32,
+    samples: u32,
+) -> anyhow::Result<ProjectorFit> {
+    let gamma = scene
+        .projectors
+        .first()
+        .context("no projector")?
+        .response
+        .gamma as f64;
     let reference = scenes::reference_scene(scene)?;
     let sim = SimShowcase::new(
         &reference,

@@ -52,19 +52,30 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
     .with_context(|| format!("{}: cannot load obj", path.display()))?;
     let materials = materials.unwrap_or_default();
     let mut s = Showcase {
-        name: path.file_stem().map(|n| n.to_string_lossy().to_string()).unwrap_or_default(),
+        name: path
+            .file_stem()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default(),
         ..Showcase::default()
     };
     for model in models {
         let m = &model.mesh;
         let v3 = |v: &[f32], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
         let mesh = Mesh {
-            positions: (0..m.positions.len() / 3).map(|i| v3(&m.positions, i)).collect(),
-            normals: (0..m.normals.len() / 3).map(|i| v3(&m.normals, i)).collect(),
+            positions: (0..m.positions.len() / 3)
+                .map(|i| v3(&m.positions, i))
+                .collect(),
+            normals: (0..m.normals.len() / 3)
+                .map(|i| v3(&m.normals, i))
+                .collect(),
             uvs: (0..m.texcoords.len() / 2)
                 .map(|i| Vec2::new(m.texcoords[2 * i], m.texcoords[2 * i + 1]))
                 .collect(),
-            triangles: m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            triangles: m
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
         };
         let mut material = Material::diffuse(Vec3::splat(0.5));
         if let Some(mat) = m.material_id.and_then(|i| materials.get(i)) {
@@ -74,7 +85,10 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
             if let Some(ke) = mat.emissive {
                 material.emission = Vec3::from(ke);
             } else if let Some(ke) = mat.unknown_param.get("Ke") {
-                let v: Vec<f32> = ke.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+                let v: Vec<f32> = ke
+                    .split_whitespace()
+                    .filter_map(|t| t.parse().ok())
+                    .collect();
                 if v.len() == 3 {
                     material.emission = Vec3::new(v[0], v[1], v[2]);
                 }
@@ -121,7 +135,14 @@ pub fn add_rig(
     });
     scene.cameras.push(Camera {
         name: "camera-0".into(),
-        device: PinholeDevice::look_at(camera_eye, target, DVec3::Y, 40.0, camera_size.0, camera_size.1),
+        device: PinholeDevice::look_at(
+            camera_eye,
+            target,
+            DVec3::Y,
+            40.0,
+            camera_size.0,
+            camera_size.1,
+        ),
         response: rig_camera_response(noise),
     });
 }
@@ -165,7 +186,11 @@ pub fn plate_scene(camera_size: (u32, u32), noise: bool) -> Showcase {
 
 /// The Cornell box from `path` (its light off), with the rig in front of
 /// its open side.
-pub fn cornell_scene(path: &Path, camera_size: (u32, u32), noise: bool) -> anyhow::Result<Showcase> {
+pub fn cornell_scene(
+    path: &Path,
+    camera_size: (u32, u32),
+    noise: bool,
+) -> anyhow::Result<Showcase> {
     let mut s = load_obj_showcase(path)?;
     s.name = "cornell".into();
     add_rig(
@@ -187,7 +212,10 @@ pub const REFERENCE_ALBEDO: f32 = 0.8;
 /// `scene` aims at, alone in the showcase, with `scene`'s devices.
 pub fn reference_scene(scene: &Showcase) -> anyhow::Result<Showcase> {
     let camera = scene.cameras.first().context("the scene has no camera")?;
-    let projector = scene.projectors.first().context("the scene has no projector")?;
+    let projector = scene
+        .projectors
+        .first()
+        .context("the scene has no projector")?;
     let eye = camera.device.center();
     let axis = camera.device.rotation.row(2); // device z in world space
     let target = eye + 1.0 * axis;
@@ -205,8 +233,16 @@ pub fn reference_scene(scene: &Showcase) -> anyhow::Result<Showcase> {
         ..Showcase::default()
     };
     // Wind so the front faces the devices: (u x v) must point along normal.
-    let (a, b) = if u.cross(v).dot(normal) > 0.0 { (u, v) } else { (v, u) };
-    let mesh = s.add_mesh(quad_mesh(corner.as_vec3(), (size * a).as_vec3(), (size * b).as_vec3()));
+    let (a, b) = if u.cross(v).dot(normal) > 0.0 {
+        (u, v)
+    } else {
+        (v, u)
+    };
+    let mesh = s.add_mesh(quad_mesh(
+        corner.as_vec3(),
+        (size * a).as_vec3(),
+        (size * b).as_vec3(),
+    ));
     s.objects.push(Object {
         name: "reference".into(),
         mesh,

@@ -115,7 +115,11 @@ pub fn brent_minimize(
     fb: f64,
     tol: f64,
 ) -> (f64, f64) {
-    let tol = if tol.is_finite() { tol.max(1e-10) } else { 1e-8 };
+    let tol = if tol.is_finite() {
+        tol.max(1e-10)
+    } else {
+        1e-8
+    };
     let (mut lo, mut hi) = (a.min(c), a.max(c));
     let (mut x, mut w, mut v) = (b, b, b);
     let (mut fx, mut fw, mut fv) = (fb, fb, fb);
@@ -154,7 +158,11 @@ pub fn brent_minimize(
             e = if x >= xm { lo - x } else { hi - x };
             d = CGOLD * e;
         }
-        let u = if d.abs() >= tol1 { x + d } else { x + tol1.copysign(d) };
+        let u = if d.abs() >= tol1 {
+            x + d
+        } else {
+            x + tol1.copysign(d)
+        };
         let fu = eval(f, u);
         if fu <= fx {
             if u >= x {
@@ -201,7 +209,10 @@ mod tests {
     #[test]
     fn finds_minima_of_smooth_functions() {
         let (x, fx) = minimize(|x| (x - 3.7).powi(2) + 1.0, 0.0, 1.0, 1e-10).unwrap();
-        assert!((x - 3.7).abs() < 1e-6 && (fx - 1.0).abs() < 1e-12, "{x} {fx}");
+        assert!(
+            (x - 3.7).abs() < 1e-6 && (fx - 1.0).abs() < 1e-12,
+            "{x} {fx}"
+        );
         let (x, _) = minimize(|x: f64| x.cos(), 2.0, 2.5, 1e-10).unwrap();
         assert!((x - std::f64::consts::PI).abs() < 1e-6, "{x}");
         // Far from the start, and below it.
@@ -227,9 +238,18 @@ mod tests {
             minimize(|x| x, f64::NAN, 1.0, 1e-8),
             Err(BrentError::BadStart { .. })
         ));
-        assert!(matches!(minimize(|x| -x, 0.0, 1.0, 1e-8), Err(BrentError::NoBracket(_))));
+        assert!(matches!(
+            minimize(|x| -x, 0.0, 1.0, 1e-8),
+            Err(BrentError::NoBracket(_))
+        ));
         // NaN regions count as +inf and are avoided.
-        let (x, _) = minimize(|x: f64| if x < 0.0 { f64::NAN } else { (x - 2.0).powi(2) }, 0.5, 1.0, 1e-10).unwrap();
+        let (x, _) = minimize(
+            |x: f64| if x < 0.0 { f64::NAN } else { (x - 2.0).powi(2) },
+            0.5,
+            1.0,
+            1e-10,
+        )
+        .unwrap();
         assert!((x - 2.0).abs() < 1e-6);
     }
 }

@@ -53,20 +53,35 @@ struct Gather {
     hidden: Vec<(u32, f64, DVec3)>,
 }
 
+/// A whole-scene capture to correct, all images from the camera's view.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeCapture<'a> {
+    /// The radiance map `I_rad`.
+    pub i_rad: &'a RgbImage,
+    /// The intensity image `I_int` of the light it was taken with.
+    pub i_int: &'a RgbImage,
+    /// A first reflectance estimate (e.g. the naive one).
+    pub rho: &'a RgbImage,
+    /// Where `rho` is valid.
+    pub valid: &'a Image<bool>,
+}
+
 /// The indirect irradiance `E_ind` at each camera pixel (module docs) for
-/// the capture `i_rad` taken with `light` (the light of `I_int`), starting
-/// from the reflectance estimate `rho` (e.g. the naive one) and its
-/// validity mask. 0 for pixels that see nothing.
+/// a capture taken with `light` (the light of `I_int`). 0 for pixels that
+/// see nothing.
 pub fn indirect_irradiance(
     geometry: &SceneGeometry,
     camera: &DeviceRays,
     light: &IntensityLight,
-    i_rad: &RgbImage,
-    i_int: &RgbImage,
-    rho: &RgbImage,
-    valid: &Image<bool>,
+    capture: &WholeCapture<'_>,
     params: &CorrectionParams,
 ) -> Result<RgbImage, ReflectanceError> {
+    let WholeCapture {
+        i_rad,
+        i_int,
+        rho,
+        valid,
+    } = *capture;
     let d = camera.device();
     let (w, h) = (d.width, d.height);
     if i_rad.width != w || i_rad.height != h {
@@ -109,7 +124,8 @@ pub fn indirect_irradiance(
             for _ in 0..n {
                 let dir = cosine(facing, &mut rng);
                 let origin = geometry.offset_point(point, facing, point + dir);
-                let Some(hit) = geometry.closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY) else {
+                let Some(hit) = geometry.closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY)
+                else {
                     continue;
                 };
                 if hit.geometric_normal == DVec3::ZERO {
@@ -151,9 +167,19 @@ pub fn indirect_irradiance(
             g
         })
         .collect();
-    let objects = seen.iter().flatten().map(|s| s.0 as usize + 1).max().unwrap_or(0).max(
-        gathers.iter().flat_map(|g| g.hidden.iter().map(|h| h.0 as usize + 1)).max().unwrap_or(0),
-    );
+    let objects = seen
+        .iter()
+        .flatten()
+        .map(|s| s.0 as usize + 1)
+        .max()
+        .unwrap_or(0)
+        .max(
+            gathers
+                .iter()
+                .flat_map(|g| g.hidden.iter().map(|h| h.0 as usize + 1))
+                .max()
+                .unwrap_or(0),
+        );
     let mut rho_est = rho.clone();
     let mut e_ind = Image::new(w, h, Vec3::ZERO);
     for _ in 0..params.iterations.max(1) {
@@ -169,8 +195,18 @@ pub fn indirect_irradiance(
             ind_sum[*o as usize].0 += e_ind.data[i].as_dvec3();
             ind_sum[*o as usize].1 += 1.0;
         }
-        let global_rho = mean(rho_sum.iter().fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)), DVec3::splat(0.5));
-        let global_ind = mean(ind_sum.iter().fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)), DVec3::ZERO);
+        let global_rho = mean(
+            rho_sum
+                .iter()
+                .fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)),
+            DVec3::splat(0.5),
+        );
+        let global_ind = mean(
+            ind_sum
+                .iter()
+                .fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)),
+            DVec3::ZERO,
+        );
         let rho_obj: Vec<DVec3> = rho_sum.iter().map(|s| mean(*s, global_rho)).collect();
         let ind_obj: Vec<DVec3> = ind_sum.iter().map(|s| mean(*s, global_ind)).collect();
         for (i, g) in gathers.iter().enumerate() {
@@ -182,10 +218,19 @@ pub fn indirect_irradiance(
                 b += rho_obj[o as usize] * (e_dir + count * ind_obj[o as usize]);
             }
             let e = b / n as f64;
-            e_ind.data[i] = if e.is_finite() { e.max(DVec3::ZERO).as_vec3() } else { Vec3::ZERO };
+            e_ind.data[i] = if e.is_finite() {
+                e.max(DVec3::ZERO).as_vec3()
+            } else {
+                Vec3::ZERO
+            };
             if valid.data[i] {
-                let r = i_rad.data[i].as_dvec3() / (i_int.data[i].as_dvec3() + e_ind.data[i].as_dvec3());
-                rho_est.data[i] = if r.is_finite() { r.max(DVec3::ZERO).as_vec3() } else { Vec3::ZERO };
+                let r = i_rad.data[i].as_dvec3()
+                    / (i_int.data[i].as_dvec3() + e_ind.data[i].as_dvec3());
+                rho_est.data[i] = if r.is_finite() {
+                    r.max(DVec3::ZERO).as_vec3()
+                } else {
+                    Vec3::ZERO
+                };
             }
         }
     }

@@ -96,7 +96,12 @@ pub fn estimate_projector(
             / total
     };
     let best_black = |eta: f64| -> Result<(f64, f64), ReflectanceError> {
-        Ok(brent::minimize(|b| mse(eta, b), 0.0, 0.05 * eta_guess, 1e-10)?)
+        Ok(brent::minimize(
+            |b| mse(eta, b),
+            0.0,
+            0.05 * eta_guess,
+            1e-10,
+        )?)
     };
     let (eta, _) = brent::minimize(
         |eta| best_black(eta).map_or(f64::INFINITY, |(_, f)| f),
@@ -106,7 +111,9 @@ pub fn estimate_projector(
     )?;
     let (black_level, mse) = best_black(eta)?;
     if !(eta.is_finite() && black_level.is_finite() && mse.is_finite()) {
-        return Err(ReflectanceError::NoValidPixels("projector fit (no finite optimum)"));
+        return Err(ReflectanceError::NoValidPixels(
+            "projector fit (no finite optimum)",
+        ));
     }
     Ok(ProjectorFit {
         eta,

@@ -94,7 +94,11 @@ pub fn blend_weights(
     check_size("surface", surface, valid)?;
     let (w, h) = (valid.width as usize, valid.height as usize);
     let big = 1e9f64;
-    let mut d: Vec<f64> = valid.data.iter().map(|v| if *v { big } else { 0.0 }).collect();
+    let mut d: Vec<f64> = valid
+        .data
+        .iter()
+        .map(|v| if *v { big } else { 0.0 })
+        .collect();
     let (a, b) = (1.0, std::f64::consts::SQRT_2);
     for y in 0..h {
         for x in 0..w {
@@ -136,7 +140,11 @@ pub fn blend_weights(
         }
     }
     let cos_max = phi_max_deg.to_radians().cos();
-    let border = if border_px.is_finite() && border_px > 0.0 { border_px } else { 1.0 };
+    let border = if border_px.is_finite() && border_px > 0.0 {
+        border_px
+    } else {
+        1.0
+    };
     let data = (0..w * h)
         .map(|i| {
             let (Some(s), true) = (surface.data[i], valid.data[i]) else {

@@ -90,7 +90,8 @@ impl ReflectanceMap {
             (1.0, 1.0, fx * fy),
         ] {
             let (x, y) = (x0 + dx, y0 + dy);
-            if x < 0.0 || y < 0.0 || x >= self.camera.width as f64 || y >= self.camera.height as f64 {
+            if x < 0.0 || y < 0.0 || x >= self.camera.width as f64 || y >= self.camera.height as f64
+            {
                 continue;
             }
             let i = y as usize * self.camera.width as usize + x as usize;
@@ -148,7 +149,11 @@ pub fn render_maps(
                 sum += s;
                 weight += w;
             }
-            let rho = if weight > 1e-12 { sum / weight } else { DVec3::ZERO };
+            let rho = if weight > 1e-12 {
+                sum / weight
+            } else {
+                DVec3::ZERO
+            };
             if rho.is_finite() && weight.is_finite() {
                 (rho.as_vec3(), weight as f32)
             } else {

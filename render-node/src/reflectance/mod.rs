@@ -19,7 +19,7 @@ pub mod extract;
 pub mod map;
 
 pub use brent::{BrentError, bracket, brent_minimize, minimize};
-pub use correct::{CorrectionParams, indirect_irradiance};
+pub use correct::{CorrectionParams, WholeCapture, indirect_irradiance};
 pub use eta::{CalibrationLevel, ProjectorFit, estimate_projector};
 pub use extract::{ExtractParams, blend_weights, extract_reflectance, intensity_floor};
 pub use map::{ReflectanceMap, render_maps};
@@ -53,7 +53,11 @@ pub enum ReflectanceError {
     Brent(#[from] BrentError),
 }
 
-pub(crate) fn check_size<A, B>(what: &'static str, a: &crate::light::Image<A>, b: &crate::light::Image<B>) -> Result<(), ReflectanceError> {
+pub(crate) fn check_size<A, B>(
+    what: &'static str,
+    a: &crate::light::Image<A>,
+    b: &crate::light::Image<B>,
+) -> Result<(), ReflectanceError> {
     if a.same_size(b) {
         Ok(())
     } else {

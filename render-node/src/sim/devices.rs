@@ -199,7 +199,10 @@ impl Shared {
             None => Image::new(w, h, projector_intensity(&proj.response, Vec3::ZERO)),
         };
         let light = ProjectorLight::new(rays, intensity)?;
-        let seed = pixel_seed(self.config.seed, ((camera as u64) << 40) ^ ((projector as u64) << 20));
+        let seed = pixel_seed(
+            self.config.seed,
+            ((camera as u64) << 40) ^ ((projector as u64) << 20),
+        );
         let t = Arc::new(self.world.render(
             &DeviceRays::new(&cam.device)?,
             Some(&light),
@@ -221,7 +224,12 @@ impl Shared {
         } else {
             let seed = pixel_seed(self.config.seed ^ 0x00E1_7717, camera as u64);
             self.world
-                .render(&DeviceRays::new(&cam.device)?, None, self.config.samples_per_pixel, seed)
+                .render(
+                    &DeviceRays::new(&cam.device)?,
+                    None,
+                    self.config.samples_per_pixel,
+                    seed,
+                )
                 .total()
         });
         state.emitter_cache.insert(camera, e.clone());
@@ -233,7 +241,11 @@ impl Shared {
 /// `eta * clamp(value, 0, 1)^gamma + black_level` per channel.
 pub fn projector_intensity(response: &ProjectorResponse, value: Vec3) -> Vec3 {
     let v = DVec3::from(value.to_array().map(|c| {
-        let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
+        let c = if c.is_finite() {
+            c.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         c as f64
     }));
     let gamma = if response.gamma.is_finite() && response.gamma > 0.0 {
@@ -255,7 +267,12 @@ pub fn projector_intensity(response: &ProjectorResponse, value: Vec3) -> Vec3 {
 /// wheel whose first segment begins at `phase_s`. 1 for a full turn (or a
 /// projector without segments); for an exposure of zero length, the
 /// factor of the segment in front of the lamp at `start_s`.
-pub fn wheel_weights(response: &ProjectorResponse, phase_s: f64, start_s: f64, exposure_s: f64) -> DVec3 {
+pub fn wheel_weights(
+    response: &ProjectorResponse,
+    phase_s: f64,
+    start_s: f64,
+    exposure_s: f64,
+) -> DVec3 {
     let segments = &response.wheel_segments;
     let period = response.wheel_period_s as f64;
     if segments.is_empty() || !(period > 0.0 && period.is_finite()) {
@@ -263,7 +280,13 @@ pub fn wheel_weights(response: &ProjectorResponse, phase_s: f64, start_s: f64, e
     }
     let t: Vec<DVec3> = segments
         .iter()
-        .map(|s| if s.is_finite() { s.as_dvec3().max(DVec3::ZERO) } else { DVec3::ZERO })
+        .map(|s| {
+            if s.is_finite() {
+                s.as_dvec3().max(DVec3::ZERO)
+            } else {
+                DVec3::ZERO
+            }
+        })
         .collect();
     let n = t.len() as f64;
     let mean = t.iter().copied().sum::<DVec3>() / n;
@@ -325,7 +348,13 @@ impl Projector for SimProjector {
             });
         }
         let clamped = image.map(|v| {
-            Vec3::from(v.to_array().map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }))
+            Vec3::from(v.to_array().map(|c| {
+                if c.is_finite() {
+                    c.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            }))
         });
         let hash = content_hash(&clamped);
         let mut state = self.shared.lock();
@@ -377,10 +406,20 @@ impl Camera for SimCamera {
             });
         }
         let shared = &self.shared;
-        let mut radiance: Vec<DVec3> = shared.emitted(self.index)?.data.iter().map(|v| v.as_dvec3()).collect();
+        let mut radiance: Vec<DVec3> = shared
+            .emitted(self.index)?
+            .data
+            .iter()
+            .map(|v| v.as_dvec3())
+            .collect();
         for p in 0..shared.projectors.len() {
             let t = shared.transport(self.index, p)?;
-            let w = wheel_weights(&shared.projectors[p].response, shared.config.wheel_phase_s, start_s, exposure_s);
+            let w = wheel_weights(
+                &shared.projectors[p].response,
+                shared.config.wheel_phase_s,
+                start_s,
+                exposure_s,
+            );
             for (i, l) in radiance.iter_mut().enumerate() {
                 *l += w * (t.direct.data[i] + t.indirect.data[i]).as_dvec3();
             }
@@ -392,7 +431,10 @@ impl Camera for SimCamera {
         let inv_gamma = 1.0 / finite_or(response.gamma as f64, 1.0).max(1e-3);
         let read = finite_or(response.read_noise as f64, 0.0).max(0.0);
         let shot = finite_or(response.shot_noise as f64, 0.0).max(0.0);
-        let seed = pixel_seed(shared.config.seed ^ 0x0CA3_E7A0, ((self.index as u64) << 32) ^ self.captures);
+        let seed = pixel_seed(
+            shared.config.seed ^ 0x0CA3_E7A0,
+            ((self.index as u64) << 32) ^ self.captures,
+        );
         self.captures += 1;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let codes = radiance

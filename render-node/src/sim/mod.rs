@@ -44,7 +44,9 @@ pub enum SimError {
         index: usize,
     },
     /// An exposure start or duration that is not finite or is negative.
-    #[error("exposure start {start_s} s / duration {duration_s} s is not a finite non-negative time")]
+    #[error(
+        "exposure start {start_s} s / duration {duration_s} s is not a finite non-negative time"
+    )]
     BadExposure {
         /// Exposure start in seconds.
         start_s: f64,

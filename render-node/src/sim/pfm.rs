@@ -88,7 +88,12 @@ pub fn decode_pfm(bytes: &[u8]) -> Result<RgbImage, PfmError> {
         )));
     }
     let value = |i: usize| {
-        let b = [body[4 * i], body[4 * i + 1], body[4 * i + 2], body[4 * i + 3]];
+        let b = [
+            body[4 * i],
+            body[4 * i + 1],
+            body[4 * i + 2],
+            body[4 * i + 3],
+        ];
         let v = if scale < 0.0 {
             f32::from_le_bytes(b)
         } else {

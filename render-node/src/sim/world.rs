@@ -23,7 +23,7 @@
 //! so a render is reproducible for a seed whatever the thread count.
 
 use crate::light::{
-    DeviceRays, Hit, IntensityLight, ObjectFilter, Ray, RgbImage, SceneGeometry, Image,
+    DeviceRays, Hit, Image, IntensityLight, ObjectFilter, Ray, RgbImage, SceneGeometry,
 };
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
@@ -72,7 +72,13 @@ impl ProjectorLight {
             color: DVec3::ONE,
             frustum: Some(rays.clone()),
         };
-        let intensity = intensity.map(|v| if v.is_finite() { v.max(Vec3::ZERO) } else { Vec3::ZERO });
+        let intensity = intensity.map(|v| {
+            if v.is_finite() {
+                v.max(Vec3::ZERO)
+            } else {
+                Vec3::ZERO
+            }
+        });
         Ok(Self {
             rays,
             light,
@@ -170,7 +176,10 @@ impl SimWorld {
                 }
             }
         }
-        let weights: Vec<f64> = list.iter().map(|e| e.area * e.radiance.max_element()).collect();
+        let weights: Vec<f64> = list
+            .iter()
+            .map(|e| e.area * e.radiance.max_element())
+            .collect();
         let total: f64 = weights.iter().sum();
         let mut acc = 0.0;
         let emitter_cdf = if total > 0.0 && total.is_finite() {
@@ -371,7 +380,10 @@ impl SimWorld {
             return DVec3::ZERO;
         }
         let u: f64 = rng.random();
-        let k = self.emitter_cdf.partition_point(|c| *c < u).min(self.emitters.len() - 1);
+        let k = self
+            .emitter_cdf
+            .partition_point(|c| *c < u)
+            .min(self.emitters.len() - 1);
         let e = &self.emitters[k];
         let p_select = self.emitter_cdf[k] - if k == 0 { 0.0 } else { self.emitter_cdf[k - 1] };
         let (r1, r2): (f64, f64) = (rng.random(), rng.random());
@@ -462,14 +474,25 @@ mod tests {
             ..Mesh::default()
         });
         let wall = s.add_mesh(Mesh {
-            positions: vec![Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 0.0, 1.0)],
+            positions: vec![
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+                Vec3::new(1.0, 1.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+            ],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             ..Mesh::default()
         });
         for (name, mesh, emission) in [("floor", floor, Vec3::ZERO), ("wall", wall, Vec3::ONE)] {
             let mut material = Material::diffuse(Vec3::splat(0.7));
             material.emission = emission;
-            s.objects.push(Object { name: name.into(), mesh, material, kind: ObjectKind::Real, transform: Transform::IDENTITY });
+            s.objects.push(Object {
+                name: name.into(),
+                mesh,
+                material,
+                kind: ObjectKind::Real,
+                transform: Transform::IDENTITY,
+            });
         }
         s
     }
@@ -477,7 +500,14 @@ mod tests {
     #[test]
     fn renders_are_reproducible_per_seed_whatever_the_thread_count() {
         let world = SimWorld::new(&corner(), &ObjectFilter::All, true).unwrap();
-        let camera = PinholeDevice::look_at(DVec3::new(0.5, 0.8, -0.5), DVec3::new(0.5, 0.2, 0.8), DVec3::Y, 60.0, 9, 7);
+        let camera = PinholeDevice::look_at(
+            DVec3::new(0.5, 0.8, -0.5),
+            DVec3::new(0.5, 0.2, 0.8),
+            DVec3::Y,
+            60.0,
+            9,
+            7,
+        );
         let rays = DeviceRays::new(&camera).unwrap();
         let run = |threads: usize, seed: u64| {
             rayon::ThreadPoolBuilder::new()
