@@ -68,6 +68,10 @@ pub struct BenchOptions {
     pub methods: Vec<Method>,
     /// Gather rays per pixel of the interreflection correction.
     pub gather_samples: u32,
+    /// Piecewise capture's tile grid (see `CaptureConfig::piece_tiles`).
+    pub piece_tiles: u32,
+    /// Piecewise capture's mask growth in projector pixels.
+    pub piece_dilate_px: u32,
 }
 
 impl Default for BenchOptions {
@@ -81,6 +85,8 @@ impl Default for BenchOptions {
             noise: true,
             methods: vec![Method::Naive, Method::Piecewise, Method::Corrected],
             gather_samples: 1024,
+            piece_tiles: 4,
+            piece_dilate_px: 1,
         }
     }
 }
@@ -131,6 +137,8 @@ fn bench_scene(
                 eta: eta_true,
                 black_level: black_true,
             },
+            piece_tiles: options.piece_tiles,
+            piece_dilate_px: options.piece_dilate_px,
             ..CaptureConfig::default()
         };
         capture_map(
@@ -172,6 +180,8 @@ fn bench_scene(
                         }
                     },
                     correction,
+                    piece_tiles: options.piece_tiles,
+                    piece_dilate_px: options.piece_dilate_px,
                     ..CaptureConfig::default()
                 };
                 let t = Instant::now();

@@ -88,7 +88,7 @@ impl Default for CaptureConfig {
             eta: EtaMode::Estimated,
             extract: ExtractParams::default(),
             correction: CorrectionParams::default(),
-            piece_dilate_px: 2,
+            piece_dilate_px: 1,
             piece_tiles: 4,
             border_px: 3.0,
             reference_samples: 4,
