@@ -135,13 +135,39 @@ pub fn indirect_irradiance(
                 // object at the same depth (within the footprint times the
                 // slope at phi_max): use the measured exitance there.
                 let z = d.to_device(hit.point).z;
-                if let Some((qx, qy)) = camera.pixel_of(hit.point) {
-                    let q = (qy * w + qx) as usize;
-                    if let Some((o, zq, _, _)) = seen[q]
-                        && o == hit.object
-                        && (zq - z).abs() <= z * (4.0 / f + 1e-3)
-                    {
-                        g.seen += i_rad.data[q].as_dvec3();
+                let same = |q: usize| {
+                    seen[q].is_some_and(|(o, zq, _, _)| {
+                        o == hit.object && (zq - z).abs() <= z * (4.0 / f + 1e-3)
+                    })
+                };
+                if let Some((qx, qy)) = camera.pixel_of(hit.point)
+                    && same((qy * w + qx) as usize)
+                {
+                    // Bilinear over the neighbouring pixels that see the
+                    // same surface.
+                    let px =
+                        camera.project(hit.point).unwrap_or_default() - glam::DVec2::splat(0.5);
+                    let (x0, y0) = (px.x.floor(), px.y.floor());
+                    let (fx, fy) = (px.x - x0, px.y - y0);
+                    let (mut b, mut wsum) = (DVec3::ZERO, 0.0);
+                    for (dx, dy, wt) in [
+                        (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
+                        (1.0, 0.0, fx * (1.0 - fy)),
+                        (0.0, 1.0, (1.0 - fx) * fy),
+                        (1.0, 1.0, fx * fy),
+                    ] {
+                        let (x, y) = (x0 + dx, y0 + dy);
+                        if x < 0.0 || y < 0.0 || x >= w as f64 || y >= h as f64 {
+                            continue;
+                        }
+                        let q = y as usize * w as usize + x as usize;
+                        if same(q) {
+                            b += wt * i_rad.data[q].as_dvec3();
+                            wsum += wt;
+                        }
+                    }
+                    if wsum > 0.0 {
+                        g.seen += b / wsum;
                         continue;
                     }
                 }
