@@ -132,9 +132,13 @@ pub fn run_capture(scene: &Showcase, out: &Path) -> anyhow::Result<CaptureSummar
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let config = CaptureConfig::default();
-    let sim = SimShowcase::new(&scene, SimConfig::default())?;
-    adjust_camera_gain(&mut scene, &sim)?;
-    let sim = SimShowcase::new(&scene, SimConfig::default())?;
+    let sim_config = SimConfig {
+        samples_per_pixel: 256,
+        ..SimConfig::default()
+    };
+    let probe = SimShowcase::new(&scene, sim_config.clone())?;
+    adjust_camera_gain(&mut scene, &probe)?;
+    let sim = SimShowcase::new(&scene, sim_config)?;
     let outcome = capture_reflectance(&scene, &sim, &config)?;
     let (truth, objects) = sim.ground_truth(0)?;
     let rel_rmse = showcase_render::light::metrics::relative_rmse(

@@ -395,12 +395,7 @@ pub fn capture_reflectance(
     sim: &SimShowcase,
     config: &CaptureConfig,
 ) -> anyhow::Result<CaptureOutcome> {
-    let gamma = scene
-        .projectors
-        .first()
-        .context("no projector")?
-        .response
-        .gamma as f64;
+    anyhow::ensure!(!scene.projectors.is_empty(), "the scene has no projector");
     let (eta, black) = match config.eta {
         EtaMode::Known { eta, black_level } => (eta, black_level),
         EtaMode::Estimated => {
@@ -410,12 +405,7 @@ pub fn capture_reflectance(
     };
     let mut projector = sim.projector(0)?;
     let mut camera = sim.camera(0)?;
-    capture_map(scene, &mut projector, &mut camera, eta, black, config).map(|mut o| {
-        let _ = gamma;
-        o.eta = eta;
-        o.black_level = black;
-        o
-    })
+    capture_map(scene, &mut projector, &mut camera, eta, black, config)
 }
 
 /// The projector fit on the reference target of `scene`'s rig (a separate
