@@ -2,6 +2,7 @@
 //! cluster server and the command line behind `showcase-master`.
 
 pub mod calibrate;
+pub mod capture;
 pub mod certs;
 pub mod cli;
 pub mod cluster;

@@ -1,0 +1,453 @@
+//! The capture pipeline: radiance maps from K frames, the projector fit on
+//! a reference target, and reflectance by the naive (paper), piecewise
+//! (paper, section 3.5) or interreflection-corrected method.
+
+use super::scenes;
+use anyhow::Context;
+use glam::{DVec3, Vec3};
+use showcase_proto::Showcase;
+use showcase_render::light::{
+    DeviceRays, Image, IntensityImage, IntensityLight, ObjectFilter, RgbImage, SceneGeometry,
+    render_intensity, world_matrix,
+};
+use showcase_render::reflectance::{
+    CalibrationLevel, CorrectionParams, ExtractParams, ProjectorFit, ReflectanceMap, WholeCapture,
+    blend_weights, estimate_projector, extract_reflectance, indirect_irradiance,
+};
+use showcase_render::sim::{Camera, Projector, SimConfig, SimShowcase};
+
+/// How reflectance is extracted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// The whole scene lit at once, `I_rad / I_int` (paper 3.4).
+    Naive,
+    /// One piece (object) lit and extracted at a time (paper 3.5).
+    Piecewise,
+    /// The whole scene lit, secondary scattering removed by the
+    /// inverse-radiosity fixed point.
+    Corrected,
+}
+
+impl Method {
+    /// The bench's name of the method.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Naive => "naive",
+            Method::Piecewise => "piecewise",
+            Method::Corrected => "corrected",
+        }
+    }
+}
+
+/// Where eta and the black level come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EtaMode {
+    /// Given (e.g. the sim's true values).
+    Known {
+        /// Projector intensity eta (W/sr).
+        eta: f64,
+        /// Black level (W/sr).
+        black_level: f64,
+    },
+    /// Fitted with Brent's method on the reference target.
+    Estimated,
+}
+
+/// Settings of one capture.
+#[derive(Clone, Debug)]
+pub struct CaptureConfig {
+    /// Frames averaged per radiance map (K).
+    pub frames: u32,
+    /// Extraction method.
+    pub method: Method,
+    /// Source of eta and the black level.
+    pub eta: EtaMode,
+    /// Floor and phi_max.
+    pub extract: ExtractParams,
+    /// Interreflection correction settings.
+    pub correction: CorrectionParams,
+    /// Projector pixels by which a piece's light mask is grown, so the
+    /// piece's edges are fully lit.
+    pub piece_dilate_px: u32,
+    /// Piecewise capture lights one object within one tile of an
+    /// `n x n` grid over the projector image at a time: the smaller the
+    /// piece, the less of its own light comes back to it from the rest of
+    /// a concave scene.
+    pub piece_tiles: u32,
+    /// Width in pixels of the blend-weight ramp at blank borders.
+    pub border_px: f64,
+    /// Samples per pixel of the reference target's sim.
+    pub reference_samples: u32,
+}
+
+impl Default for CaptureConfig {
+    fn default() -> Self {
+        Self {
+            frames: 16,
+            method: Method::Corrected,
+            eta: EtaMode::Estimated,
+            extract: ExtractParams::default(),
+            correction: CorrectionParams::default(),
+            piece_dilate_px: 1,
+            piece_tiles: 4,
+            border_px: 3.0,
+            reference_samples: 4,
+        }
+    }
+}
+
+/// The result of a capture.
+#[derive(Clone, Debug)]
+pub struct CaptureOutcome {
+    /// `I_ref`, 0 where invalid.
+    pub reflectance: RgbImage,
+    /// Valid pixels.
+    pub valid: Image<bool>,
+    /// The stored map (with blend weights).
+    pub map: ReflectanceMap,
+    /// The intensity image of the whole scene (surfaces per pixel).
+    pub intensity: IntensityImage,
+    /// Radiance maps captured (one per piece for piecewise capture).
+    pub pieces: usize,
+    /// Eta used.
+    pub eta: f64,
+    /// Black level used.
+    pub black_level: f64,
+}
+
+/// Show `image` and average `frames` frames into a radiance map `I_rad`
+/// (`pi * L`, see the module docs of `capture`).
+pub fn capture_radiance<P: Projector, C: Camera>(
+    projector: &mut P,
+    camera: &mut C,
+    image: &RgbImage,
+    frames: u32,
+) -> anyhow::Result<RgbImage> {
+    projector.show(image)?;
+    let k = frames.max(1);
+    let period = projector.wheel_period_s();
+    let r = camera.response().clone();
+    let exposure = r.exposure_s as f64;
+    let scale = std::f64::consts::PI / (r.gain as f64 * exposure);
+    anyhow::ensure!(
+        scale.is_finite() && scale > 0.0,
+        "camera gain {} / exposure {exposure} s",
+        r.gain
+    );
+    let gamma = if r.gamma.is_finite() && r.gamma > 0.0 {
+        r.gamma as f64
+    } else {
+        1.0
+    };
+    let d = camera.device().clone();
+    let mut sum = vec![DVec3::ZERO; (d.width * d.height) as usize];
+    for i in 0..k {
+        let start = if period > 0.0 {
+            i as f64 * (4.0 + 1.0 / k as f64) * period
+        } else {
+            i as f64 / 30.0
+        };
+        let frame = camera.capture(start, exposure)?;
+        let max = ((1u32 << frame.bits.clamp(1, 16)) - 1) as f64;
+        for (s, c) in sum.iter_mut().zip(&frame.codes.data) {
+            *s += DVec3::from(c.map(|c| (c as f64 / max).powf(gamma)));
+        }
+    }
+    Ok(Image {
+        width: d.width,
+        height: d.height,
+        data: sum
+            .iter()
+            .map(|s| (*s * scale / k as f64).as_vec3())
+            .collect(),
+    })
+}
+
+/// Set the camera gain of `scene` as an operator would (paper 3.2): so
+/// the brightest pixel of the white-lit scene, estimated from the sim's
+/// direct light plus 30% for interreflection and the colour wheel's worst
+/// partial turn, lands at 90% of full scale.
+pub fn adjust_camera_gain(scene: &mut Showcase, sim: &SimShowcase) -> anyhow::Result<()> {
+    let projector = scene.projectors.first().context("no projector")?;
+    let camera = scene.cameras.first().context("no camera")?;
+    let geometry = SceneGeometry::build(scene, &ObjectFilter::Real)?;
+    let light = IntensityLight::projector(
+        &projector.device,
+        Vec3::ONE,
+        (projector.response.eta + projector.response.black_level) as f64,
+    )?;
+    let img = render_intensity(
+        &geometry,
+        &DeviceRays::new(&camera.device)?,
+        &light,
+        &ObjectFilter::Real,
+    );
+    let (truth, _) = sim.ground_truth(0)?;
+    let peak = img
+        .intensity
+        .data
+        .iter()
+        .zip(&truth.data)
+        .map(|(e, a)| (*e * *a).max_element() as f64 / std::f64::consts::PI)
+        .fold(0.0, f64::max);
+    anyhow::ensure!(peak > 0.0, "the projector lights nothing the camera sees");
+    let wheel = 4.0 / 3.0;
+    let c = &mut scene.cameras[0];
+    c.response.gain = (0.9 / (peak * 1.3 * wheel * c.response.exposure_s as f64)) as f32;
+    Ok(())
+}
+
+/// Fit eta and the black level (Brent, `reflectance::eta`) from captures
+/// of a reference target of albedo `albedo` (scene `reference`, seen by
+/// `projector` and `camera`) at pixel values 1 and 0.5; `gamma` is the
+/// projector's calibrated response exponent.
+pub fn calibrate_projector<P: Projector, C: Camera>(
+    reference: &Showcase,
+    projector: &mut P,
+    camera: &mut C,
+    albedo: Vec3,
+    gamma: f64,
+    frames: u32,
+) -> anyhow::Result<ProjectorFit> {
+    let geometry = SceneGeometry::build(reference, &ObjectFilter::Real)?;
+    let rays = DeviceRays::new(camera.device())?;
+    let unit = IntensityLight::projector(projector.device(), Vec3::ONE, 1.0)?;
+    let g = render_intensity(&geometry, &rays, &unit, &ObjectFilter::Real);
+    let floor = showcase_render::reflectance::intensity_floor(&g.intensity, 1e-2);
+    let phi_max = 60f64.to_radians();
+    let mask = Image {
+        width: g.intensity.width,
+        height: g.intensity.height,
+        data: g
+            .surface
+            .data
+            .iter()
+            .zip(&g.intensity.data)
+            .map(|(s, e)| {
+                s.is_some_and(|s| s.lit && s.phi <= phi_max) && e.min_element() as f64 > floor
+            })
+            .collect(),
+    };
+    let rho = Image::new(g.intensity.width, g.intensity.height, albedo);
+    let (pw, ph) = (projector.device().width, projector.device().height);
+    let mut levels = Vec::new();
+    for v in [1.0f32, 0.5] {
+        let i_rad = capture_radiance(
+            projector,
+            camera,
+            &Image::new(pw, ph, Vec3::splat(v)),
+            frames,
+        )?;
+        levels.push(CalibrationLevel {
+            response: (v as f64).powf(gamma),
+            i_rad,
+        });
+    }
+    // Initial guess: the ratio of mean captured to mean unit-light radiance.
+    let (mut num, mut den) = (0.0, 0.0);
+    for (k, m) in mask.data.iter().enumerate() {
+        if *m {
+            num += levels[0].i_rad.data[k].as_dvec3().element_sum();
+            den += (rho.data[k] * g.intensity.data[k]).as_dvec3().element_sum();
+        }
+    }
+    let guess = if den > 0.0 && num > 0.0 {
+        num / den
+    } else {
+        1.0
+    };
+    Ok(estimate_projector(
+        &levels,
+        &g.intensity,
+        &rho,
+        &mask,
+        guess,
+    )?)
+}
+
+/// Capture the reflectance of `model`'s real objects (the registered
+/// geometry) with a projector of known `gamma` and the given eta and black
+/// level, by `config.method`.
+pub fn capture_map<P: Projector, C: Camera>(
+    model: &Showcase,
+    projector: &mut P,
+    camera: &mut C,
+    eta: f64,
+    black_level: f64,
+    config: &CaptureConfig,
+) -> anyhow::Result<CaptureOutcome> {
+    let geometry = SceneGeometry::build(model, &ObjectFilter::Real)?;
+    let rays = DeviceRays::new(camera.device())?;
+    let pdev = projector.device().clone();
+    let light = IntensityLight::projector(&pdev, Vec3::ONE, eta + black_level)?;
+    let intensity = render_intensity(&geometry, &rays, &light, &ObjectFilter::Real);
+    let white = Image::new(pdev.width, pdev.height, Vec3::ONE);
+    let mut radiance_maps = 1;
+    let (reflectance, valid) = match config.method {
+        Method::Naive | Method::Corrected => {
+            let i_rad = capture_radiance(projector, camera, &white, config.frames)?;
+            let (rho, valid) =
+                extract_reflectance(&i_rad, &intensity.intensity, &intensity, &config.extract)?;
+            if config.method == Method::Naive {
+                (rho, valid)
+            } else {
+                let e_ind = indirect_irradiance(
+                    &geometry,
+                    &rays,
+                    &light,
+                    &WholeCapture {
+                        i_rad: &i_rad,
+                        i_int: &intensity.intensity,
+                        rho: &rho,
+                        valid: &valid,
+                    },
+                    &config.correction,
+                )?;
+                let mut irradiance = intensity.intensity.clone();
+                for (e, i) in irradiance.data.iter_mut().zip(&e_ind.data) {
+                    *e += *i;
+                }
+                extract_reflectance(&i_rad, &irradiance, &intensity, &config.extract)?
+            }
+        }
+        Method::Piecewise => {
+            let prays = DeviceRays::new(&pdev)?;
+            let n = config.piece_tiles.max(1);
+            let tile_of = |x: u32, y: u32| (x * n / pdev.width) * n + y * n / pdev.height;
+            // Piece of each projector pixel: (object its centre ray hits, tile).
+            let piece_of: Image<Option<(u32, u32)>> =
+                Image::from_fn(pdev.width, pdev.height, |x, y| {
+                    let ray = prays.pixel_ray(x, y)?;
+                    geometry
+                        .closest_hit(&ray, 0.0, f64::INFINITY)
+                        .map(|h| (h.object, tile_of(x, y)))
+                });
+            // Piece of each camera pixel: its object and the tile its point
+            // projects to.
+            let camera_piece: Vec<Option<(u32, u32)>> = intensity
+                .surface
+                .data
+                .iter()
+                .map(|s| {
+                    let s = (*s)?;
+                    let (x, y) = prays.pixel_of(s.point)?;
+                    Some((s.object, tile_of(x, y)))
+                })
+                .collect();
+            let mut pieces: Vec<(u32, u32)> = camera_piece.iter().flatten().copied().collect();
+            pieces.sort_unstable();
+            pieces.dedup();
+            let mut rho = Image::new(rays.device().width, rays.device().height, Vec3::ZERO);
+            let mut valid = Image::new(rho.width, rho.height, false);
+            radiance_maps = pieces.len();
+            for piece in pieces {
+                let mask = dilate(&piece_of.map(|p| *p == Some(piece)), config.piece_dilate_px);
+                let image = mask.map(|m| if *m { Vec3::ONE } else { Vec3::ZERO });
+                let i_rad = capture_radiance(projector, camera, &image, config.frames)?;
+                let lit = ObjectFilter::Indices(vec![piece.0 as usize]);
+                let piece_int = render_intensity(&geometry, &rays, &light, &lit);
+                let (r, v) =
+                    extract_reflectance(&i_rad, &piece_int.intensity, &piece_int, &config.extract)?;
+                for (k, p) in camera_piece.iter().enumerate() {
+                    if *p == Some(piece) {
+                        rho.data[k] = r.data[k];
+                        valid.data[k] = v.data[k];
+                    }
+                }
+            }
+            (rho, valid)
+        }
+    };
+    let weight = blend_weights(
+        &valid,
+        &intensity.surface,
+        config.extract.phi_max_deg,
+        config.border_px,
+    )?;
+    let transforms = model
+        .objects
+        .iter()
+        .map(|o| world_matrix(&o.transform).unwrap_or(glam::DMat4::IDENTITY))
+        .collect();
+    let map = ReflectanceMap::new(
+        reflectance.clone(),
+        weight,
+        &intensity,
+        camera.device().clone(),
+        transforms,
+    )?;
+    Ok(CaptureOutcome {
+        reflectance,
+        valid,
+        map,
+        intensity,
+        pieces: radiance_maps,
+        eta,
+        black_level,
+    })
+}
+
+/// Capture in the simulated showcase `sim` of `scene` (projector 0,
+/// camera 0): fit eta on the reference target first when
+/// `config.eta` is `Estimated`.
+pub fn capture_reflectance(
+    scene: &Showcase,
+    sim: &SimShowcase,
+    config: &CaptureConfig,
+) -> anyhow::Result<CaptureOutcome> {
+    anyhow::ensure!(!scene.projectors.is_empty(), "the scene has no projector");
+    let (eta, black) = match config.eta {
+        EtaMode::Known { eta, black_level } => (eta, black_level),
+        EtaMode::Estimated => {
+            let fit = calibrate_reference(scene, config.frames, config.reference_samples)?;
+            (fit.eta, fit.black_level)
+        }
+    };
+    let mut projector = sim.projector(0)?;
+    let mut camera = sim.camera(0)?;
+    capture_map(scene, &mut projector, &mut camera, eta, black, config)
+}
+
+/// The projector fit on the reference target of `scene`'s rig (a separate
+/// sim of the target alone).
+pub fn calibrate_reference(
+    scene: &Showcase,
+    frames: u32,
+    samples: u32,
+) -> anyhow::Result<ProjectorFit> {
+    let gamma = scene
+        .projectors
+        .first()
+        .context("no projector")?
+        .response
+        .gamma as f64;
+    let reference = scenes::reference_scene(scene)?;
+    let sim = SimShowcase::new(
+        &reference,
+        SimConfig {
+            samples_per_pixel: samples,
+            ..SimConfig::default()
+        },
+    )?;
+    calibrate_projector(
+        &reference,
+        &mut sim.projector(0)?,
+        &mut sim.camera(0)?,
+        Vec3::splat(scenes::REFERENCE_ALBEDO),
+        gamma,
+        frames,
+    )
+}
+
+/// Grow a mask by `r` pixels (square neighbourhood).
+fn dilate(mask: &Image<bool>, r: u32) -> Image<bool> {
+    let r = r as i64;
+    Image::from_fn(mask.width, mask.height, |x, y| {
+        (-r..=r).any(|dy| {
+            (-r..=r).any(|dx| {
+                let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                xx >= 0 && yy >= 0 && mask.get(xx as u32, yy as u32).copied().unwrap_or(false)
+            })
+        })
+    })
+}

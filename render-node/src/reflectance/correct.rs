@@ -1,0 +1,276 @@
+//! Interreflection-corrected reflectance (beyond the paper): remove the
+//! secondary scattering from a whole-scene capture by an inverse-radiosity
+//! fixed point.
+//!
+//! The radiance map already measures the exitance `B = I_rad` of every
+//! surface the camera sees, so the indirect irradiance of a seen point `x`
+//! is a gather of measured exitance: `E_ind(x) = 1/N sum_j B(y_j)` over `N`
+//! cosine-distributed rays from `x` hitting `y_j`. Where `y_j` is hidden
+//! from the camera, its exitance is predicted from the current estimate:
+//! `B(y) = rho_obj * (E_dir(y) + mean E_ind of that object)`, with
+//! `rho_obj` the object's mean estimated reflectance and `E_dir` the
+//! projector's direct irradiance at `y`. Each iteration updates
+//! `rho = I_rad / (I_int + E_ind)` and the per-object means; the seen part
+//! is fixed, so the iteration converges in a few steps. The gather is the
+//! product's own estimator, seeded per pixel; the sim's ground truth is an
+//! independent path tracer.
+
+use super::{ReflectanceError, check_size};
+use crate::light::{DeviceRays, Image, IntensityLight, Ray, RgbImage, SceneGeometry};
+use crate::sim::pixel_seed;
+use glam::{DVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// Parameters of the correction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CorrectionParams {
+    /// Gather rays per pixel.
+    pub gather_samples: u32,
+    /// Fixed-point iterations.
+    pub iterations: u32,
+    /// Seed of the gather directions.
+    pub seed: u64,
+}
+
+impl Default for CorrectionParams {
+    fn default() -> Self {
+        Self {
+            gather_samples: 256,
+            iterations: 4,
+            seed: 7,
+        }
+    }
+}
+
+/// What the gather found from one pixel.
+#[derive(Clone, Debug, Default)]
+struct Gather {
+    /// Sum of measured exitance over rays that hit a seen point.
+    seen: DVec3,
+    /// Per hidden object: `(object, rays, sum of E_dir)`.
+    hidden: Vec<(u32, f64, DVec3)>,
+}
+
+/// A whole-scene capture to correct, all images from the camera's view.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeCapture<'a> {
+    /// The radiance map `I_rad`.
+    pub i_rad: &'a RgbImage,
+    /// The intensity image `I_int` of the light it was taken with.
+    pub i_int: &'a RgbImage,
+    /// A first reflectance estimate (e.g. the naive one).
+    pub rho: &'a RgbImage,
+    /// Where `rho` is valid.
+    pub valid: &'a Image<bool>,
+}
+
+/// The indirect irradiance `E_ind` at each camera pixel (module docs) for
+/// a capture taken with `light` (the light of `I_int`). 0 for pixels that
+/// see nothing.
+pub fn indirect_irradiance(
+    geometry: &SceneGeometry,
+    camera: &DeviceRays,
+    light: &IntensityLight,
+    capture: &WholeCapture<'_>,
+    params: &CorrectionParams,
+) -> Result<RgbImage, ReflectanceError> {
+    let WholeCapture {
+        i_rad,
+        i_int,
+        rho,
+        valid,
+    } = *capture;
+    let d = camera.device();
+    let (w, h) = (d.width, d.height);
+    if i_rad.width != w || i_rad.height != h {
+        return Err(ReflectanceError::SizeMismatch {
+            what: "i_rad",
+            got: (i_rad.width, i_rad.height),
+            expected: (w, h),
+        });
+    }
+    check_size("i_int", i_int, i_rad)?;
+    check_size("rho", rho, i_rad)?;
+    check_size("valid", valid, i_rad)?;
+    let n = params.gather_samples.max(1);
+    // What the camera sees: (object, device depth) per pixel.
+    let seen: Vec<Option<(u32, f64, DVec3, DVec3)>> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let ray = camera.pixel_ray(i % w, i / w)?;
+            let hit = geometry.closest_hit(&ray, 0.0, f64::INFINITY)?;
+            if hit.geometric_normal == DVec3::ZERO {
+                return None;
+            }
+            let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
+                hit.geometric_normal
+            } else {
+                -hit.geometric_normal
+            };
+            Some((hit.object, d.to_device(hit.point).z, hit.point, facing))
+        })
+        .collect();
+    let f = d.k.x_axis.x.abs().max(1e-9);
+    let gathers: Vec<Gather> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let Some((_, _, point, facing)) = seen[i as usize] else {
+                return Gather::default();
+            };
+            let mut rng = ChaCha8Rng::seed_from_u64(pixel_seed(params.seed, i as u64));
+            let mut g = Gather::default();
+            for _ in 0..n {
+                let dir = cosine(facing, &mut rng);
+                let origin = geometry.offset_point(point, facing, point + dir);
+                let Some(hit) = geometry.closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY)
+                else {
+                    continue;
+                };
+                if hit.geometric_normal == DVec3::ZERO {
+                    continue;
+                }
+                // Seen by the camera: the pixel it projects to sees the same
+                // object at the same depth (within the footprint times the
+                // slope at phi_max): use the measured exitance there.
+                let z = d.to_device(hit.point).z;
+                let same = |q: usize| {
+                    seen[q].is_some_and(|(o, zq, _, _)| {
+                        o == hit.object && (zq - z).abs() <= z * (4.0 / f + 1e-3)
+                    })
+                };
+                if let Some((qx, qy)) = camera.pixel_of(hit.point)
+                    && same((qy * w + qx) as usize)
+                {
+                    // Bilinear over the neighbouring pixels that see the
+                    // same surface.
+                    let px =
+                        camera.project(hit.point).unwrap_or_default() - glam::DVec2::splat(0.5);
+                    let (x0, y0) = (px.x.floor(), px.y.floor());
+                    let (fx, fy) = (px.x - x0, px.y - y0);
+                    let (mut b, mut wsum) = (DVec3::ZERO, 0.0);
+                    for (dx, dy, wt) in [
+                        (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
+                        (1.0, 0.0, fx * (1.0 - fy)),
+                        (0.0, 1.0, (1.0 - fx) * fy),
+                        (1.0, 1.0, fx * fy),
+                    ] {
+                        let (x, y) = (x0 + dx, y0 + dy);
+                        if x < 0.0 || y < 0.0 || x >= w as f64 || y >= h as f64 {
+                            continue;
+                        }
+                        let q = y as usize * w as usize + x as usize;
+                        if same(q) {
+                            b += wt * i_rad.data[q].as_dvec3();
+                            wsum += wt;
+                        }
+                    }
+                    if wsum > 0.0 {
+                        g.seen += b / wsum;
+                        continue;
+                    }
+                }
+                let hf = if hit.geometric_normal.dot(dir) <= 0.0 {
+                    hit.geometric_normal
+                } else {
+                    -hit.geometric_normal
+                };
+                let hs = if hit.shading_normal.dot(hf) >= 0.0 {
+                    hit.shading_normal
+                } else {
+                    -hit.shading_normal
+                };
+                let e = light.intensity_at(geometry, hit.point, hf, hs);
+                match g.hidden.iter_mut().find(|h| h.0 == hit.object) {
+                    Some(h) => {
+                        h.1 += 1.0;
+                        h.2 += e;
+                    }
+                    None => g.hidden.push((hit.object, 1.0, e)),
+                }
+            }
+            g
+        })
+        .collect();
+    let objects = seen
+        .iter()
+        .flatten()
+        .map(|s| s.0 as usize + 1)
+        .max()
+        .unwrap_or(0)
+        .max(
+            gathers
+                .iter()
+                .flat_map(|g| g.hidden.iter().map(|h| h.0 as usize + 1))
+                .max()
+                .unwrap_or(0),
+        );
+    let mut rho_est = rho.clone();
+    let mut e_ind = Image::new(w, h, Vec3::ZERO);
+    for _ in 0..params.iterations.max(1) {
+        // Per-object means of the current reflectance and indirect light.
+        let mut rho_sum = vec![(DVec3::ZERO, 0.0); objects];
+        let mut ind_sum = vec![(DVec3::ZERO, 0.0); objects];
+        for (i, s) in seen.iter().enumerate() {
+            let Some((o, ..)) = s else { continue };
+            if valid.data[i] {
+                rho_sum[*o as usize].0 += rho_est.data[i].as_dvec3();
+                rho_sum[*o as usize].1 += 1.0;
+            }
+            ind_sum[*o as usize].0 += e_ind.data[i].as_dvec3();
+            ind_sum[*o as usize].1 += 1.0;
+        }
+        let global_rho = mean(
+            rho_sum
+                .iter()
+                .fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)),
+            DVec3::splat(0.5),
+        );
+        let global_ind = mean(
+            ind_sum
+                .iter()
+                .fold((DVec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1)),
+            DVec3::ZERO,
+        );
+        let rho_obj: Vec<DVec3> = rho_sum.iter().map(|s| mean(*s, global_rho)).collect();
+        let ind_obj: Vec<DVec3> = ind_sum.iter().map(|s| mean(*s, global_ind)).collect();
+        for (i, g) in gathers.iter().enumerate() {
+            if seen[i].is_none() {
+                continue;
+            }
+            let mut b = g.seen;
+            for &(o, count, e_dir) in &g.hidden {
+                b += rho_obj[o as usize] * (e_dir + count * ind_obj[o as usize]);
+            }
+            let e = b / n as f64;
+            e_ind.data[i] = if e.is_finite() {
+                e.max(DVec3::ZERO).as_vec3()
+            } else {
+                Vec3::ZERO
+            };
+            if valid.data[i] {
+                let r = i_rad.data[i].as_dvec3()
+                    / (i_int.data[i].as_dvec3() + e_ind.data[i].as_dvec3());
+                rho_est.data[i] = if r.is_finite() {
+                    r.max(DVec3::ZERO).as_vec3()
+                } else {
+                    Vec3::ZERO
+                };
+            }
+        }
+    }
+    Ok(e_ind)
+}
+
+fn mean((sum, count): (DVec3, f64), fallback: DVec3) -> DVec3 {
+    if count > 0.0 { sum / count } else { fallback }
+}
+
+fn cosine(n: DVec3, rng: &mut ChaCha8Rng) -> DVec3 {
+    let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+    let r = u1.sqrt();
+    let phi = std::f64::consts::TAU * u2;
+    let (t, b) = n.any_orthonormal_pair();
+    (r * phi.cos() * t + r * phi.sin() * b + (1.0 - u1).max(0.0).sqrt() * n).normalize_or_zero()
+}
