@@ -7,3 +7,4 @@ pub mod gpu;
 pub mod light;
 pub mod mirror_view;
 pub mod net;
+pub mod radiosity;
