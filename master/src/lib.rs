@@ -5,5 +5,6 @@ pub mod calibrate;
 pub mod certs;
 pub mod cli;
 pub mod demo;
+pub mod radiosity_job;
 pub mod scene_file;
 pub mod tracking;

@@ -283,10 +283,22 @@ impl<'a> Shooter<'a> {
                 best = Some(i);
             }
         }
-        let Some(shooter) = best else {
+        match best {
+            Some(shooter) => self.shoot_patch(shooter),
+            None => false,
+        }
+    }
+
+    /// Shoot the unshot energy of patch `shooter` now (false when it has
+    /// none, is inactive or does not exist).
+    pub fn shoot_patch(&mut self, shooter: usize) -> bool {
+        if !self.patch_active.get(shooter).copied().unwrap_or(false) {
             return false;
-        };
+        }
         let delta = self.unshot[shooter];
+        if delta == DVec3::ZERO {
+            return false;
+        }
         self.unshot[shooter] = DVec3::ZERO;
         let shot_seed = hash64(self.options.seed ^ (self.shots as u64).wrapping_mul(0x9e37_79b9));
         let ff = self.form_factors(shooter, shot_seed);
