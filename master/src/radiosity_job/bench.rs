@@ -395,11 +395,9 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         c.solve.threshold = threshold;
         configs.push(c);
     }
-    for method in [FormFactorMethod::RayCast] {
-        let mut c = base();
-        c.solve.method = method;
-        configs.push(c);
-    }
+    let mut raycast = base();
+    raycast.solve.method = FormFactorMethod::RayCast;
+    configs.push(raycast);
     // Fast settings: coarse patches, a loose threshold (the ambient term
     // stands in for the unshot rest).
     for method in [FormFactorMethod::Hybrid, FormFactorMethod::RayCast] {

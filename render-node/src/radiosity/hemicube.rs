@@ -38,7 +38,7 @@ impl HemiCube {
     /// The pixels and delta form factors of a hemi-cube of `resolution`
     /// (top face `resolution^2`, four side faces `resolution x resolution/2`).
     pub fn new(resolution: u32) -> Result<Self, HemiCubeError> {
-        if resolution < 2 || resolution % 2 != 0 || resolution > 4096 {
+        if resolution < 2 || !resolution.is_multiple_of(2) || resolution > 4096 {
             return Err(HemiCubeError::BadResolution(resolution));
         }
         let n = resolution as usize;

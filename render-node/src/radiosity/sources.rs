@@ -134,7 +134,7 @@ fn point_irradiance(
     let d = light - point;
     let r2 = d.length_squared();
     let cos = normal.dot(d) / r2.sqrt();
-    if !(r2 > 0.0 && cos > 0.0) || !geometry.visible(point, normal, light, false) {
+    if !(r2 > 0.0 && cos > 0.0 && geometry.visible(point, normal, light, false)) {
         return 0.0;
     }
     scale * cos / r2
