@@ -19,8 +19,8 @@ use serde_json::{Value, json};
 use showcase_proto::{Light, ObjectKind, PinholeDevice, Projector, ProjectorResponse, Showcase};
 use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_render::radiosity::{
-    self, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions, Shooter, SolveOptions,
-    augmented_radiosity, irradiance_map,
+    self, B1Pass, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions, Shooter,
+    SolveOptions, augmented_radiosity, augmented_radiosity_with, irradiance_map,
 };
 use std::path::Path;
 use std::time::Instant;
@@ -285,13 +285,15 @@ fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
     let a = augmented_radiosity(&mesh, &all, &real, &[], &c.solve)?;
     let b2 = mesh.vertex_values(&a.b2);
     let map = irradiance_map(&mesh, &real, &b2, &s.projectors, 0)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let one = augmented_radiosity_with(&mesh, &all, &real, &[], &c.solve, B1Pass::OneBounce)?;
     Ok(json!({
         "kind": "augmented",
         "patches": mesh.patches.len(),
         "elements": mesh.elements.len(),
         "hemicube": c.solve.hemicube,
         "threshold": c.solve.threshold,
-        "seconds": start.elapsed().as_secs_f64(),
+        "seconds": seconds,
         // Needs the simulated showcase (projecting L through the sim with
         // its own interreflection); not available in this crate yet.
         "consistency_rel_rmse": Value::Null,
@@ -300,6 +302,8 @@ fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
         "real_elements": a.real_elements,
         "b1_b0_deviation_rgb": a.b1_b0_deviation_rgb,
         "b3_b0_deviation_rgb": a.b3_b0_deviation_rgb,
+        "one_bounce_b3_b0_deviation_rgb": one.b3_b0_deviation_rgb,
+        "one_bounce_clipped_elements": one.clipped_elements,
     }))
 }
 

@@ -53,14 +53,40 @@ pub struct AugmentedSolution {
     pub shots: [usize; 3],
 }
 
-/// Run the passes. `all` holds every object's geometry and `real` only the
-/// real objects'; both from the showcase `mesh` was built from.
+/// How the B1 pass propagates B0 among the real surfaces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum B1Pass {
+    /// The paper: a converged solve, `B1 = (I - K)^-1 B0` for the real
+    /// transport `K`. Then `B3 = B0 - K^2 B0 + ...`: close to B0 only when
+    /// the real interreflection is weak.
+    Converged,
+    /// Beyond the paper: one bounce, `B1 = B0 + K B0`, so that
+    /// `B2 = (I - K) B0` and `B3 = (I - K)^-1 B2 = B0` exactly wherever B2
+    /// needs no clipping.
+    OneBounce,
+}
+
+/// Run the passes as the paper does ([`B1Pass::Converged`]). `all` holds
+/// every object's geometry and `real` only the real objects'; both from the
+/// showcase `mesh` was built from.
 pub fn augmented_radiosity(
     mesh: &RadiosityMesh,
     all: &SceneGeometry,
     real: &SceneGeometry,
     lights: &[Light],
     options: &SolveOptions,
+) -> Result<AugmentedSolution, SolveError> {
+    augmented_radiosity_with(mesh, all, real, lights, options, B1Pass::Converged)
+}
+
+/// Run the passes with the B1 propagation `b1_pass`.
+pub fn augmented_radiosity_with(
+    mesh: &RadiosityMesh,
+    all: &SceneGeometry,
+    real: &SceneGeometry,
+    lights: &[Light],
+    options: &SolveOptions,
+    b1_pass: B1Pass,
 ) -> Result<AugmentedSolution, SolveError> {
     let mut s0 = Shooter::new(mesh, all, None, options)?;
     s0.add_surface_emission();
@@ -77,13 +103,18 @@ pub fn augmented_radiosity(
             .map(|(v, &m)| if m { *v } else { DVec3::ZERO })
             .collect()
     };
-    let pass = |emission: &[DVec3]| -> Result<(Vec<DVec3>, usize), SolveError> {
+    let pass = |emission: &[DVec3], rule: B1Pass| -> Result<(Vec<DVec3>, usize), SolveError> {
         let mut s = Shooter::new(mesh, real, Some(mask.clone()), options)?;
         s.add_emission(emission, 1.0);
-        s.run();
+        match rule {
+            B1Pass::Converged => {
+                s.run();
+            }
+            B1Pass::OneBounce => s.shoot_each_once(),
+        }
         Ok((s.radiosity().to_vec(), s.shots()))
     };
-    let (b1, shots1) = pass(&real_only(&b0))?;
+    let (b1, shots1) = pass(&real_only(&b0), b1_pass)?;
     let mut clipped_elements = 0;
     let b2: Vec<DVec3> = b0
         .iter()
@@ -100,7 +131,7 @@ pub fn augmented_radiosity(
             v.max(DVec3::ZERO)
         })
         .collect();
-    let (b3, shots3) = pass(&b2)?;
+    let (b3, shots3) = pass(&b2, B1Pass::Converged)?;
     let deviation = |b: &[DVec3]| -> [f64; 3] {
         let (mut dev, mut sum) = (DVec3::ZERO, DVec3::ZERO);
         for ((e, x), r) in mesh.elements.iter().zip(b).zip(&b0) {

@@ -40,7 +40,10 @@ pub mod mesh;
 pub mod shooting;
 pub mod sources;
 
-pub use augmented::{AugmentedSolution, IrradianceMap, augmented_radiosity, irradiance_map};
+pub use augmented::{
+    AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity, augmented_radiosity_with,
+    irradiance_map,
+};
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{ConvergencePoint, FormFactorMethod, Shooter, SolveError, SolveOptions};

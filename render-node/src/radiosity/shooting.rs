@@ -289,6 +289,23 @@ impl<'a> Shooter<'a> {
         }
     }
 
+    /// One bounce of the current unshot energy: every patch shoots what it
+    /// holds now, and what arrives stays unshot (it is not passed on in
+    /// this call). Afterwards B holds `B + K U` for the unshot `U` before.
+    pub fn shoot_each_once(&mut self) {
+        let before = self.unshot.clone();
+        self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        for (p, initial) in before.iter().enumerate() {
+            if *initial == DVec3::ZERO {
+                continue;
+            }
+            let received = self.unshot[p];
+            self.unshot[p] = *initial;
+            self.shoot_patch(p);
+            self.unshot[p] += received;
+        }
+    }
+
     /// Shoot the unshot energy of patch `shooter` now (false when it has
     /// none, is inactive or does not exist).
     pub fn shoot_patch(&mut self, shooter: usize) -> bool {
