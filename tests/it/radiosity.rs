@@ -19,9 +19,11 @@ const CORNELL: &str = concat!(
     "/../../shared/data/cornell-box.obj"
 );
 
-/// Vertices (position, normal, rgb) and face count of an ASCII PLY as
-/// written by the job.
-fn read_ply(text: &str) -> anyhow::Result<(Vec<(DVec3, DVec3, DVec3)>, usize)> {
+/// A PLY vertex: position, normal, radiosity.
+type PlyVertex = (DVec3, DVec3, DVec3);
+
+/// Vertices and face count of an ASCII PLY as written by the job.
+fn read_ply(text: &str) -> anyhow::Result<(Vec<PlyVertex>, usize)> {
     let (header, body) = text
         .split_once("end_header\n")
         .ok_or_else(|| anyhow::anyhow!("no header"))?;
