@@ -7,5 +7,6 @@ pub mod certs;
 pub mod cli;
 pub mod cluster;
 pub mod demo;
+pub mod radiosity_job;
 pub mod scene_file;
 pub mod tracking;

@@ -9,5 +9,6 @@ pub mod light;
 pub mod mirror_view;
 pub mod net;
 pub mod node;
+pub mod radiosity;
 pub mod reflectance;
 pub mod sim;

@@ -1,1 +1,205 @@
-//! Integration tests: radiosity.
+//! Integration tests: radiosity. The `radiosity` job on the shipped Cornell
+//! box (OBJ as it is) writes a PLY whose radiosity is checked against
+//! closed forms (the light's exitance pi * Ke, the floor's direct light by
+//! Lambert's polygon formula), and augmented radiosity on the paper's
+//! figure-3 scene (walls real, blocks and light virtual).
+
+use glam::DVec3;
+use showcase_master::radiosity_job::bench::figure3_scene;
+use showcase_master::radiosity_job::{RadiosityOptions, load_obj_scene, run_radiosity};
+use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
+use showcase_render::radiosity::{
+    B1Pass, FormFactorMethod, MeshOptions, RadiosityMesh, SolveOptions, augmented_radiosity,
+    augmented_radiosity_with, irradiance_map,
+};
+use std::path::Path;
+
+const CORNELL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/cornell-box.obj"
+);
+
+/// A PLY vertex: position, normal, radiosity.
+type PlyVertex = (DVec3, DVec3, DVec3);
+
+/// Vertices and face count of an ASCII PLY as written by the job.
+fn read_ply(text: &str) -> anyhow::Result<(Vec<PlyVertex>, usize)> {
+    let (header, body) = text
+        .split_once("end_header\n")
+        .ok_or_else(|| anyhow::anyhow!("no header"))?;
+    let count = |what: &str| -> anyhow::Result<usize> {
+        let line = header
+            .lines()
+            .find(|l| l.starts_with(&format!("element {what} ")))
+            .ok_or_else(|| anyhow::anyhow!("no {what} count"))?;
+        Ok(line.rsplit(' ').next().unwrap_or("").parse()?)
+    };
+    let (nv, nf) = (count("vertex")?, count("face")?);
+    let mut lines = body.lines();
+    let mut vertices = Vec::new();
+    for _ in 0..nv {
+        let v: Vec<f64> = lines
+            .next()
+            .ok_or_else(|| anyhow::anyhow!("short body"))?
+            .split(' ')
+            .map(str::parse)
+            .collect::<Result<_, _>>()?;
+        anyhow::ensure!(v.len() == 9, "vertex has {} values", v.len());
+        vertices.push((
+            DVec3::new(v[0], v[1], v[2]),
+            DVec3::new(v[3], v[4], v[5]),
+            DVec3::new(v[6], v[7], v[8]),
+        ));
+    }
+    let faces = lines.filter(|l| l.starts_with("3 ")).count();
+    anyhow::ensure!(faces == nf, "{faces} faces for {nf} declared");
+    Ok((vertices, nf))
+}
+
+#[test]
+fn cornell_box_solution_ply_matches_closed_forms() -> anyhow::Result<()> {
+    let out = std::env::temp_dir().join(format!("showcase-radiosity-{}", std::process::id()));
+    let summary = run_radiosity(
+        Path::new(CORNELL),
+        &out,
+        &RadiosityOptions {
+            max_patch_area: Some(0.02),
+            hemicube: Some(32),
+            threshold: Some(1e-2),
+        },
+    )?;
+    assert!(summary.unshot_fraction < 1e-2);
+    let (vertices, faces) = read_ply(&std::fs::read_to_string(&summary.solution)?)?;
+    assert!(faces >= summary.elements);
+    assert!(
+        vertices
+            .iter()
+            .all(|(_, _, b)| b.is_finite() && b.min_element() >= 0.0)
+    );
+    // The light (just below the ceiling, facing down) emits pi * Ke and
+    // reflects what it receives: B between pi * Ke and pi * Ke + rho * E,
+    // where E is at most the largest exitance of anything else.
+    let emitted = DVec3::new(17.0, 12.0, 4.0) * std::f64::consts::PI;
+    let brightest_other = vertices
+        .iter()
+        .filter(|(p, _, _)| p.y < 0.548)
+        .fold(DVec3::ZERO, |m, (_, _, b)| m.max(*b));
+    assert!(brightest_other.cmpgt(DVec3::ZERO).all());
+    let light: Vec<&DVec3> = vertices
+        .iter()
+        .filter(|(p, n, _)| p.y > 0.548 && p.y < 0.5488 && n.y < -0.9)
+        .map(|(_, _, b)| b)
+        .collect();
+    assert!(!light.is_empty());
+    for b in light {
+        assert!(
+            b.cmpge(emitted).all() && b.cmple(emitted * 1.05).all(),
+            "{b}"
+        );
+    }
+    // Floor vertices that see the whole light: B is rho times the direct
+    // irradiance (Lambert) plus indirect light, and the indirect irradiance
+    // is at most the largest exitance of the surfaces other than the light.
+    let showcase = load_obj_scene(Path::new(CORNELL))?;
+    let all = SceneGeometry::build(&showcase, &ObjectFilter::All)?;
+    let light_tris: Vec<[DVec3; 3]> = all
+        .triangles()
+        .filter(|t| showcase.objects[t.object as usize].name == "light")
+        .map(|t| t.vertices)
+        .collect();
+    let mut checked = 0;
+    for (p, n, b) in &vertices {
+        let on_floor = p.y.abs() < 1e-6 && n.y > 0.9;
+        if !on_floor
+            || !light_tris
+                .iter()
+                .flatten()
+                .all(|c| all.visible(*p, *n, *c, true))
+        {
+            continue;
+        }
+        let direct: f64 = light_tris
+            .iter()
+            .map(|t| polygon_irradiance(*p, *n, t, 17.0).unwrap())
+            .sum();
+        let low = 0.725 * direct;
+        let high = low + 0.725 * brightest_other.x;
+        assert!(
+            b.x > 0.95 * low && b.x < high,
+            "{p}: {} vs direct {low}",
+            b.x
+        );
+        checked += 1;
+    }
+    assert!(checked > 0);
+    std::fs::remove_dir_all(&out).ok();
+    Ok(())
+}
+
+#[test]
+fn augmented_radiosity_on_the_figure_3_scene() -> anyhow::Result<()> {
+    let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
+    let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
+    let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
+    let mesh = RadiosityMesh::build(
+        &s,
+        &all,
+        &MeshOptions {
+            max_patch_area: 0.02,
+            element_depth: 1,
+            ..MeshOptions::default()
+        },
+    )?;
+    let options = SolveOptions {
+        hemicube: 32,
+        threshold: 1e-2,
+        method: FormFactorMethod::Hybrid,
+        ..SolveOptions::default()
+    };
+    let a = augmented_radiosity(&mesh, &all, &real, &[], &options)?;
+    for b in [&a.b0, &a.b1, &a.b2, &a.b3] {
+        assert!(b.iter().all(|v| v.is_finite() && v.min_element() >= 0.0));
+    }
+    // B1 adds the real interreflection on top of B0; B2 removes it again,
+    // so B3 lands nearer B0 than B1 did (to second order in the real
+    // surfaces' transport, which is strong in a closed white box).
+    for c in 0..3 {
+        assert!(a.b1_b0_deviation_rgb[c] > 0.0);
+        assert!(
+            a.b3_b0_deviation_rgb[c] < 0.8 * a.b1_b0_deviation_rgb[c],
+            "channel {c}: {:?} vs {:?}",
+            a.b3_b0_deviation_rgb,
+            a.b1_b0_deviation_rgb
+        );
+    }
+    assert!(a.clipped_elements <= a.real_elements);
+    // With a one-bounce B1, B2 = (I - K) B0 and B3 = B0 up to clipping.
+    let one = augmented_radiosity_with(&mesh, &all, &real, &[], &options, B1Pass::OneBounce)?;
+    for c in 0..3 {
+        assert!(
+            one.b3_b0_deviation_rgb[c] < 0.5 * a.b3_b0_deviation_rgb[c],
+            "channel {c}: one bounce {:?} vs paper {:?}",
+            one.b3_b0_deviation_rgb,
+            a.b3_b0_deviation_rgb
+        );
+    }
+    let b2 = mesh.vertex_values(&a.b2);
+    let map = irradiance_map(&mesh, &real, &b2, &s.projectors, 0)?;
+    assert!(map.valid > 0);
+    let f = map.clipped_fraction();
+    assert!((0.0..=1.0).contains(&f));
+    assert!(
+        map.drive
+            .data
+            .iter()
+            .all(|d| d.is_finite() && d.min_element() >= 0.0 && d.max_element() <= 1.0)
+    );
+    // Virtual objects get no drive: the blocks are not in the real geometry.
+    assert!(
+        mesh.elements
+            .iter()
+            .zip(&a.b2)
+            .all(|(e, b)| e.real || *b == DVec3::ZERO)
+    );
+    Ok(())
+}

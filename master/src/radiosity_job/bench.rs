@@ -1,0 +1,432 @@
+//! `bench radiosity`: run time against error on the Cornell box, sweeping
+//! patch size, hemi-cube resolution, threshold and form-factor method,
+//! plus scaling to 20,000 elements, an incremental update after a virtual
+//! light moves, and one augmented-radiosity record.
+//!
+//! - `rel_error`: B (with the ambient term) against a fine solution
+//!   (ray-cast form factors, 16 elements per 0.01 m^2 patch, threshold
+//!   1e-3, see `reference_config`), area-weighted relative RMSE of the
+//!   interpolated solutions ([`radiosity::relative_error`]).
+//! - `analytic_direct_error`: the solver's direct irradiance (the light's
+//!   patches shot once, B / rho interpolated) at 20 floor and wall points
+//!   that see the whole light, against Lambert's closed-form polygon
+//!   formula; mean relative error.
+
+use super::scene::load_obj_scene;
+use anyhow::Context;
+use glam::{DVec2, DVec3, Vec3};
+use serde_json::{Value, json};
+use showcase_proto::{Light, ObjectKind, PinholeDevice, Projector, ProjectorResponse, Showcase};
+use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
+use showcase_render::radiosity::{
+    self, B1Pass, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions, Shooter,
+    SolveOptions, augmented_radiosity, augmented_radiosity_with, irradiance_map,
+};
+use std::path::Path;
+use std::time::Instant;
+
+/// One benchmark record (a JSON object).
+pub type BenchRecord = Value;
+
+/// The Cornell box shipped with the project.
+pub const CORNELL_BOX: &str = "../shared/data/cornell-box.obj";
+
+/// One measured configuration.
+#[derive(Clone, Debug)]
+struct Config {
+    max_patch_area: f64,
+    element_depth: u32,
+    refine: bool,
+    solve: SolveOptions,
+}
+
+struct Measured {
+    mesh: RadiosityMesh,
+    radiosity: Vec<DVec3>,
+    seconds: f64,
+    shots: usize,
+}
+
+fn measure(showcase: &Showcase, c: &Config) -> anyhow::Result<Measured> {
+    let start = Instant::now();
+    let all = SceneGeometry::build(showcase, &ObjectFilter::All)?;
+    let mut mesh = RadiosityMesh::build(
+        showcase,
+        &all,
+        &MeshOptions {
+            max_patch_area: c.max_patch_area,
+            element_depth: c.element_depth,
+            ..MeshOptions::default()
+        },
+    )?;
+    let lights: Vec<Light> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+    let refine = RefineOptions {
+        rounds: u32::from(c.refine),
+        ..RefineOptions::default()
+    };
+    let s = radiosity::solve_adaptive(&mut mesh, &all, &lights, &c.solve, &refine)?;
+    Ok(Measured {
+        seconds: start.elapsed().as_secs_f64(),
+        shots: s.shots,
+        radiosity: s.display,
+        mesh,
+    })
+}
+
+/// The light's world polygons (its triangles) and radiance.
+fn light_triangles(showcase: &Showcase, all: &SceneGeometry) -> (Vec<[DVec3; 3]>, DVec3) {
+    let mut tris = Vec::new();
+    let mut radiance = DVec3::ZERO;
+    for t in all.triangles() {
+        let o = &showcase.objects[t.object as usize];
+        if o.material.is_emitter() {
+            tris.push(t.vertices);
+            radiance = o.material.emission.as_dvec3();
+        }
+    }
+    (tris, radiance)
+}
+
+/// Mean relative error of the solver's direct irradiance at 20 points that
+/// see the whole light, against the closed form.
+fn analytic_direct_error(showcase: &Showcase, c: &Config) -> anyhow::Result<f64> {
+    let all = SceneGeometry::build(showcase, &ObjectFilter::All)?;
+    let mesh = RadiosityMesh::build(
+        showcase,
+        &all,
+        &MeshOptions {
+            max_patch_area: c.max_patch_area,
+            element_depth: c.element_depth,
+            ..MeshOptions::default()
+        },
+    )?;
+    let mut shooter = Shooter::new(&mesh, &all, None, &c.solve)?;
+    shooter.add_surface_emission();
+    let emitters: Vec<usize> = (0..mesh.patches.len())
+        .filter(|&p| {
+            mesh.patches[p]
+                .elements
+                .iter()
+                .any(|&e| mesh.elements[e as usize].emission != DVec3::ZERO)
+        })
+        .collect();
+    for p in emitters {
+        shooter.shoot_patch(p);
+    }
+    let values = mesh.vertex_values(shooter.radiosity());
+    let (light, radiance) = light_triangles(showcase, &all);
+    let corners: Vec<DVec3> = light.iter().flatten().copied().collect();
+    let receivers: Vec<u32> = (0..mesh.primitives.len() as u32)
+        .filter(|&p| {
+            let name = &showcase.objects[mesh.primitives[p as usize].object as usize].name;
+            ["floor", "back", "left_red", "right_green"].contains(&name.as_str())
+        })
+        .collect();
+    anyhow::ensure!(
+        !receivers.is_empty() && !light.is_empty(),
+        "no light or walls"
+    );
+    let (mut sum, mut count, mut k) = (0.0, 0, 0u64);
+    while count < 20 && k < 100_000 {
+        k += 1;
+        let prim = receivers[(hash(k) % receivers.len() as u64) as usize];
+        let (a, b) = (unit(3 * k + 1), unit(3 * k + 2));
+        let b = if a + b > 1.0 {
+            DVec2::new(1.0 - a, 1.0 - b)
+        } else {
+            DVec2::new(a, b)
+        };
+        let p = &mesh.primitives[prim as usize];
+        let x = p.point(b);
+        if !corners.iter().all(|c| all.visible(x, p.normal, *c, true)) {
+            continue;
+        }
+        let rho = mesh
+            .locate(prim, b)
+            .map(|(e, _)| mesh.elements[e as usize].reflectance)
+            .context("locating a point")?;
+        let got = mesh
+            .interpolate(prim, b, &values)
+            .context("interpolating")?
+            / rho;
+        let mut exact = 0.0;
+        for t in &light {
+            exact += polygon_irradiance(x, p.normal, t, radiance.x + radiance.y + radiance.z)?;
+        }
+        if exact > 0.0 {
+            sum += ((got.x + got.y + got.z) - exact).abs() / exact;
+            count += 1;
+        }
+    }
+    anyhow::ensure!(count > 0, "no point sees the whole light");
+    Ok(sum / count as f64)
+}
+
+fn hash(x: u64) -> u64 {
+    let mut x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+fn unit(x: u64) -> f64 {
+    (hash(x) >> 11) as f64 / (1u64 << 53) as f64
+}
+
+fn method_name(m: FormFactorMethod) -> &'static str {
+    match m {
+        FormFactorMethod::HemiCube => "hemicube",
+        FormFactorMethod::RayCast => "raycast",
+        FormFactorMethod::Hybrid => "hybrid",
+    }
+}
+
+fn base() -> Config {
+    Config {
+        max_patch_area: 0.04,
+        element_depth: 1,
+        refine: true,
+        solve: SolveOptions {
+            hemicube: 32,
+            threshold: 1e-2,
+            method: FormFactorMethod::Hybrid,
+            ..SolveOptions::default()
+        },
+    }
+}
+
+/// The converged fine solution every record is compared with: ray-cast
+/// form factors, 16 elements per patch. Kept affordable on a shared
+/// 2-core machine; tighten it where more time is available.
+fn reference_config() -> Config {
+    Config {
+        max_patch_area: 0.01,
+        element_depth: 2,
+        refine: false,
+        solve: SolveOptions {
+            threshold: 1e-3,
+            method: FormFactorMethod::RayCast,
+            visibility_samples: 2,
+            ..SolveOptions::default()
+        },
+    }
+}
+
+fn record(
+    showcase: &Showcase,
+    reference: &Measured,
+    c: &Config,
+    kind: &str,
+) -> anyhow::Result<BenchRecord> {
+    let m = measure(showcase, c)?;
+    let rel = radiosity::relative_error(
+        &m.mesh,
+        &m.radiosity,
+        &reference.mesh,
+        &reference.radiosity,
+        6,
+    );
+    Ok(json!({
+        "kind": kind,
+        "method": method_name(c.solve.method),
+        "patches": m.mesh.patches.len(),
+        "elements": m.mesh.elements.len(),
+        "hemicube": c.solve.hemicube,
+        "threshold": c.solve.threshold,
+        "seconds": m.seconds,
+        "shots": m.shots,
+        "rel_error": rel,
+        "analytic_direct_error": analytic_direct_error(showcase, c)?,
+    }))
+}
+
+/// The figure-3 scene: the Cornell box with the blocks and the light
+/// virtual, the walls real, one projector in front of the open side.
+pub fn figure3_scene(cornell: &Showcase) -> Showcase {
+    let mut s = cornell.clone();
+    for o in &mut s.objects {
+        if o.name.contains("block") || o.material.is_emitter() {
+            o.kind = ObjectKind::Virtual;
+        }
+    }
+    let device = PinholeDevice::look_at(
+        DVec3::new(0.278, 0.274, -0.9),
+        DVec3::new(0.278, 0.274, 0.28),
+        DVec3::Y,
+        40.0,
+        160,
+        120,
+    );
+    s.projectors.push(Projector {
+        name: "front".into(),
+        device,
+        response: ProjectorResponse {
+            eta: 40.0,
+            black_level: 0.0,
+            ..ProjectorResponse::default()
+        },
+    });
+    s
+}
+
+fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
+    let s = figure3_scene(cornell);
+    let c = base();
+    let start = Instant::now();
+    let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
+    let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
+    let mesh = RadiosityMesh::build(
+        &s,
+        &all,
+        &MeshOptions {
+            max_patch_area: c.max_patch_area,
+            element_depth: c.element_depth,
+            ..MeshOptions::default()
+        },
+    )?;
+    let a = augmented_radiosity(&mesh, &all, &real, &[], &c.solve)?;
+    let b2 = mesh.vertex_values(&a.b2);
+    let map = irradiance_map(&mesh, &real, &b2, &s.projectors, 0)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let one = augmented_radiosity_with(&mesh, &all, &real, &[], &c.solve, B1Pass::OneBounce)?;
+    Ok(json!({
+        "kind": "augmented",
+        "patches": mesh.patches.len(),
+        "elements": mesh.elements.len(),
+        "hemicube": c.solve.hemicube,
+        "threshold": c.solve.threshold,
+        "seconds": seconds,
+        // Needs the simulated showcase (projecting L through the sim with
+        // its own interreflection); not available in this crate yet.
+        "consistency_rel_rmse": Value::Null,
+        "clipped_fraction": map.clipped_fraction(),
+        "clipped_elements": a.clipped_elements,
+        "real_elements": a.real_elements,
+        "b1_b0_deviation_rgb": a.b1_b0_deviation_rgb,
+        "b3_b0_deviation_rgb": a.b3_b0_deviation_rgb,
+        "one_bounce_b3_b0_deviation_rgb": one.b3_b0_deviation_rgb,
+        "one_bounce_clipped_elements": one.clipped_elements,
+    }))
+}
+
+/// A virtual point light of `intensity` (W/sr) moves inside the box beside
+/// the box's own light: time of a full re-solve against shooting the
+/// difference (remove the old direct light, add the new, shoot), to the
+/// same absolute unshot-power tolerance, and the error of each against a
+/// tightly converged solve of the new state. The speed-up grows as the
+/// moving light's share of the power falls.
+pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<BenchRecord> {
+    let c = base();
+    let all = SceneGeometry::build(cornell, &ObjectFilter::All)?;
+    let mesh = RadiosityMesh::build(
+        cornell,
+        &all,
+        &MeshOptions {
+            max_patch_area: c.max_patch_area,
+            element_depth: c.element_depth,
+            ..MeshOptions::default()
+        },
+    )?;
+    let light = |x: f32| Light::Point {
+        position: Vec3::new(x, 0.4, 0.3),
+        intensity: Vec3::splat(intensity),
+    };
+    let (old, new) = (light(0.15), light(0.4));
+    let mut base_solve = Shooter::new(&mesh, &all, None, &c.solve)?;
+    base_solve.add_surface_emission();
+    base_solve.add_light(&old, 1.0);
+    // The static solution is precomputed offline to a tenth of the
+    // interactive tolerance, so an update need not first pay off the
+    // residual the precompute left at exactly the limit.
+    let limit = c.solve.threshold * base_solve.injected_power();
+    base_solve.run_to_power(0.1 * limit);
+
+    let start = Instant::now();
+    let mut full = Shooter::new(&mesh, &all, None, &c.solve)?;
+    full.add_surface_emission();
+    full.add_light(&new, 1.0);
+    full.run_to_power(limit);
+    let full_seconds = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let mut inc = base_solve;
+    inc.add_light(&old, -1.0);
+    inc.add_light(&new, 1.0);
+    let inc_shots = inc.run_to_power(limit);
+    let inc_seconds = start.elapsed().as_secs_f64();
+
+    let mut tight = c.solve.clone();
+    tight.threshold = 1e-5;
+    let converged = radiosity::solve(&mesh, &all, &[new], &tight)?;
+    let err = |b: &[DVec3]| radiosity::relative_error(&mesh, b, &mesh, &converged.radiosity, 6);
+    Ok(json!({
+        "kind": "incremental",
+        "light_intensity": intensity,
+        "patches": mesh.patches.len(),
+        "elements": mesh.elements.len(),
+        "hemicube": c.solve.hemicube,
+        "threshold": c.solve.threshold,
+        "full_seconds": full_seconds,
+        "full_shots": full.shots(),
+        "full_rel_error": err(full.radiosity()),
+        "incremental_seconds": inc_seconds,
+        "incremental_shots": inc_shots,
+        "incremental_rel_error": err(inc.radiosity()),
+        "speedup": full_seconds / inc_seconds.max(1e-9),
+    }))
+}
+
+/// Run the radiosity benchmark on the Cornell box at `cornell` (the OBJ).
+/// Slow (minutes): build in release.
+pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
+    let showcase = load_obj_scene(cornell)?;
+    let reference = measure(&showcase, &reference_config())?;
+    let mut records = vec![json!({
+        "kind": "reference",
+        "method": "raycast",
+        "patches": reference.mesh.patches.len(),
+        "elements": reference.mesh.elements.len(),
+        "threshold": reference_config().solve.threshold,
+        "seconds": reference.seconds,
+        "shots": reference.shots,
+    })];
+    let with = |area: f64, hemicube: u32, threshold: f64, method, samples: u32| {
+        let mut c = base();
+        c.max_patch_area = area;
+        c.solve.hemicube = hemicube;
+        c.solve.threshold = threshold;
+        c.solve.method = method;
+        c.solve.visibility_samples = samples;
+        c
+    };
+    let (hybrid, raycast) = (FormFactorMethod::Hybrid, FormFactorMethod::RayCast);
+    let configs = [
+        with(0.04, 32, 1e-2, hybrid, 4),
+        with(0.04, 64, 1e-2, hybrid, 4),
+        with(0.04, 32, 1e-3, hybrid, 4),
+        with(0.04, 32, 1e-2, raycast, 2),
+        with(0.02, 32, 1e-2, hybrid, 4),
+        with(0.02, 32, 1e-2, raycast, 1),
+    ];
+    for c in &configs {
+        records.push(record(&showcase, &reference, c, "sweep")?);
+    }
+    let scaling = Config {
+        max_patch_area: 0.02,
+        element_depth: 3,
+        refine: false,
+        ..with(0.02, 32, 1e-2, raycast, 1)
+    };
+    records.push(record(&showcase, &reference, &scaling, "scaling")?);
+    for intensity in [0.5, 0.05, 0.005] {
+        records.push(incremental_record(&showcase, intensity)?);
+    }
+    records.push(augmented_record(&showcase)?);
+    Ok(records)
+}
+
+/// [`bench_radiosity_at`] on [`CORNELL_BOX`] (relative to the working
+/// directory, the repository root).
+pub fn bench_radiosity() -> anyhow::Result<Vec<BenchRecord>> {
+    bench_radiosity_at(Path::new(CORNELL_BOX))
+}

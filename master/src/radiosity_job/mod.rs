@@ -1,0 +1,220 @@
+//! The offline radiosity job behind `showcase-master radiosity` and
+//! `bench radiosity`: load a scene, mesh and solve it (augmented radiosity
+//! when it has real objects and projectors), and write `solution.ply`,
+//! the projectors' irradiance maps and the virtual objects' light maps.
+
+pub mod bench;
+pub mod export;
+pub mod report;
+pub mod scene;
+
+pub use bench::{BenchRecord, bench_radiosity};
+pub use scene::{load_any_scene, load_obj_scene};
+
+use anyhow::Context;
+use glam::DVec3;
+use showcase_proto::{ObjectKind, Showcase};
+use showcase_render::light::{ObjectFilter, SceneGeometry};
+use showcase_render::radiosity::{
+    self, ConvergencePoint, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions,
+    SolveOptions, augmented_radiosity, irradiance_map, vertex_mesh,
+};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Settings of the `radiosity` command (`None`: the default).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RadiosityOptions {
+    /// Largest patch area (m^2).
+    pub max_patch_area: Option<f64>,
+    /// Hemi-cube resolution.
+    pub hemicube: Option<u32>,
+    /// Unshot-energy threshold.
+    pub threshold: Option<f64>,
+}
+
+/// Default largest patch area (m^2).
+pub const DEFAULT_PATCH_AREA: f64 = 0.01;
+
+impl RadiosityOptions {
+    /// The mesh settings.
+    pub fn mesh(&self) -> MeshOptions {
+        MeshOptions {
+            max_patch_area: self.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA),
+            element_depth: 1,
+            ..MeshOptions::default()
+        }
+    }
+
+    /// The solver settings.
+    pub fn solve(&self) -> SolveOptions {
+        let d = SolveOptions::default();
+        SolveOptions {
+            hemicube: self.hemicube.unwrap_or(d.hemicube),
+            threshold: self.threshold.unwrap_or(d.threshold),
+            method: FormFactorMethod::Hybrid,
+            ..d
+        }
+    }
+}
+
+/// What a radiosity run did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Patches (shooters).
+    pub patches: usize,
+    /// Elements (receivers) after refinement.
+    pub elements: usize,
+    /// Shots over all passes.
+    pub shots: usize,
+    /// Unshot fraction at the end of the B0 solve.
+    pub unshot_fraction: f64,
+    /// Wall-clock seconds of meshing and solving.
+    pub seconds: f64,
+    /// The solution mesh.
+    pub solution: PathBuf,
+    /// Irradiance maps, one per projector.
+    pub irradiance_maps: Vec<PathBuf>,
+    /// Light maps, one per virtual object.
+    pub light_maps: Vec<PathBuf>,
+    /// Clamped fraction of each projector's valid pixels.
+    pub clipped_fractions: Vec<f64>,
+    /// Real elements whose B2 was clipped at 0.
+    pub clipped_elements: usize,
+    /// Relative mean |B3 - B0| per RGB channel, when augmented.
+    pub b3_b0_deviation_rgb: Option<[f64; 3]>,
+    /// Convergence of the B0 solve.
+    pub convergence: Vec<ConvergencePoint>,
+}
+
+/// A solved scene in memory.
+pub struct Solved {
+    /// The refined mesh.
+    pub mesh: RadiosityMesh,
+    /// B0 per element (with the ambient term when not augmented).
+    pub b0: Vec<DVec3>,
+    /// The augmented passes, when the scene has real objects and projectors.
+    pub augmented: Option<radiosity::AugmentedSolution>,
+    /// Geometry of the real objects.
+    pub real: SceneGeometry,
+    /// Shots of the B0 solve (all refinement rounds).
+    pub shots: usize,
+    /// Unshot fraction at the end of the B0 solve.
+    pub unshot_fraction: f64,
+    /// Convergence curve of the last B0 round.
+    pub convergence: Vec<ConvergencePoint>,
+}
+
+/// Mesh, solve with one round of adaptive refinement, and run the augmented
+/// passes when the scene has real objects and projectors.
+pub fn solve_showcase(showcase: &Showcase, options: &RadiosityOptions) -> anyhow::Result<Solved> {
+    let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
+    let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
+    let mut mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
+    let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+    let solve = options.solve();
+    let solution =
+        radiosity::solve_adaptive(&mut mesh, &all, &lights, &solve, &RefineOptions::default())
+            .context("solving")?;
+    let has_real = showcase.objects.iter().any(|o| o.kind == ObjectKind::Real);
+    let augmented = if has_real && !showcase.projectors.is_empty() {
+        Some(augmented_radiosity(&mesh, &all, &real, &lights, &solve).context("augmented passes")?)
+    } else {
+        None
+    };
+    Ok(Solved {
+        b0: augmented
+            .as_ref()
+            .map_or(solution.display, |a| a.b0.clone()),
+        mesh,
+        augmented,
+        real,
+        shots: solution.shots,
+        unshot_fraction: solution.unshot_fraction,
+        convergence: solution.convergence,
+    })
+}
+
+/// A file-name-safe version of an object or device name.
+fn file_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// `showcase-master radiosity`: solve `scene` (OBJ or TOML) and write
+/// `solution.ply` (B0 per vertex; without projectors B plus the ambient
+/// estimate of the energy still unshot at the threshold), `irradiance_map_<projector>.pfm` (linear
+/// drive), `light_map_<object>.ply` per virtual object and `summary.json`
+/// into `out`.
+pub fn run_radiosity(
+    scene: &Path,
+    out: &Path,
+    options: &RadiosityOptions,
+) -> anyhow::Result<Summary> {
+    let showcase = load_any_scene(scene)?;
+    let start = Instant::now();
+    let solved = solve_showcase(&showcase, options)?;
+    let mut maps = Vec::new();
+    if let Some(a) = &solved.augmented {
+        let b2 = solved.mesh.vertex_values(&a.b2);
+        for i in 0..showcase.projectors.len() {
+            maps.push(
+                irradiance_map(&solved.mesh, &solved.real, &b2, &showcase.projectors, i)
+                    .with_context(|| format!("projector {}", showcase.projectors[i].name))?,
+            );
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let solution = out.join("solution.ply");
+    let whole = vertex_mesh(&solved.mesh, &solved.b0, |_| true);
+    std::fs::write(&solution, export::ply_ascii(&whole))
+        .with_context(|| format!("writing {}", solution.display()))?;
+    let mut irradiance_maps = Vec::new();
+    for (p, map) in showcase.projectors.iter().zip(&maps) {
+        let path = out.join(format!("irradiance_map_{}.pfm", file_name(&p.name)));
+        std::fs::write(&path, export::pfm(&map.drive))
+            .with_context(|| format!("writing {}", path.display()))?;
+        irradiance_maps.push(path);
+    }
+    let mut light_maps = Vec::new();
+    for (i, o) in showcase.objects.iter().enumerate() {
+        if o.kind != ObjectKind::Virtual {
+            continue;
+        }
+        let m = vertex_mesh(&solved.mesh, &solved.b0, |e| e.object as usize == i);
+        let path = out.join(format!("light_map_{}.ply", file_name(&o.name)));
+        std::fs::write(&path, export::ply_ascii(&m))
+            .with_context(|| format!("writing {}", path.display()))?;
+        light_maps.push(path);
+    }
+    let summary = Summary {
+        patches: solved.mesh.patches.len(),
+        elements: solved.mesh.elements.len(),
+        shots: solved.shots
+            + solved
+                .augmented
+                .as_ref()
+                .map_or(0, |a| a.shots.iter().sum()),
+        unshot_fraction: solved.unshot_fraction,
+        seconds,
+        solution,
+        irradiance_maps,
+        light_maps,
+        clipped_fractions: maps.iter().map(|m| m.clipped_fraction()).collect(),
+        clipped_elements: solved.augmented.as_ref().map_or(0, |a| a.clipped_elements),
+        b3_b0_deviation_rgb: solved.augmented.as_ref().map(|a| a.b3_b0_deviation_rgb),
+        convergence: solved.convergence,
+    };
+    let path = out.join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(summary)
+}

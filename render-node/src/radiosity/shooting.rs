@@ -1,0 +1,510 @@
+//! Progressive refinement (Cohen et al. 1988): the patch with the most
+//! unshot power shoots it to every element, until the unshot fraction of
+//! all power ever injected falls below a threshold.
+//!
+//! Patches shoot, elements receive: element `j` gains
+//! `rho_j * dB_p * F_pj * A_p / A_j`, and its patch's unshot exitance grows
+//! by the area-weighted share. Shots may carry negative power, which is how
+//! an incremental update removes the light of a source that moved.
+//!
+//! Energy: the form factors of one shot are scaled down if they sum above 1,
+//! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so
+//! every shot passes on strictly less power than it takes: the unshot power
+//! falls monotonically and B stays finite.
+
+use super::hemicube::{HemiCube, NO_ITEM};
+use super::mesh::{Element, RadiosityMesh, barycentric_point, sub_centroids};
+use super::sources::{direct_irradiance, hash64, stratified, triangle_sample, unit};
+use crate::light::{SceneGeometry, form_factor_point_polygon};
+use glam::DVec3;
+use rayon::prelude::*;
+use showcase_proto::Light;
+
+/// How a shot's form factors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum FormFactorMethod {
+    /// Hemi-cube at the shooter's centre for every receiver.
+    HemiCube,
+    /// Ray-cast form factors for every receiver (Wallace-style): the
+    /// closed-form point-to-polygon form factor to the whole shooting patch,
+    /// averaged over `n^2` sub-triangle centroids of the receiver (`n` from
+    /// 1 to 8, growing as the pair gets close relative to its size), times
+    /// the visible fraction of `visibility_samples` rays between paired
+    /// jittered points of the receiver and the patch.
+    RayCast,
+    /// The hemi-cube, except for receivers where it is known to fail: close
+    /// to the shooter (distance below `proximity * sqrt(A_shooter)`, where
+    /// the shooter is not a point) and small receivers (expected to cover
+    /// fewer than `min_pixels` hemi-cube pixels, where it aliases); those
+    /// are ray-cast.
+    Hybrid,
+}
+
+/// Why a solve cannot start.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SolveError {
+    /// The hemi-cube resolution is invalid.
+    #[error(transparent)]
+    HemiCube(#[from] super::hemicube::HemiCubeError),
+    /// The threshold is not in `(0, 1)`.
+    #[error("unshot-energy threshold {0} must be in (0, 1)")]
+    BadThreshold(f64),
+    /// The active mask does not have one entry per element.
+    #[error("active mask has {got} entries for {elements} elements")]
+    MaskLength {
+        /// Entries given.
+        got: usize,
+        /// Elements in the mesh.
+        elements: usize,
+    },
+}
+
+/// Settings of a progressive-refinement solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// Hemi-cube top-face resolution (even).
+    pub hemicube: u32,
+    /// Stop when unshot power / injected power falls below this.
+    pub threshold: f64,
+    /// Form-factor method.
+    pub method: FormFactorMethod,
+    /// Hard limit on shots.
+    pub max_shots: usize,
+    /// Seed of the per-shot hemi-cube rotation and sample jitter.
+    pub seed: u64,
+    /// Hybrid: receivers closer than `proximity * sqrt(A_shooter)` are ray-cast.
+    pub proximity: f64,
+    /// Hybrid: receivers expected to cover fewer pixels are ray-cast.
+    pub min_pixels: f64,
+    /// Visibility rays per ray-cast form factor (and per area light).
+    pub visibility_samples: u32,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        Self {
+            hemicube: 64,
+            threshold: 1e-3,
+            method: FormFactorMethod::Hybrid,
+            max_shots: 1_000_000,
+            seed: 1,
+            proximity: 2.0,
+            min_pixels: 4.0,
+            visibility_samples: 4,
+        }
+    }
+}
+
+/// One point of the convergence curve.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ConvergencePoint {
+    /// Shots so far.
+    pub shots: usize,
+    /// Unshot power over injected power.
+    pub unshot_fraction: f64,
+}
+
+/// Sum of the channels times area: the power measure of the solver.
+fn power(v: DVec3, area: f64) -> f64 {
+    (v.x.abs() + v.y.abs() + v.z.abs()) * area
+}
+
+fn finite(v: DVec3) -> DVec3 {
+    if v.is_finite() { v } else { DVec3::ZERO }
+}
+
+/// A progressive-refinement solve in progress over the active elements of
+/// a mesh, with visibility in `geometry` (which must hold exactly the
+/// active elements' objects, e.g. only the real ones for pass B1).
+pub struct Shooter<'a> {
+    mesh: &'a RadiosityMesh,
+    geometry: &'a SceneGeometry,
+    active: Vec<bool>,
+    patch_active: Vec<bool>,
+    options: SolveOptions,
+    hemicube: Option<HemiCube>,
+    radiosity: Vec<DVec3>,
+    unshot: Vec<DVec3>,
+    injected: f64,
+    shots: usize,
+    curve: Vec<ConvergencePoint>,
+}
+
+impl<'a> Shooter<'a> {
+    /// A solve with no energy yet. `active` (one flag per element, all when
+    /// `None`) selects the receivers and shooters.
+    pub fn new(
+        mesh: &'a RadiosityMesh,
+        geometry: &'a SceneGeometry,
+        active: Option<Vec<bool>>,
+        options: &SolveOptions,
+    ) -> Result<Self, SolveError> {
+        if !(options.threshold > 0.0 && options.threshold < 1.0) {
+            return Err(SolveError::BadThreshold(options.threshold));
+        }
+        let active = active.unwrap_or_else(|| vec![true; mesh.elements.len()]);
+        if active.len() != mesh.elements.len() {
+            return Err(SolveError::MaskLength {
+                got: active.len(),
+                elements: mesh.elements.len(),
+            });
+        }
+        let hemicube = match options.method {
+            FormFactorMethod::RayCast => None,
+            _ => Some(HemiCube::new(options.hemicube)?),
+        };
+        let patch_active = mesh
+            .patches
+            .iter()
+            .map(|p| p.elements.iter().any(|&e| active[e as usize]))
+            .collect();
+        Ok(Self {
+            mesh,
+            geometry,
+            active,
+            patch_active,
+            options: options.clone(),
+            hemicube,
+            radiosity: vec![DVec3::ZERO; mesh.elements.len()],
+            unshot: vec![DVec3::ZERO; mesh.patches.len()],
+            injected: 0.0,
+            shots: 0,
+            curve: Vec::new(),
+        })
+    }
+
+    /// Add self-emitted exitance per element (W/m^2) to B and to the unshot
+    /// energy, scaled by `scale` (-1 removes it). Inactive elements and
+    /// non-finite values are skipped.
+    pub fn add_emission(&mut self, exitance: &[DVec3], scale: f64) {
+        let deposits: Vec<DVec3> = exitance.iter().map(|e| finite(*e * scale)).collect();
+        self.deposit(&deposits);
+    }
+
+    /// Add the elements' own emission (`Element::emission`).
+    pub fn add_surface_emission(&mut self) {
+        let e: Vec<DVec3> = self.mesh.elements.iter().map(|e| e.emission).collect();
+        self.add_emission(&e, 1.0);
+    }
+
+    /// Shoot a virtual light directly to every active element (at its
+    /// centre): B gains `scale * rho * E_direct`, which also becomes unshot.
+    pub fn add_light(&mut self, light: &Light, scale: f64) {
+        let samples = self.options.visibility_samples.max(16);
+        let seed = self.options.seed;
+        let deposits: Vec<DVec3> = self
+            .mesh
+            .elements
+            .par_iter()
+            .enumerate()
+            .map(|(j, e)| {
+                if !self.active[j] {
+                    return DVec3::ZERO;
+                }
+                let irradiance = direct_irradiance(
+                    light,
+                    self.geometry,
+                    e.center,
+                    e.normal,
+                    samples,
+                    seed ^ j as u64,
+                );
+                finite(scale * e.reflectance * irradiance)
+            })
+            .collect();
+        self.deposit(&deposits);
+    }
+
+    fn deposit(&mut self, deposits: &[DVec3]) {
+        for (j, d) in deposits.iter().enumerate() {
+            if !self.active.get(j).copied().unwrap_or(false) || *d == DVec3::ZERO {
+                continue;
+            }
+            let e = &self.mesh.elements[j];
+            let p = &self.mesh.patches[e.patch as usize];
+            self.radiosity[j] += *d;
+            self.unshot[e.patch as usize] += *d * (e.area / p.area);
+            self.injected += power(*d, e.area);
+        }
+    }
+
+    /// Power injected so far (sum of channels, W).
+    pub fn injected_power(&self) -> f64 {
+        self.injected
+    }
+
+    /// Unshot power now (sum of channels, W).
+    pub fn unshot_power(&self) -> f64 {
+        self.mesh
+            .patches
+            .iter()
+            .zip(&self.unshot)
+            .map(|(p, u)| power(*u, p.area))
+            .sum()
+    }
+
+    /// Unshot power over injected power (0 when nothing was injected).
+    pub fn unshot_fraction(&self) -> f64 {
+        if self.injected > 0.0 {
+            self.unshot_power() / self.injected
+        } else {
+            0.0
+        }
+    }
+
+    /// Shoot until the unshot power is at most `threshold * reference` (W),
+    /// or the shot limit. Returns the shots taken.
+    pub fn run_to_power(&mut self, limit: f64) -> usize {
+        let start = self.shots;
+        while self.shots < self.options.max_shots && self.unshot_power() > limit {
+            if !self.step() {
+                break;
+            }
+        }
+        self.shots - start
+    }
+
+    /// Shoot until the unshot fraction is below the threshold of the
+    /// options. Returns the shots taken.
+    pub fn run(&mut self) -> usize {
+        let limit = self.options.threshold * self.injected;
+        self.run_to_power(limit)
+    }
+
+    /// One shot from the patch with the most unshot power; false when no
+    /// patch has any.
+    pub fn step(&mut self) -> bool {
+        let mut best = None;
+        let mut best_power = 0.0;
+        for (i, (p, u)) in self.mesh.patches.iter().zip(&self.unshot).enumerate() {
+            let w = power(*u, p.area);
+            if self.patch_active[i] && w > best_power {
+                best_power = w;
+                best = Some(i);
+            }
+        }
+        match best {
+            Some(shooter) => self.shoot_patch(shooter),
+            None => false,
+        }
+    }
+
+    /// One bounce of the current unshot energy: every patch shoots what it
+    /// holds now, and what arrives stays unshot (it is not passed on in
+    /// this call). Afterwards B holds `B + K U` for the unshot `U` before.
+    pub fn shoot_each_once(&mut self) {
+        let before = self.unshot.clone();
+        self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        for (p, initial) in before.iter().enumerate() {
+            if *initial == DVec3::ZERO {
+                continue;
+            }
+            let received = self.unshot[p];
+            self.unshot[p] = *initial;
+            self.shoot_patch(p);
+            self.unshot[p] += received;
+        }
+    }
+
+    /// Shoot the unshot energy of patch `shooter` now (false when it has
+    /// none, is inactive or does not exist).
+    pub fn shoot_patch(&mut self, shooter: usize) -> bool {
+        if !self.patch_active.get(shooter).copied().unwrap_or(false) {
+            return false;
+        }
+        let delta = self.unshot[shooter];
+        if delta == DVec3::ZERO {
+            return false;
+        }
+        self.unshot[shooter] = DVec3::ZERO;
+        let shot_seed = hash64(self.options.seed ^ (self.shots as u64).wrapping_mul(0x9e37_79b9));
+        let ff = self.form_factors(shooter, shot_seed);
+        let p_area = self.mesh.patches[shooter].area;
+        for (j, f) in ff {
+            let e = &self.mesh.elements[j as usize];
+            let gain = finite(e.reflectance * delta * (f * p_area / e.area));
+            self.radiosity[j as usize] += gain;
+            let q = &self.mesh.patches[e.patch as usize];
+            self.unshot[e.patch as usize] += gain * (e.area / q.area);
+        }
+        self.shots += 1;
+        self.curve.push(ConvergencePoint {
+            shots: self.shots,
+            unshot_fraction: self.unshot_fraction(),
+        });
+        true
+    }
+
+    /// Form factors `F_pj` from patch `shooter` to the active receivers,
+    /// scaled to sum to at most 1.
+    fn form_factors(&self, shooter: usize, seed: u64) -> Vec<(u32, f64)> {
+        let mesh = self.mesh;
+        let p = &mesh.patches[shooter];
+        let method = self.options.method;
+        let pixels = self
+            .hemicube
+            .as_ref()
+            .map_or(1.0, |h| h.pixel_count() as f64);
+        let near2 = self.options.proximity * self.options.proximity * p.area;
+        let small = self.options.min_pixels / pixels;
+        let use_ray = |e: &Element| -> bool {
+            match method {
+                FormFactorMethod::RayCast => true,
+                FormFactorMethod::HemiCube => false,
+                FormFactorMethod::Hybrid => {
+                    let d = e.center - p.center;
+                    let r2 = d.length_squared();
+                    if r2 < near2 {
+                        return true;
+                    }
+                    let r = r2.sqrt();
+                    let estimate =
+                        (p.normal.dot(d) / r).max(0.0) * (-e.normal.dot(d) / r).max(0.0) * e.area
+                            / (std::f64::consts::PI * r2);
+                    estimate > 0.0 && estimate < small
+                }
+            }
+        };
+        let receivers: Vec<u32> = (0..mesh.elements.len() as u32)
+            .filter(|&j| {
+                let e = &mesh.elements[j as usize];
+                self.active[j as usize] && e.patch as usize != shooter && use_ray(e)
+            })
+            .collect();
+        let samples = stratified(self.options.visibility_samples, seed);
+        let k = samples.len();
+        let p_size = p.area.sqrt();
+        let mut out: Vec<(u32, f64)> = receivers
+            .par_iter()
+            .filter_map(|&j| {
+                let e = &mesh.elements[j as usize];
+                // Unoccluded area-averaged form factor: the closed form at
+                // the centroids of n^2 equal sub-triangles, n growing as
+                // the pair gets close relative to its size.
+                let closeness = (p_size + e.area.sqrt()) / (e.center - p.center).length();
+                let n = (2.0 * closeness).ceil().clamp(1.0, 8.0) as u32;
+                let points = sub_centroids(n);
+                let unoccluded = points
+                    .iter()
+                    .map(|b| {
+                        let x = barycentric_point(&e.vertices, *b);
+                        form_factor_point_polygon(x, e.normal, &p.vertices).unwrap_or(0.0)
+                    })
+                    .sum::<f64>()
+                    / points.len() as f64;
+                if !(unoccluded > 0.0) {
+                    return None;
+                }
+                // Visible fraction: rays between paired jittered points of
+                // the receiver (its centre for one sample) and the patch.
+                let shift = glam::DVec2::new(unit(seed ^ j as u64), unit(seed ^ !(j as u64)));
+                let seen = (0..k)
+                    .filter(|&i| {
+                        let x = if k == 1 {
+                            e.center
+                        } else {
+                            triangle_sample(
+                                &e.vertices,
+                                (samples[i] + glam::DVec2::new(shift.y, shift.x)).fract(),
+                            )
+                        };
+                        let y = triangle_sample(&p.vertices, (samples[k - 1 - i] + shift).fract());
+                        self.geometry.visible(x, e.normal, y, true)
+                    })
+                    .count();
+                let f = unoccluded * seen as f64 / k as f64 * e.area / p.area;
+                (f > 0.0 && f.is_finite()).then_some((j, f))
+            })
+            .collect();
+        if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
+            let rotation = unit(seed) * std::f64::consts::TAU;
+            let active = &self.active;
+            let items = h.item_buffer(self.geometry, p.center, p.normal, rotation, |hit| {
+                if !hit.front_face {
+                    return None;
+                }
+                let prim = mesh.primitive_of(hit.object, hit.triangle)?;
+                let (e, _) = mesh.locate(prim, hit.barycentric)?;
+                let el = &mesh.elements[e as usize];
+                (active[e as usize] && el.patch as usize != shooter && !use_ray(el)).then_some(e)
+            });
+            let mut ff = vec![0.0; mesh.elements.len()];
+            debug_assert!(
+                items
+                    .iter()
+                    .all(|&i| i == NO_ITEM || (i as usize) < ff.len())
+            );
+            for j in h.accumulate(&items, &mut ff) {
+                out.push((j, ff[j as usize]));
+            }
+        }
+        let total: f64 = out.iter().map(|(_, f)| f).sum();
+        if total > 1.0 {
+            for (_, f) in &mut out {
+                *f /= total;
+            }
+        }
+        out
+    }
+
+    /// Element radiosity B (exitance, W/m^2) so far.
+    pub fn radiosity(&self) -> &[DVec3] {
+        &self.radiosity
+    }
+
+    /// Unshot exitance per patch.
+    pub fn unshot(&self) -> &[DVec3] {
+        &self.unshot
+    }
+
+    /// Shots so far.
+    pub fn shots(&self) -> usize {
+        self.shots
+    }
+
+    /// The unshot fraction after every shot.
+    pub fn convergence(&self) -> &[ConvergencePoint] {
+        &self.curve
+    }
+
+    /// The ambient exitance estimate of Cohen et al. (1988): the unshot
+    /// power spread evenly over the active area, times the interreflection
+    /// factor `1 / (1 - rho_avg)`.
+    pub fn ambient(&self) -> DVec3 {
+        let (mut area, mut rho_area, mut unshot) = (0.0, DVec3::ZERO, DVec3::ZERO);
+        for (j, e) in self.mesh.elements.iter().enumerate() {
+            if self.active[j] {
+                area += e.area;
+                rho_area += e.reflectance * e.area;
+            }
+        }
+        for (i, p) in self.mesh.patches.iter().enumerate() {
+            if self.patch_active[i] {
+                unshot += self.unshot[i] * p.area;
+            }
+        }
+        if !(area > 0.0) {
+            return DVec3::ZERO;
+        }
+        let rho = (rho_area / area).min(DVec3::splat(super::mesh::MAX_REFLECTANCE));
+        finite(unshot / area / (DVec3::ONE - rho))
+    }
+
+    /// B plus the reflected ambient term, for display before convergence.
+    pub fn display_radiosity(&self) -> Vec<DVec3> {
+        let ambient = self.ambient();
+        self.mesh
+            .elements
+            .iter()
+            .zip(&self.radiosity)
+            .enumerate()
+            .map(|(j, (e, b))| {
+                if self.active[j] {
+                    *b + e.reflectance * ambient
+                } else {
+                    *b
+                }
+            })
+            .collect()
+    }
+}
