@@ -39,7 +39,7 @@ pub fn load_any_scene(path: &Path) -> anyhow::Result<Showcase> {
     {
         scenes::load_obj_showcase(path)
     } else {
-        crate::scene_file::load_scene(path)
+        Ok(crate::scene_file::load_scene(path)?)
     }
 }
 

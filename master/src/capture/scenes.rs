@@ -104,6 +104,8 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
         });
     }
     anyhow::ensure!(!s.objects.is_empty(), "{}: no objects", path.display());
+    showcase_proto::Validate::validate(&s)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(s)
 }
 
