@@ -240,6 +240,59 @@ fn not_built(command: &'static str, capability: &'static str, issue: u32) -> any
     .into()
 }
 
+/// A file of the shared data set: `../shared/data/NAME` from the working
+/// directory (the repository root), else beside the source tree.
+fn shared_data(name: &str) -> PathBuf {
+    let here = PathBuf::from("../shared/data").join(name);
+    if here.is_file() {
+        return here;
+    }
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(name)
+}
+
+/// The machine a benchmark ran on, for reports.
+fn machine() -> String {
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!(
+        "{} {}, {cores} cores",
+        std::env::consts::OS,
+        std::env::consts::ARCH
+    )
+}
+
+fn parse_vec3(flag: &str, s: &str) -> Result<glam::DVec3> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{flag} {s:?}: expected x,y,z"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::DVec3::new(x, y, z)),
+        _ => anyhow::bail!("{flag} {s:?}: expected three finite numbers x,y,z"),
+    }
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size {s:?}: expected WxH"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .with_context(|| format!("--size {s:?}: bad width"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .with_context(|| format!("--size {s:?}: bad height"))?;
+    anyhow::ensure!(
+        w > 0 && h > 0 && w <= 16384 && h <= 16384,
+        "--size {s:?}: out of 1..=16384"
+    );
+    Ok((w, h))
+}
+
 fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -288,8 +341,27 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
-        Command::Capture(_) => Err(not_built("capture", "reflectance capture", 3)),
-        Command::Radiosity(_) => Err(not_built("radiosity", "augmented radiosity", 5)),
+        Command::Capture(args) => {
+            if !args.sim {
+                anyhow::bail!(
+                    "capture: only --sim (the simulated showcase) is available; real projector and camera drivers are not part of this build"
+                );
+            }
+            let scene = crate::capture::load_any_scene(&args.scene)?;
+            let summary = crate::capture::run_capture(&scene, &args.out)?;
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+            Ok(())
+        }
+        Command::Radiosity(args) => {
+            let opts = crate::radiosity_job::RadiosityOptions {
+                max_patch_area: args.max_patch_area,
+                hemicube: args.hemicube,
+                threshold: args.threshold,
+            };
+            let summary = crate::radiosity_job::run_radiosity(&args.scene, &args.out, &opts)?;
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+            Ok(())
+        }
         Command::Replay(args) => {
             let scene_path = args
                 .scene
@@ -329,9 +401,24 @@ pub fn run(cli: Cli) -> Result<()> {
                 Err(not_built("bench calibration", "device calibration", 4))
             }
             BenchTarget::Reflectance => {
-                Err(not_built("bench reflectance", "reflectance capture", 3))
+                let opts = crate::capture::bench::BenchOptions {
+                    cornell: shared_data("cornell-box.obj"),
+                    ..Default::default()
+                };
+                let records = crate::capture::bench_reflectance(&opts)?;
+                if !args.json {
+                    crate::capture::write_report(&records, &args.out)?;
+                }
+                emit_bench(&args, &records)
             }
-            BenchTarget::Radiosity => Err(not_built("bench radiosity", "augmented radiosity", 5)),
+            BenchTarget::Radiosity => {
+                let records =
+                    crate::radiosity_job::bench_radiosity_at(&shared_data("cornell-box.obj"))?;
+                if !args.json {
+                    crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
+                }
+                emit_bench(&args, &records)
+            }
             BenchTarget::Render => Err(not_built("bench render", "the real-time renderer", 6)),
             BenchTarget::Cluster => {
                 let scene = crate::scene_file::load_scene(&crate::demo::default_scene())?;
@@ -340,8 +427,20 @@ pub fn run(cli: Cli) -> Result<()> {
                 emit_bench(&args, &records)
             }
         },
-        Command::Sim(SimCommand::Render(_)) => {
-            Err(not_built("sim render", "the simulated showcase", 3))
+        Command::Sim(SimCommand::Render(a)) => {
+            let (width, height) = parse_size(&a.size)?;
+            crate::capture::sim_render_command(
+                &a.scene,
+                parse_vec3("--eye", &a.eye)?,
+                parse_vec3("--target", &a.target)?,
+                parse_vec3("--up", &a.up)?,
+                a.fov_deg,
+                width,
+                height,
+                &a.out,
+            )?;
+            eprintln!("wrote {}", a.out.display());
+            Ok(())
         }
     }
 }

@@ -8,7 +8,7 @@ pub mod export;
 pub mod report;
 pub mod scene;
 
-pub use bench::{BenchRecord, bench_radiosity};
+pub use bench::{BenchRecord, bench_radiosity, bench_radiosity_at};
 pub use scene::{load_any_scene, load_obj_scene};
 
 use anyhow::Context;
