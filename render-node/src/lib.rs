@@ -8,3 +8,4 @@ pub mod light;
 pub mod mirror_view;
 pub mod net;
 pub mod node;
+pub mod render;

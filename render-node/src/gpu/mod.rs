@@ -11,6 +11,8 @@
 //! naga test that needs no GPU.
 
 pub mod flat_lambert;
+pub mod irradiance_map;
+pub mod shadow_views;
 pub mod target;
 
 pub use flat_lambert::{FlatLambertBatch, FlatLambertPass};
