@@ -6,6 +6,7 @@
 //! GPU tests follow `gpu.rs`'s policy: without an adapter they fail when
 //! `CI` is set and otherwise print "skipping" and pass.
 
+mod bench;
 mod golden;
 mod passes;
 mod projector;
