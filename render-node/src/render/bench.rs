@@ -56,7 +56,13 @@ pub struct Record {
 }
 
 /// The benchmark scenes' variants.
-pub const VARIANTS: [&str; 5] = ["full", "no_virtual_objects", "single_observer", "no_reflective", "static"];
+pub const VARIANTS: [&str; 5] = [
+    "full",
+    "no_virtual_objects",
+    "single_observer",
+    "no_reflective",
+    "static",
+];
 
 /// A UV sphere of `radius` around the origin with outward winding.
 pub fn uv_sphere(radius: f32, segments: u32, rings: u32) -> Mesh {
@@ -67,7 +73,11 @@ pub fn uv_sphere(radius: f32, segments: u32, rings: u32) -> Mesh {
         let theta = std::f32::consts::PI * r as f32 / rings as f32;
         for s in 0..=segments {
             let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            let n = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
             positions.push(n * radius);
             normals.push(n);
         }
@@ -214,7 +224,11 @@ pub fn bench_light(t: f64) -> LightSource {
 
 /// Frame `n` of a variant of the bench scene (`static` does not move).
 pub fn bench_frame(scene: &Showcase, variant: &str, n: u64) -> FrameState {
-    let t = if variant == "static" { 0.0 } else { n as f64 / 60.0 };
+    let t = if variant == "static" {
+        0.0
+    } else {
+        n as f64 / 60.0
+    };
     FrameState {
         frame: n,
         time_s: t,
@@ -232,7 +246,10 @@ pub fn variant_scene(scene: &Showcase, variant: &str) -> Showcase {
     match variant {
         "no_virtual_objects" => s.objects.retain(|o| o.kind == ObjectKind::Real),
         "single_observer" => s.observers.truncate(1),
-        "no_reflective" => s.objects.iter_mut().for_each(|o| o.material.reflective = false),
+        "no_reflective" => s
+            .objects
+            .iter_mut()
+            .for_each(|o| o.material.reflective = false),
         _ => {}
     }
     s
@@ -289,7 +306,11 @@ pub fn bench_render(
             let passes = PassList::for_projector(&first);
             let gpu = pipeline.render(ctx, &first, &projector, &passes)?;
             let (_, pass_times) = pipeline.draw(ctx, &first, &projector, &passes, true)?;
-            let mut last_key = Some(FrameKey::projector(0, &bench_frame(&s, variant, 0), &passes));
+            let mut last_key = Some(FrameKey::projector(
+                0,
+                &bench_frame(&s, variant, 0),
+                &passes,
+            ));
             let mut times = Vec::with_capacity(options.frames);
             let mut passes_run = Vec::new();
             for n in 1..=options.frames as u64 {
@@ -307,10 +328,16 @@ pub fn bench_render(
                 times.push(start.elapsed().as_secs_f64() * 1e3);
             }
             times.sort_by(f64::total_cmp);
-            let (mut consistency, mut gpu_cpu, mut off_edges, mut outliers) = (None, None, None, None);
+            let (mut consistency, mut gpu_cpu, mut off_edges, mut outliers) =
+                (None, None, None, None);
             if options.accuracy {
                 let occluders = Occluders::new(&first)?;
-                let cpu = irradiance_map_cpu(&first, &occluders, &projector, ProjectorOptions::default())?;
+                let cpu = irradiance_map_cpu(
+                    &first,
+                    &occluders,
+                    &projector,
+                    ProjectorOptions::default(),
+                )?;
                 if let Ok(c) = compare_maps(&gpu, &cpu) {
                     gpu_cpu = Some(c.rel_rmse);
                     off_edges = Some(c.rel_rmse_off_edges);
@@ -318,9 +345,10 @@ pub fn bench_render(
                 }
                 let map = gpu_map_with_reference_state(&gpu, &cpu);
                 let camera = bench_camera(width, height);
-                consistency = direct_light_consistency(&first, &occluders, &projector, &map, &camera)
-                    .ok()
-                    .map(|r| r.rel_rmse);
+                consistency =
+                    direct_light_consistency(&first, &occluders, &projector, &map, &camera)
+                        .ok()
+                        .map(|r| r.rel_rmse);
             }
             records.push(Record {
                 role: "projector".into(),
@@ -336,7 +364,10 @@ pub fn bench_render(
                 gpu_cpu_rel_rmse_off_edges: off_edges,
                 outliers_off_edges: outliers,
                 clipped_fraction: gpu.clipped_fraction,
-                pass_ms: pass_times.iter().map(|(p, ms)| (p.name().to_string(), *ms)).collect(),
+                pass_ms: pass_times
+                    .iter()
+                    .map(|(p, ms)| (p.name().to_string(), *ms))
+                    .collect(),
             });
         }
     }

@@ -39,7 +39,11 @@ pub fn gpu_irradiance(gpu: &GpuIrradianceMap) -> RgbImage {
     Image {
         width: gpu.width,
         height: gpu.height,
-        data: gpu.irradiance.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+        data: gpu
+            .irradiance
+            .iter()
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect(),
     }
 }
 
@@ -67,7 +71,11 @@ pub fn gpu_map_with_reference_state(gpu: &GpuIrradianceMap, cpu: &IrradianceMap)
         value: Image {
             width: gpu.width,
             height: gpu.height,
-            data: gpu.value.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+            data: gpu
+                .value
+                .iter()
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
         },
         state,
         clipped_fraction: gpu.clipped_fraction,
@@ -75,7 +83,10 @@ pub fn gpu_map_with_reference_state(gpu: &GpuIrradianceMap, cpu: &IrradianceMap)
 }
 
 /// Compare `gpu` with `cpu`.
-pub fn compare_maps(gpu: &GpuIrradianceMap, cpu: &IrradianceMap) -> Result<MapComparison, MetricError> {
+pub fn compare_maps(
+    gpu: &GpuIrradianceMap,
+    cpu: &IrradianceMap,
+) -> Result<MapComparison, MetricError> {
     let n = cpu.state.data.len();
     if gpu.irradiance.len() != n || cpu.irradiance.data.len() != n {
         return Err(MetricError::SizeMismatch {
@@ -100,7 +111,12 @@ pub fn compare_maps(gpu: &GpuIrradianceMap, cpu: &IrradianceMap) -> Result<MapCo
     };
     let off = all.map(|&b| b);
     let off = Image {
-        data: off.data.iter().zip(&edges.data).map(|(a, e)| *a && !e).collect(),
+        data: off
+            .data
+            .iter()
+            .zip(&edges.data)
+            .map(|(a, e)| *a && !e)
+            .collect(),
         ..off
     };
     let rel_rmse = relative_rmse(&g, &cpu.irradiance, Some(&all))?;
@@ -108,7 +124,12 @@ pub fn compare_maps(gpu: &GpuIrradianceMap, cpu: &IrradianceMap) -> Result<MapCo
     let mean = {
         let (s, c) = (0..n)
             .filter(|&i| all.data[i])
-            .fold((0.0, 0usize), |(s, c), i| (s + cpu.irradiance.data[i].as_dvec3().element_sum() / 3.0, c + 1));
+            .fold((0.0, 0usize), |(s, c), i| {
+                (
+                    s + cpu.irradiance.data[i].as_dvec3().element_sum() / 3.0,
+                    c + 1,
+                )
+            });
         if c == 0 { 0.0 } else { s / c as f64 }
     };
     let (mut outliers, mut outliers_off_edges, mut state_mismatches) = (0, 0, 0);
@@ -116,14 +137,18 @@ pub fn compare_maps(gpu: &GpuIrradianceMap, cpu: &IrradianceMap) -> Result<MapCo
         let gs = gpu.irradiance[i][3];
         let cs = &cpu.state.data[i];
         let gpu_masked = gs == state::MASKED || gs == state::BACKGROUND;
-        let differs = cs.masked != gpu_masked || (!cs.masked && cs.clipped != (gs == state::CLIPPED));
+        let differs =
+            cs.masked != gpu_masked || (!cs.masked && cs.clipped != (gs == state::CLIPPED));
         if differs && !edges.data[i] {
             state_mismatches += 1;
         }
         if !all.data[i] {
             continue;
         }
-        let d = (g.data[i] - cpu.irradiance.data[i]).as_dvec3().abs().max_element();
+        let d = (g.data[i] - cpu.irradiance.data[i])
+            .as_dvec3()
+            .abs()
+            .max_element();
         let scale = cpu.irradiance.data[i].as_dvec3().max_element().max(mean);
         if d > OUTLIER_RELATIVE * scale {
             outliers += 1;

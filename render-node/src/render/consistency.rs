@@ -84,16 +84,17 @@ pub fn direct_light_consistency(
     let edges = edge_mask(&map.state, 1, true);
     let cam = DeviceRays::new(camera).map_err(RenderSetupError::from)?;
     let (w, h) = (camera.width, camera.height);
-    let pixels: Vec<(Vec3, Vec3, bool)> = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
-            let (cam, proj, edges) = (&cam, &proj, &edges);
-            (0..w).map(move |x| {
-                camera_pixel(frame, occluders, projector, map, edges, cam, proj, x, y)
-                    .unwrap_or((Vec3::ZERO, Vec3::ZERO, false))
+    let pixels: Vec<(Vec3, Vec3, bool)> =
+        (0..h)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let (cam, proj, edges) = (&cam, &proj, &edges);
+                (0..w).map(move |x| {
+                    camera_pixel(frame, occluders, projector, map, edges, cam, proj, x, y)
+                        .unwrap_or((Vec3::ZERO, Vec3::ZERO, false))
+                })
             })
-        })
-        .collect();
+            .collect();
     let mut measured = Image::new(w, h, Vec3::ZERO);
     let mut target = Image::new(w, h, Vec3::ZERO);
     let mut mask = Image::new(w, h, false);
@@ -142,7 +143,8 @@ fn camera_pixel(
     } else {
         -hit.geometric_normal
     };
-    let seen_side = hit.geometric_normal.dot(-ray.direction) * facing.dot(hit.geometric_normal) > 0.0;
+    let seen_side =
+        hit.geometric_normal.dot(-ray.direction) * facing.dot(hit.geometric_normal) > 0.0;
     let (target_e, _) = target_irradiance(frame, occluders, hit.point, facing);
     let target = rho / std::f64::consts::PI * target_e;
     let Some((px, py)) = proj.pixel_of(hit.point) else {

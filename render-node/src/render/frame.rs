@@ -80,7 +80,9 @@ pub fn spot_falloff(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
 
 /// Break lights into point samples (area lights into a stratified grid
 /// of `samples` cells, each carrying its share of the emitter).
-pub fn light_samples(lights: &[showcase_proto::LightSource]) -> Result<Vec<LightSample>, RenderSetupError> {
+pub fn light_samples(
+    lights: &[showcase_proto::LightSource],
+) -> Result<Vec<LightSample>, RenderSetupError> {
     let mut out = Vec::new();
     for source in lights {
         let bad = || RenderSetupError::BadLight {
@@ -179,13 +181,12 @@ impl FrameScene {
         let mut showcase = scene.clone();
         for t in &frame.object_transforms {
             let count = showcase.objects.len();
-            let object = showcase
-                .objects
-                .get_mut(t.object as usize)
-                .ok_or(RenderSetupError::ObjectOutOfRange {
+            let object = showcase.objects.get_mut(t.object as usize).ok_or(
+                RenderSetupError::ObjectOutOfRange {
                     object: t.object,
                     count,
-                })?;
+                },
+            )?;
             object.transform = t.transform;
         }
         showcase.lights = frame.lights.clone();

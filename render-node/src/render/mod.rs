@@ -4,6 +4,10 @@
 //! compensation ([`projector`], [`projector_gpu`]), the direct-light
 //! consistency check ([`consistency`]), and the pass list that skips what a
 //! frame does not need ([`passes`]).
+#![forbid(unsafe_code)]
+// `!(x > 0.0)` is deliberate: it is also true for NaN, which is how bad
+// input is turned away instead of propagated (as in `light`).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bench;
 pub mod compare;

@@ -68,7 +68,11 @@ impl PassList {
         if some_light_emits(frame) && !coplanar(&frame.showcase) {
             passes.push(Pass::LightShadowViews);
         }
-        let has_virtual = frame.showcase.objects.iter().any(|o| o.kind == ObjectKind::Virtual);
+        let has_virtual = frame
+            .showcase
+            .objects
+            .iter()
+            .any(|o| o.kind == ObjectKind::Virtual);
         if !frame.eyes.is_empty() && has_virtual {
             passes.push(Pass::EyeShadowViews);
         }
@@ -78,7 +82,10 @@ impl PassList {
 }
 
 fn some_light_emits(frame: &FrameScene) -> bool {
-    frame.samples.iter().any(|s| s.intensity.max_element() > 0.0)
+    frame
+        .samples
+        .iter()
+        .any(|s| s.intensity.max_element() > 0.0)
 }
 
 /// True when every vertex of every object lies in one plane (within
@@ -86,10 +93,17 @@ fn some_light_emits(frame: &FrameScene) -> bool {
 pub fn coplanar(showcase: &Showcase) -> bool {
     let mut points = Vec::new();
     for o in &showcase.objects {
-        let (Some(mesh), Some(m)) = (showcase.mesh(&o.mesh), crate::light::world_matrix(&o.transform)) else {
+        let (Some(mesh), Some(m)) = (
+            showcase.mesh(&o.mesh),
+            crate::light::world_matrix(&o.transform),
+        ) else {
             return false;
         };
-        points.extend(mesh.positions.iter().map(|p| m.transform_point3(p.as_dvec3())));
+        points.extend(
+            mesh.positions
+                .iter()
+                .map(|p| m.transform_point3(p.as_dvec3())),
+        );
     }
     let Some(&a) = points.first() else {
         return true;
@@ -132,7 +146,12 @@ impl FrameKey {
         }
         if passes.runs(Pass::EyeShadowViews) {
             for p in &frame.heads {
-                for c in p.position.to_array().into_iter().chain(p.orientation.to_array()) {
+                for c in p
+                    .position
+                    .to_array()
+                    .into_iter()
+                    .chain(p.orientation.to_array())
+                {
                     f(&mut h, c);
                 }
             }
@@ -181,7 +200,12 @@ mod tests {
     fn coplanar_detects_a_plate_and_rejects_a_fold() {
         let plate = scene(vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z]);
         assert!(coplanar(&plate));
-        let fold = scene(vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.3, 1.0)]);
+        let fold = scene(vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.3, 1.0),
+        ]);
         assert!(!coplanar(&fold));
         assert!(coplanar(&Showcase::default()));
     }

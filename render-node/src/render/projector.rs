@@ -111,8 +111,9 @@ pub fn in_occlusion_shadow(
     point: DVec3,
     facing: DVec3,
 ) -> bool {
-    eyes.iter()
-        .any(|&eye| facing.dot(eye - point) > 0.0 && !virtual_only.visible(point, facing, eye, false))
+    eyes.iter().any(|&eye| {
+        facing.dot(eye - point) > 0.0 && !virtual_only.visible(point, facing, eye, false)
+    })
 }
 
 /// Device compensation of one pixel: the value that makes the projector
@@ -295,14 +296,17 @@ fn pixel_irradiance(
     let cos_p = -facing.dot(ray.direction);
     let r2 = hit.t * hit.t;
     if !(cos_p >= COS_FLOOR && r2 > 0.0) {
-        return (DVec3::ZERO, PixelState {
+        return (
+            DVec3::ZERO,
+            PixelState {
                 object,
                 primitive,
                 ..masked
-            });
+            },
+        );
     }
-    let occluded =
-        options.occlusion && in_occlusion_shadow(&occluders.virtual_only, &frame.eyes, hit.point, facing);
+    let occluded = options.occlusion
+        && in_occlusion_shadow(&occluders.virtual_only, &frame.eyes, hit.point, facing);
     if occluded {
         return (
             DVec3::ZERO,
@@ -385,7 +389,10 @@ mod tests {
             let (v, clipped) = compensate(DVec3::splat(l), &r);
             assert!(!clipped, "{l}");
             let j = emitted_intensity(v, &r);
-            assert!((j - DVec3::splat(l)).abs().max_element() < 1e-12, "{l} -> {j}");
+            assert!(
+                (j - DVec3::splat(l)).abs().max_element() < 1e-12,
+                "{l} -> {j}"
+            );
         }
     }
 

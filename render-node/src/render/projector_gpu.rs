@@ -39,14 +39,19 @@ pub fn world_vertices(
             continue;
         }
         let name = || o.name.clone();
-        let mesh = showcase.mesh(&o.mesh).ok_or_else(|| {
-            crate::light::GeometryError::MissingMesh {
+        let mesh =
+            showcase
+                .mesh(&o.mesh)
+                .ok_or_else(|| crate::light::GeometryError::MissingMesh {
+                    object: oi,
+                    name: name(),
+                })?;
+        let m = world_matrix(&o.transform).ok_or_else(|| {
+            crate::light::GeometryError::BadTransform {
                 object: oi,
                 name: name(),
             }
         })?;
-        let m = world_matrix(&o.transform)
-            .ok_or_else(|| crate::light::GeometryError::BadTransform { object: oi, name: name() })?;
         for (ti, tri) in mesh.triangles.iter().enumerate() {
             let mut v = [DVec3::ZERO; 3];
             for (k, &i) in tri.iter().enumerate() {
@@ -112,7 +117,11 @@ fn vertex_buffer(device: &wgpu::Device, vertices: &[WorldVertex]) -> wgpu::Buffe
         position: [0.0; 3],
         normal: [0.0; 3],
     }];
-    let data = if vertices.is_empty() { &placeholder[..] } else { vertices };
+    let data = if vertices.is_empty() {
+        &placeholder[..]
+    } else {
+        vertices
+    };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("world vertices"),
         contents: bytemuck::cast_slice(data),
@@ -155,7 +164,11 @@ impl ProjectorPipeline {
         let all_points = points(&all);
         let centre = projector.device.center();
         let mut far_base = 0.0f64;
-        for p in all_points.iter().chain(frame.eyes.iter()).chain(frame.samples.iter().map(|s| &s.position)) {
+        for p in all_points
+            .iter()
+            .chain(frame.eyes.iter())
+            .chain(frame.samples.iter().map(|s| &s.position))
+        {
             far_base = far_base.max((*p - centre).length());
         }
         // Every origin (light, eye) is within 2 far_base of every point.
@@ -223,9 +236,13 @@ impl ProjectorPipeline {
         };
         let mut times = Vec::new();
         let mut encoder = device.create_command_encoder(&Default::default());
-        let mut flush = |encoder: &mut wgpu::CommandEncoder, pass: Pass, since: &mut Instant| -> Result<(), RenderSetupError> {
+        let mut flush = |encoder: &mut wgpu::CommandEncoder,
+                         pass: Pass,
+                         since: &mut Instant|
+         -> Result<(), RenderSetupError> {
             if timed {
-                let done = std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
+                let done =
+                    std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
                 ctx.queue.submit([done.finish()]);
                 wait_idle(device)?;
                 times.push((pass, since.elapsed().as_secs_f64() * 1e3));
@@ -265,7 +282,11 @@ impl ProjectorPipeline {
         let response = &projector.response;
         let inputs = IrradianceInputs {
             frame: FrameUniform {
-                clip_from_world: projector.device.clip_from_world().as_mat4().to_cols_array_2d(),
+                clip_from_world: projector
+                    .device
+                    .clip_from_world()
+                    .as_mat4()
+                    .to_cols_array_2d(),
                 projector: centre.as_vec3().extend(0.0).to_array(),
                 ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
                 response: [
@@ -288,8 +309,13 @@ impl ProjectorPipeline {
             vertices: &real_buffer,
             vertex_count: real.len() as u32,
         };
-        self.irradiance
-            .encode(device, &mut encoder, &targets.irradiance, &targets.value, &inputs)?;
+        self.irradiance.encode(
+            device,
+            &mut encoder,
+            &targets.irradiance,
+            &targets.value,
+            &inputs,
+        )?;
         flush(&mut encoder, Pass::IrradianceMap, &mut since)?;
         ctx.queue.submit([encoder.finish()]);
         Ok((targets, times))
@@ -297,7 +323,11 @@ impl ProjectorPipeline {
 
     /// Read a drawn frame back (waits for the GPU). Non-finite values
     /// become 0.
-    pub fn read(&self, ctx: &GpuContext, targets: &ProjectorTargets) -> Result<GpuIrradianceMap, RenderSetupError> {
+    pub fn read(
+        &self,
+        ctx: &GpuContext,
+        targets: &ProjectorTargets,
+    ) -> Result<GpuIrradianceMap, RenderSetupError> {
         let clean = |v: Vec<[f32; 4]>| -> Vec<[f32; 4]> {
             v.into_iter()
                 .map(|p| p.map(|c| if c.is_finite() { c } else { 0.0 }))
@@ -392,11 +422,18 @@ impl ProjectorRenderer {
         &self.ctx
     }
 
-    fn render_frame(&mut self, frame: &FrameState, scene: &Showcase) -> Result<RenderOutput, RenderSetupError> {
-        let projector = scene
-            .projectors
-            .get(self.projector)
-            .ok_or(RenderSetupError::NoProjector { index: self.projector })?;
+    fn render_frame(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderSetupError> {
+        let projector =
+            scene
+                .projectors
+                .get(self.projector)
+                .ok_or(RenderSetupError::NoProjector {
+                    index: self.projector,
+                })?;
         let resolved = FrameScene::resolve(scene, frame)?;
         let passes = if self.force_all_passes {
             PassList::full()
@@ -404,17 +441,20 @@ impl ProjectorRenderer {
             PassList::for_projector(&resolved)
         };
         let key = FrameKey::projector(self.projector, frame, &passes);
-        if let Some((last_key, output, clipped)) = &self.last {
-            if *last_key == key && !self.force_all_passes {
-                self.report = FrameReport {
-                    passes_run: Vec::new(),
-                    reused: true,
-                    clipped_fraction: *clipped,
-                };
-                return Ok(output.clone());
-            }
+        if let Some((last_key, output, clipped)) = &self.last
+            && *last_key == key
+            && !self.force_all_passes
+        {
+            self.report = FrameReport {
+                passes_run: Vec::new(),
+                reused: true,
+                clipped_fraction: *clipped,
+            };
+            return Ok(output.clone());
         }
-        let map = self.pipeline.render(&self.ctx, &resolved, projector, &passes)?;
+        let map = self
+            .pipeline
+            .render(&self.ctx, &resolved, projector, &passes)?;
         let output = RenderOutput {
             hash: hash_pixels(&map.value),
             image: Some(OutputImage {
@@ -440,15 +480,23 @@ impl Renderer for ProjectorRenderer {
         Ok(())
     }
 
-    fn render(&mut self, frame: &FrameState, scene: &Showcase) -> Result<RenderOutput, RenderError> {
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
         if self.scene_version != Some(frame.scene_version) {
             return Err(RenderError(format!(
                 "projector {}: frame {} is for scene version {} but the renderer has {:?}",
                 self.projector, frame.frame, frame.scene_version, self.scene_version
             )));
         }
-        self.render_frame(frame, scene)
-            .map_err(|e| RenderError(format!("projector {}: frame {}: {e}", self.projector, frame.frame)))
+        self.render_frame(frame, scene).map_err(|e| {
+            RenderError(format!(
+                "projector {}: frame {}: {e}",
+                self.projector, frame.frame
+            ))
+        })
     }
 
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {

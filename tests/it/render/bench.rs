@@ -53,9 +53,17 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
         }
     }
     let by = |v: &str| records.iter().find(|r| r.scene_variant == v).unwrap();
-    ensure!(by("full").passes_run.len() == 3, "{:?}", by("full").passes_run);
+    ensure!(
+        by("full").passes_run.len() == 3,
+        "{:?}",
+        by("full").passes_run
+    );
     ensure!(by("no_virtual_objects").passes_run.len() == 2);
-    ensure!(by("static").passes_run.is_empty(), "static redrew: {:?}", by("static").passes_run);
+    ensure!(
+        by("static").passes_run.is_empty(),
+        "static redrew: {:?}",
+        by("static").passes_run
+    );
     ensure!(by("full").gpu_cpu_rel_rmse.is_some() && by("full").consistency_rel_rmse.is_some());
     Ok(())
 }

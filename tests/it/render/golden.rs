@@ -22,7 +22,9 @@ const LEVEL_TOLERANCE: u16 = 64;
 const EDGE_FRACTION: f64 = 5e-3;
 
 fn golden_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("golden").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("golden")
+        .join(name)
 }
 
 fn to_levels(pixels: &[Vec3]) -> Vec<u16> {
@@ -71,18 +73,31 @@ fn check_golden(name: &str, width: u32, height: u32, pixels: &[Vec3]) -> Result<
         return Ok(());
     }
     if !path.exists() {
-        bail!("golden image {} is missing; run with BLESS=1 to write it", path.display());
+        bail!(
+            "golden image {} is missing; run with BLESS=1 to write it",
+            path.display()
+        );
     }
     let (w, h, reference) = read_png(&path)?;
-    ensure!((w, h) == (width, height), "{name}: golden is {w}x{h}, output {width}x{height}");
+    ensure!(
+        (w, h) == (width, height),
+        "{name}: golden is {w}x{h}, output {width}x{height}"
+    );
     let off = levels
         .chunks_exact(3)
         .zip(reference.chunks_exact(3))
-        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > LEVEL_TOLERANCE))
+        .filter(|(a, b)| {
+            a.iter()
+                .zip(b.iter())
+                .any(|(x, y)| x.abs_diff(*y) > LEVEL_TOLERANCE)
+        })
         .count();
     let fraction = off as f64 / (w * h) as f64;
     eprintln!("{name}: {off} pixels off ({fraction})");
-    ensure!(fraction <= EDGE_FRACTION, "{name}: {off} pixels differ from the golden image");
+    ensure!(
+        fraction <= EDGE_FRACTION,
+        "{name}: {off} pixels differ from the golden image"
+    );
     Ok(())
 }
 
@@ -97,7 +112,16 @@ fn projector_values_match_the_golden_image() -> Result<()> {
     let Some(ctx) = gpu_or_skip("projector_values_match_the_golden_image")? else {
         return Ok(());
     };
-    let gpu = ProjectorPipeline::new(&ctx.device, 1024).render(&ctx, &frame, &projector, &PassList::full())?;
-    let values: Vec<Vec3> = gpu.value.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+    let gpu = ProjectorPipeline::new(&ctx.device, 1024).render(
+        &ctx,
+        &frame,
+        &projector,
+        &PassList::full(),
+    )?;
+    let values: Vec<Vec3> = gpu
+        .value
+        .iter()
+        .map(|p| Vec3::new(p[0], p[1], p[2]))
+        .collect();
     check_golden("projector_bench_gpu_160x120.png", 160, 120, &values)
 }

@@ -17,13 +17,21 @@ use super::scenes::{bench, plate_scene, point};
 
 /// Render `frame` with the pass list and with every pass forced; return
 /// the passes the pass list ran and both hashes.
-fn skip_and_full(r: &mut ProjectorRenderer, scene: &Showcase, frame: &FrameState) -> Result<(Vec<Pass>, u64, u64)> {
+fn skip_and_full(
+    r: &mut ProjectorRenderer,
+    scene: &Showcase,
+    frame: &FrameState,
+) -> Result<(Vec<Pass>, u64, u64)> {
     r.force_all_passes = false;
     let skipped = r.render(frame, scene)?.hash;
     let passes = r.report().passes_run.clone();
     r.force_all_passes = true;
     let full = r.render(frame, scene)?.hash;
-    ensure!(r.report().passes_run.len() == 3, "forced run ran {:?}", r.report().passes_run);
+    ensure!(
+        r.report().passes_run.len() == 3,
+        "forced run ran {:?}",
+        r.report().passes_run
+    );
     r.force_all_passes = false;
     Ok((passes, skipped, full))
 }
@@ -52,7 +60,10 @@ fn shadow_views_are_skipped_when_no_occluder_can_be_lit() -> Result<()> {
     r.set_scene(1, Arc::new(scene.clone()))?;
     let (passes, skipped, full) = skip_and_full(&mut r, &scene, &frame_of(&scene, 0))?;
     ensure!(passes == vec![Pass::IrradianceMap], "plate ran {passes:?}");
-    ensure!(skipped == full, "skipping the shadow views changed the output");
+    ensure!(
+        skipped == full,
+        "skipping the shadow views changed the output"
+    );
     // No light at all: nothing can be lit.
     let mut dark = bench()?;
     dark.lights.clear();
@@ -61,8 +72,14 @@ fn shadow_views_are_skipped_when_no_occluder_can_be_lit() -> Result<()> {
     frame.lights.clear();
     r.set_scene(1, Arc::new(dark.clone()))?;
     let (passes, skipped, full) = skip_and_full(&mut r, &dark, &frame)?;
-    ensure!(!passes.contains(&Pass::LightShadowViews), "unlit scene ran {passes:?}");
-    ensure!(skipped == full, "skipping the shadow views of an unlit scene changed the output");
+    ensure!(
+        !passes.contains(&Pass::LightShadowViews),
+        "unlit scene ran {passes:?}"
+    );
+    ensure!(
+        skipped == full,
+        "skipping the shadow views of an unlit scene changed the output"
+    );
     // The bench scene needs them.
     let mut lit = bench()?;
     lit.projectors = vec![bench_projector(160, 120)];
@@ -74,7 +91,9 @@ fn shadow_views_are_skipped_when_no_occluder_can_be_lit() -> Result<()> {
 
 #[test]
 fn occlusion_views_are_skipped_without_virtual_objects_or_observers() -> Result<()> {
-    let Some(ctx) = gpu_or_skip("occlusion_views_are_skipped_without_virtual_objects_or_observers")? else {
+    let Some(ctx) =
+        gpu_or_skip("occlusion_views_are_skipped_without_virtual_objects_or_observers")?
+    else {
         return Ok(());
     };
     let mut r = ProjectorRenderer::new(ctx, 0, 256);
@@ -82,7 +101,10 @@ fn occlusion_views_are_skipped_without_virtual_objects_or_observers() -> Result<
     scene.projectors = vec![bench_projector(160, 120)];
     r.set_scene(1, Arc::new(scene.clone()))?;
     let (passes, skipped, full) = skip_and_full(&mut r, &scene, &bench_frame(&scene, "full", 0))?;
-    ensure!(passes == vec![Pass::LightShadowViews, Pass::IrradianceMap], "ran {passes:?}");
+    ensure!(
+        passes == vec![Pass::LightShadowViews, Pass::IrradianceMap],
+        "ran {passes:?}"
+    );
     ensure!(skipped == full, "skipping the eye views changed the output");
     let mut scene = bench()?;
     scene.projectors = vec![bench_projector(160, 120)];
@@ -90,8 +112,14 @@ fn occlusion_views_are_skipped_without_virtual_objects_or_observers() -> Result<
     frame.heads.clear();
     r.set_scene(1, Arc::new(scene.clone()))?;
     let (passes, skipped, full) = skip_and_full(&mut r, &scene, &frame)?;
-    ensure!(!passes.contains(&Pass::EyeShadowViews), "no observer but ran {passes:?}");
-    ensure!(skipped == full, "skipping the eye views without observers changed the output");
+    ensure!(
+        !passes.contains(&Pass::EyeShadowViews),
+        "no observer but ran {passes:?}"
+    );
+    ensure!(
+        skipped == full,
+        "skipping the eye views without observers changed the output"
+    );
     Ok(())
 }
 
@@ -108,13 +136,23 @@ fn unchanged_frames_are_reused_and_changed_ones_are_not() -> Result<()> {
     let first = r.render(&f0, &scene)?;
     ensure!(!r.report().reused);
     // Same state, next frame number: reused, nothing ran, same output.
-    let f1 = FrameState { frame: 1, ..f0.clone() };
+    let f1 = FrameState {
+        frame: 1,
+        ..f0.clone()
+    };
     let again = r.render(&f1, &scene)?;
-    ensure!(r.report().reused && r.report().passes_run.is_empty(), "{:?}", r.report());
+    ensure!(
+        r.report().reused && r.report().passes_run.is_empty(),
+        "{:?}",
+        r.report()
+    );
     ensure!(again == first);
     // ... and identical to a full render of that frame.
     r.force_all_passes = true;
-    ensure!(r.render(&f1, &scene)?.hash == first.hash, "reused frame differs from a full render");
+    ensure!(
+        r.render(&f1, &scene)?.hash == first.hash,
+        "reused frame differs from a full render"
+    );
     r.force_all_passes = false;
     // A head moves: occlusion shadows change, so the frame is drawn.
     let mut moved = f1.clone();
@@ -124,7 +162,10 @@ fn unchanged_frames_are_reused_and_changed_ones_are_not() -> Result<()> {
         ..moved.heads[0]
     };
     let out = r.render(&moved, &scene)?;
-    ensure!(!r.report().reused && out.hash != first.hash, "moving a head did not redraw");
+    ensure!(
+        !r.report().reused && out.hash != first.hash,
+        "moving a head did not redraw"
+    );
     // The light moves: drawn.
     let mut lit = moved.clone();
     lit.frame = 3;
@@ -133,11 +174,17 @@ fn unchanged_frames_are_reused_and_changed_ones_are_not() -> Result<()> {
     // Without virtual objects heads are invisible to a projector: reused.
     let plain = variant_scene(&scene, "no_virtual_objects");
     r.set_scene(2, Arc::new(plain.clone()))?;
-    let g0 = FrameState { scene_version: 2, ..f0 };
+    let g0 = FrameState {
+        scene_version: 2,
+        ..f0
+    };
     let base = r.render(&g0, &plain)?;
     let mut g1 = g0.clone();
     g1.frame = 1;
     g1.heads[0].position.x += 0.05;
-    ensure!(r.render(&g1, &plain)? == base && r.report().reused, "head move redrew a scene without virtual objects");
+    ensure!(
+        r.render(&g1, &plain)? == base && r.report().reused,
+        "head move redrew a scene without virtual objects"
+    );
     Ok(())
 }

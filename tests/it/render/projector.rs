@@ -48,7 +48,11 @@ fn plate_irradiance_map_is_the_analytic_quotient() -> Result<()> {
             let p = ray.at(t);
             let s = map.state.get(x, y).unwrap();
             let on_plate = t > 0.0 && (0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.z);
-            ensure!(s.masked != on_plate, "pixel {x},{y}: masked {} on plate {on_plate}", s.masked);
+            ensure!(
+                s.masked != on_plate,
+                "pixel {x},{y}: masked {} on plate {on_plate}",
+                s.masked
+            );
             if !on_plate {
                 continue;
             }
@@ -56,7 +60,10 @@ fn plate_irradiance_map_is_the_analytic_quotient() -> Result<()> {
             let e = 1.0 * to_l.y / to_l.length().powi(3) + 0.05;
             let expected = e * t * t / -ray.direction.y;
             let got = map.irradiance.get(x, y).unwrap().x as f64;
-            ensure!((got - expected).abs() <= 1e-6 * expected, "pixel {x},{y}: L {got} expected {expected}");
+            ensure!(
+                (got - expected).abs() <= 1e-6 * expected,
+                "pixel {x},{y}: L {got} expected {expected}"
+            );
             if expected > 4.0 {
                 clipped += 1;
             }
@@ -94,7 +101,11 @@ fn virtual_objects_shadow_real_ones_and_cast_occlusion_shadows() -> Result<()> {
     let projector = bench_projector(320, 240);
     let map = irradiance_map_cpu(&frame, &occ, &projector, ProjectorOptions::default())?;
     let rays = DeviceRays::new(&projector.device)?;
-    let sphere = scene.objects.iter().find(|o| o.name == "virtual sphere").unwrap();
+    let sphere = scene
+        .objects
+        .iter()
+        .find(|o| o.name == "virtual sphere")
+        .unwrap();
     let centre = sphere.transform.translation.as_dvec3();
     // Shadow type 5: the wall behind the sphere, seen from the light,
     // gets the ambient term only.
@@ -102,21 +113,38 @@ fn virtual_objects_shadow_real_ones_and_cast_occlusion_shadows() -> Result<()> {
     let (p, n) = behind(&occ, light, centre).unwrap();
     let (e, lit) = showcase_render::render::projector::target_irradiance(&frame, &occ, p, n);
     ensure!(lit == 0, "the light reaches the point behind the sphere");
-    ensure!((e - frame.ambient()).length() < 1e-12, "shadow irradiance {e} is not the ambient");
+    ensure!(
+        (e - frame.ambient()).length() < 1e-12,
+        "shadow irradiance {e} is not the ambient"
+    );
     // Occlusion shadows: for every eye, the projector pixel of the wall
     // point behind the sphere is dark and marked occluded.
     let mut seen = 0;
     for eye in &frame.eyes {
         let (p, _) = behind(&occ, *eye, centre).unwrap();
-        let Some((x, y)) = rays.pixel_of(p) else { continue };
+        let Some((x, y)) = rays.pixel_of(p) else {
+            continue;
+        };
         let s = map.state.get(x, y).unwrap();
-        ensure!(s.occluded, "eye {eye}: pixel {x},{y} behind the sphere is not occluded");
+        ensure!(
+            s.occluded,
+            "eye {eye}: pixel {x},{y} behind the sphere is not occluded"
+        );
         ensure!(*map.irradiance.get(x, y).unwrap() == Vec3::ZERO);
         seen += 1;
     }
-    ensure!(seen == 4, "only {seen} of 4 eyes' occlusion shadows are in the projector's image");
+    ensure!(
+        seen == 4,
+        "only {seen} of 4 eyes' occlusion shadows are in the projector's image"
+    );
     // Without observers nothing is occluded.
-    let none = FrameScene::resolve(&scene, &FrameState { heads: vec![], ..state })?;
+    let none = FrameScene::resolve(
+        &scene,
+        &FrameState {
+            heads: vec![],
+            ..state
+        },
+    )?;
     let map = irradiance_map_cpu(&none, &occ, &projector, ProjectorOptions::default())?;
     ensure!(map.state.data.iter().all(|s| !s.occluded));
     Ok(())
@@ -170,7 +198,10 @@ fn gpu_irradiance_map_matches_the_cpu_reference() -> Result<()> {
         let cpu = irradiance_map_cpu(&frame, &occ, &projector, ProjectorOptions::default())?;
         let gpu = pipeline.render(&ctx, &frame, &projector, &PassList::full())?;
         let c = compare_maps(&gpu, &cpu)?;
-        eprintln!("{name}: {c:?}; clipped gpu {} cpu {}", gpu.clipped_fraction, cpu.clipped_fraction);
+        eprintln!(
+            "{name}: {c:?}; clipped gpu {} cpu {}",
+            gpu.clipped_fraction, cpu.clipped_fraction
+        );
         ensure!(
             c.rel_rmse_off_edges <= GPU_CPU_REL_RMSE,
             "{name}: rel RMSE off edges {}",
@@ -188,7 +219,10 @@ fn gpu_irradiance_map_matches_the_cpu_reference() -> Result<()> {
             c.outliers_off_edges,
             c.pixels
         );
-        ensure!(c.state_mismatches as f64 <= OFF_EDGE_OUTLIERS * c.pixels as f64, "{name}: {c:?}");
+        ensure!(
+            c.state_mismatches as f64 <= OFF_EDGE_OUTLIERS * c.pixels as f64,
+            "{name}: {c:?}"
+        );
         ensure!(
             (gpu.clipped_fraction - cpu.clipped_fraction).abs() < 0.01,
             "{name}: clipped fraction gpu {} cpu {}",
@@ -208,9 +242,20 @@ fn direct_light_consistency_within_one_percent() -> Result<()> {
         let cpu = irradiance_map_cpu(&frame, &occ, &projector, ProjectorOptions::default())?;
         let camera = bench_camera(320, 240);
         let r = direct_light_consistency(&frame, &occ, &projector, &cpu, &camera)?;
-        eprintln!("{name}: consistency {} over {} pixels, clipped {}", r.rel_rmse, r.pixels, cpu.clipped_fraction);
-        ensure!(r.pixels > 20_000, "{name}: only {} pixels compared", r.pixels);
-        ensure!(r.rel_rmse <= CONSISTENCY_REL_RMSE, "{name}: consistency {}", r.rel_rmse);
+        eprintln!(
+            "{name}: consistency {} over {} pixels, clipped {}",
+            r.rel_rmse, r.pixels, cpu.clipped_fraction
+        );
+        ensure!(
+            r.pixels > 20_000,
+            "{name}: only {} pixels compared",
+            r.pixels
+        );
+        ensure!(
+            r.rel_rmse <= CONSISTENCY_REL_RMSE,
+            "{name}: consistency {}",
+            r.rel_rmse
+        );
         // A wrong map must fail the check: drop the shadows.
         let unshadowed = irradiance_map_cpu(
             &frame,
@@ -222,7 +267,11 @@ fn direct_light_consistency_within_one_percent() -> Result<()> {
             },
         )?;
         let wrong = direct_light_consistency(&frame, &occ, &projector, &unshadowed, &camera)?;
-        ensure!(wrong.rel_rmse > 0.05, "{name}: an unshadowed map passes ({})", wrong.rel_rmse);
+        ensure!(
+            wrong.rel_rmse > 0.05,
+            "{name}: an unshadowed map passes ({})",
+            wrong.rel_rmse
+        );
     }
     Ok(())
 }
@@ -236,11 +285,20 @@ fn gpu_output_is_consistent_end_to_end() -> Result<()> {
     let occ = Occluders::new(&frame)?;
     let projector = bench_projector(640, 480);
     let cpu = irradiance_map_cpu(&frame, &occ, &projector, ProjectorOptions::default())?;
-    let gpu = ProjectorPipeline::new(&ctx.device, 1024).render(&ctx, &frame, &projector, &PassList::full())?;
+    let gpu = ProjectorPipeline::new(&ctx.device, 1024).render(
+        &ctx,
+        &frame,
+        &projector,
+        &PassList::full(),
+    )?;
     let map = gpu_map_with_reference_state(&gpu, &cpu);
     let r = direct_light_consistency(&frame, &occ, &projector, &map, &bench_camera(320, 240))?;
     eprintln!("gpu consistency {} over {} pixels", r.rel_rmse, r.pixels);
-    ensure!(r.pixels > 20_000 && r.rel_rmse <= CONSISTENCY_REL_RMSE, "gpu consistency {}", r.rel_rmse);
+    ensure!(
+        r.pixels > 20_000 && r.rel_rmse <= CONSISTENCY_REL_RMSE,
+        "gpu consistency {}",
+        r.rel_rmse
+    );
     Ok(())
 }
 
@@ -252,7 +310,11 @@ fn observers_heads_place_the_eyes() -> Result<()> {
     ensure!(frame.eyes.len() == 4);
     let expected = Observer::eyes(&state.heads[1], scene.observers[1].ipd);
     ensure!(frame.eyes[2] == expected[0].as_dvec3() && frame.eyes[3] == expected[1].as_dvec3());
-    let real = scene.objects.iter().filter(|o| o.kind == ObjectKind::Real).count();
+    let real = scene
+        .objects
+        .iter()
+        .filter(|o| o.kind == ObjectKind::Real)
+        .count();
     ensure!(real == 6, "five walls and the bunny are real, got {real}");
     let _ = Pose::default();
     Ok(())

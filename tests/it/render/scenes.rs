@@ -32,7 +32,12 @@ fn load_obj(path: &Path) -> Result<Vec<(String, Mesh, Vec3)>> {
                 .chunks_exact(3)
                 .map(|p| Vec3::new(p[0], p[1], p[2]))
                 .collect();
-            let triangles = m.mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+            let triangles = m
+                .mesh
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect();
             let albedo = m
                 .mesh
                 .material_id
@@ -57,9 +62,15 @@ fn load_obj(path: &Path) -> Result<Vec<(String, Mesh, Vec3)>> {
 pub(super) fn bench() -> Result<Showcase> {
     let walls = load_obj(&data("cornell-box.obj"))?
         .into_iter()
-        .filter(|(name, _, _)| ["floor", "ceiling", "back", "right_green", "left_red"].contains(&name.as_str()))
+        .filter(|(name, _, _)| {
+            ["floor", "ceiling", "back", "right_green", "left_red"].contains(&name.as_str())
+        })
         .collect::<Vec<_>>();
-    anyhow::ensure!(walls.len() == 5, "expected five Cornell walls, got {}", walls.len());
+    anyhow::ensure!(
+        walls.len() == 5,
+        "expected five Cornell walls, got {}",
+        walls.len()
+    );
     let bunny = load_obj(&data("bunny.obj"))?
         .into_iter()
         .next()

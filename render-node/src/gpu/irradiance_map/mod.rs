@@ -103,9 +103,17 @@ fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-fn storage_buffer<T: Pod + Zeroable>(device: &wgpu::Device, label: &str, data: &[T]) -> wgpu::Buffer {
+fn storage_buffer<T: Pod + Zeroable>(
+    device: &wgpu::Device,
+    label: &str,
+    data: &[T],
+) -> wgpu::Buffer {
     let placeholder = [T::zeroed()];
-    let data = if data.is_empty() { &placeholder[..] } else { data };
+    let data = if data.is_empty() {
+        &placeholder[..]
+    } else {
+        data
+    };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytemuck::cast_slice(data),

@@ -49,7 +49,14 @@ pub fn world_vertex_layout() -> wgpu::VertexBufferLayout<'static> {
     }
 }
 
-fn perspective_view(origin: Vec3, dir: Vec3, up: Vec3, fov: f32, near: f32, far: f32) -> ShadowView {
+fn perspective_view(
+    origin: Vec3,
+    dir: Vec3,
+    up: Vec3,
+    fov: f32,
+    near: f32,
+    far: f32,
+) -> ShadowView {
     let clip = Mat4::perspective_rh(fov, 1.0, near, far) * Mat4::look_to_rh(origin, dir, up);
     ShadowView {
         clip_from_world: clip.to_cols_array_2d(),
@@ -129,7 +136,9 @@ impl ShadowMaps {
             return Err(GpuError::BadTargetSize {
                 width: res,
                 height: layers,
-                limit: limits.max_texture_dimension_2d.min(limits.max_texture_array_layers),
+                limit: limits
+                    .max_texture_dimension_2d
+                    .min(limits.max_texture_array_layers),
             });
         }
         let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -289,7 +298,11 @@ impl ShadowViewsPass {
     /// Upload `views` as the storage buffer both passes read.
     pub fn upload_views(&self, device: &wgpu::Device, views: &[ShadowView]) -> wgpu::Buffer {
         let placeholder = [ShadowView::zeroed()];
-        let data = if views.is_empty() { &placeholder[..] } else { views };
+        let data = if views.is_empty() {
+            &placeholder[..]
+        } else {
+            views
+        };
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("shadow views"),
             contents: bytemuck::cast_slice(data),
@@ -381,7 +394,11 @@ mod tests {
         ] {
             let inside = views
                 .iter()
-                .filter(|v| ndc(v, o + d).is_some_and(|n| n.x.abs() < 1.0 && n.y.abs() < 1.0 && n.z > 0.0 && n.z < 1.0))
+                .filter(|v| {
+                    ndc(v, o + d).is_some_and(|n| {
+                        n.x.abs() < 1.0 && n.y.abs() < 1.0 && n.z > 0.0 && n.z < 1.0
+                    })
+                })
                 .count();
             assert_eq!(inside, 1, "{d}");
         }
@@ -393,7 +410,14 @@ mod tests {
         let (c, r) = (Vec3::new(0.2, 0.1, 0.0), 0.3);
         let views = fitted_views(o, c, r, 1e-3, 10.0, 256);
         assert_eq!(views.len(), 1);
-        for d in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::NEG_X, Vec3::NEG_Y, Vec3::NEG_Z] {
+        for d in [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::NEG_X,
+            Vec3::NEG_Y,
+            Vec3::NEG_Z,
+        ] {
             let n = ndc(&views[0], c + d * r).unwrap();
             assert!(n.x.abs() < 1.0 && n.y.abs() < 1.0, "{d}: {n}");
         }
