@@ -9,8 +9,8 @@ use std::time::Instant;
 use glam::{DVec3, Quat, Vec3};
 use serde::Serialize;
 use showcase_proto::{
-    FrameState, Light, LightSource, Material, Mesh, Object, ObjectKind, Observer, PinholeDevice,
-    Pose, Projector, ProjectorResponse, Showcase, Transform,
+    CrtFace, FrameState, Light, LightSource, Material, Mesh, Object, ObjectKind, Observer,
+    PinholeDevice, Plane, Pose, Projector, ProjectorResponse, Rect3, Showcase, Transform,
 };
 
 use super::RenderSetupError;
@@ -207,6 +207,32 @@ pub fn bench_scene(walls: Vec<(String, Mesh, Vec3)>, bunny: Mesh) -> Showcase {
     }
     s.projectors.push(bench_projector(640, 480));
     s
+}
+
+/// The benchmark CRT face at `width x height`: its reflection in the beam
+/// splitter is the open front of the Cornell box (the plane `z = 0`), so
+/// observers in front of the box look through it into the room.
+pub fn bench_face(width: u32, height: u32) -> CrtFace {
+    let mirror = Plane::from_point_normal(Vec3::new(0.28, 0.3, -0.25), Vec3::new(0.0, 1.0, 1.0));
+    let seen = Rect3 {
+        origin: Vec3::new(0.0, 0.48, 0.0),
+        right: Vec3::new(0.556, 0.0, 0.0),
+        down: Vec3::new(0.0, -0.417, 0.0),
+    };
+    let n = mirror.normal;
+    let vector = |v: Vec3| v - 2.0 * n.dot(v) * n;
+    CrtFace {
+        name: "face-0".into(),
+        screen: Rect3 {
+            origin: mirror.reflect_point(seen.origin),
+            right: vector(seen.right),
+            down: vector(seen.down),
+        },
+        mirror,
+        width,
+        height,
+        gamma: 2.2,
+    }
 }
 
 /// The moving virtual point light at show time `t` (a circle under the

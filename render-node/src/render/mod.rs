@@ -12,6 +12,8 @@
 pub mod bench;
 pub mod compare;
 pub mod consistency;
+pub mod face;
+pub mod face_gpu;
 pub mod frame;
 pub mod passes;
 pub mod projector;

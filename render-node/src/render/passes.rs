@@ -25,6 +25,8 @@ pub enum Pass {
     EyeShadowViews,
     /// The irradiance map with device compensation.
     IrradianceMap,
+    /// A face role eye view (phantom depth, shaded virtual objects).
+    FaceView,
 }
 
 impl Pass {
@@ -34,6 +36,7 @@ impl Pass {
             Pass::LightShadowViews => "light_shadow_views",
             Pass::EyeShadowViews => "eye_shadow_views",
             Pass::IrradianceMap => "irradiance_map",
+            Pass::FaceView => "face_view",
         }
     }
 }
@@ -60,6 +63,22 @@ impl PassList {
                 Pass::IrradianceMap,
             ],
         }
+    }
+
+    /// The passes a face frame needs: light shadow views only when an
+    /// occluder can be lit and something virtual is there to be shaded.
+    pub fn for_face(frame: &FrameScene) -> Self {
+        let has_virtual = frame
+            .showcase
+            .objects
+            .iter()
+            .any(|o| o.kind == ObjectKind::Virtual);
+        let mut passes = Vec::new();
+        if has_virtual && some_light_emits(frame) && !coplanar(&frame.showcase) {
+            passes.push(Pass::LightShadowViews);
+        }
+        passes.push(Pass::FaceView);
+        Self { passes }
     }
 
     /// The passes `frame` needs (module docs).

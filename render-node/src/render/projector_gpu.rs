@@ -33,11 +33,22 @@ pub fn world_vertices(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
 ) -> Result<Vec<WorldVertex>, RenderSetupError> {
+    Ok(world_vertices_by_object(showcase, kind)?.0)
+}
+
+/// [`world_vertices`] with the vertex range of each object drawn, as
+/// `(object index, range)` in object order.
+pub fn world_vertices_by_object(
+    showcase: &Showcase,
+    kind: Option<ObjectKind>,
+) -> Result<(Vec<WorldVertex>, Vec<(usize, std::ops::Range<u32>)>), RenderSetupError> {
     let mut out = Vec::new();
+    let mut ranges = Vec::new();
     for (oi, o) in showcase.objects.iter().enumerate() {
         if kind.is_some_and(|k| k != o.kind) {
             continue;
         }
+        let start = out.len() as u32;
         let name = || o.name.clone();
         let mesh =
             showcase
@@ -75,8 +86,62 @@ pub fn world_vertices(
                 normal,
             }));
         }
+        ranges.push((oi, start..out.len() as u32));
     }
-    Ok(out)
+    Ok((out, ranges))
+}
+
+/// The light samples as the shaders read them and, with `shadows`, the
+/// six cube views of each (in sample order, from layer 0).
+pub fn light_inputs(
+    frame: &FrameScene,
+    shadows: bool,
+    near: f32,
+    far: f32,
+    shadow_res: u32,
+) -> (Vec<ShadowView>, Vec<LightSampleGpu>) {
+    let mut views: Vec<ShadowView> = Vec::new();
+    let mut lights = Vec::with_capacity(frame.samples.len());
+    for s in &frame.samples {
+        let first = views.len() as u32;
+        if shadows {
+            views.extend(cube_views(s.position.as_vec3(), near, far, shadow_res));
+        }
+        let (axis, kind, cone) = match s.lobe {
+            Lobe::Isotropic => (DVec3::ZERO, 0.0, [0.0, 0.0]),
+            Lobe::Spot {
+                axis,
+                cos_inner,
+                cos_outer,
+            } => (axis, 1.0, [cos_inner as f32, cos_outer as f32]),
+            Lobe::Cosine { normal } => (normal, 2.0, [0.0, 0.0]),
+        };
+        let a = axis.as_vec3();
+        lights.push(LightSampleGpu {
+            position: s.position.as_vec3().extend(0.0).to_array(),
+            intensity: s.intensity.as_vec3().extend(0.0).to_array(),
+            axis: [a.x, a.y, a.z, kind],
+            cone: [cone[0], cone[1], 0.0, 0.0],
+            views: [first, views.len() as u32 - first, 0, 0],
+        });
+    }
+    (views, lights)
+}
+
+/// Far plane for shadow views: every light, eye and surface point lies
+/// within it from every origin (`from` is any reference point).
+pub fn shadow_far(frame: &FrameScene, points: &[WorldVertex], from: DVec3) -> f32 {
+    let mut far_base = 0.0f64;
+    for p in points
+        .iter()
+        .map(|w| Vec3::from_array(w.position).as_dvec3())
+        .chain(frame.eyes.iter().copied())
+        .chain(frame.samples.iter().map(|s| s.position))
+    {
+        far_base = far_base.max((p - from).length());
+    }
+    // Every origin is within 2 far_base of every point.
+    (4.0 * far_base + 1.0) as f32
 }
 
 /// The compiled projector pipeline; create once per device.
@@ -161,46 +226,12 @@ impl ProjectorPipeline {
                 .map(|w| Vec3::from_array(w.position).as_dvec3())
                 .collect::<Vec<_>>()
         };
-        let all_points = points(&all);
         let centre = projector.device.center();
-        let mut far_base = 0.0f64;
-        for p in all_points
-            .iter()
-            .chain(frame.eyes.iter())
-            .chain(frame.samples.iter().map(|s| &s.position))
-        {
-            far_base = far_base.max((*p - centre).length());
-        }
-        // Every origin (light, eye) is within 2 far_base of every point.
-        let far = (4.0 * far_base + 1.0) as f32;
+        let far = shadow_far(frame, &all, centre);
         let near = 1e-3f32;
 
-        let mut views: Vec<ShadowView> = Vec::new();
-        let mut lights = Vec::with_capacity(frame.samples.len());
         let shadows = passes.runs(Pass::LightShadowViews);
-        for s in &frame.samples {
-            let first = views.len() as u32;
-            if shadows {
-                views.extend(cube_views(s.position.as_vec3(), near, far, self.shadow_res));
-            }
-            let (axis, kind, cone) = match s.lobe {
-                Lobe::Isotropic => (DVec3::ZERO, 0.0, [0.0, 0.0]),
-                Lobe::Spot {
-                    axis,
-                    cos_inner,
-                    cos_outer,
-                } => (axis, 1.0, [cos_inner as f32, cos_outer as f32]),
-                Lobe::Cosine { normal } => (normal, 2.0, [0.0, 0.0]),
-            };
-            let a = axis.as_vec3();
-            lights.push(LightSampleGpu {
-                position: s.position.as_vec3().extend(0.0).to_array(),
-                intensity: s.intensity.as_vec3().extend(0.0).to_array(),
-                axis: [a.x, a.y, a.z, kind],
-                cone: [cone[0], cone[1], 0.0, 0.0],
-                views: [first, views.len() as u32 - first, 0, 0],
-            });
-        }
+        let (mut views, lights) = light_inputs(frame, shadows, near, far, self.shadow_res);
         let light_layers = 0..views.len() as u32;
         let occlusion = passes.runs(Pass::EyeShadowViews);
         let virtual_sphere = bounding_sphere(points(&virt).into_iter());
