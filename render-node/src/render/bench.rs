@@ -16,16 +16,20 @@ use showcase_proto::{
 use super::RenderSetupError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
 use super::consistency::direct_light_consistency;
+use super::face::face_image_cpu;
+use super::face_gpu::FacePipeline;
 use super::frame::FrameScene;
 use super::passes::{FrameKey, PassList};
 use super::projector::{Occluders, ProjectorOptions, irradiance_map_cpu};
 use super::projector_gpu::{DEFAULT_SHADOW_RES, ProjectorPipeline};
 use crate::gpu::{GpuContext, wait_idle};
+use crate::light::Image;
+use crate::light::metrics::relative_rmse;
 
 /// One benchmark result (one role, size and scene variant).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Record {
-    /// `projector` (the face role is not built yet).
+    /// `projector` or `face` (stereo: both eyes of observer 0, each `width x height`).
     pub role: String,
     /// Output width.
     pub width: u32,
@@ -313,14 +317,16 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
-/// Benchmark the projector role on `scene` (from [`bench_scene`]) for
-/// every size and variant.
+/// Benchmark the projector and face roles on `scene` (from
+/// [`bench_scene`]) for every size and variant. Frames whose
+/// [`FrameKey`] did not change are reused (not drawn).
 pub fn bench_render(
     ctx: &GpuContext,
     scene: &Showcase,
     options: &BenchOptions,
 ) -> Result<Vec<Record>, RenderSetupError> {
     let pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
+    let face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
     for &(width, height) in &options.sizes {
         for variant in VARIANTS {
@@ -396,6 +402,90 @@ pub fn bench_render(
                     .collect(),
             });
         }
+        for variant in VARIANTS {
+            records.push(bench_face_variant(
+                ctx,
+                &face_pipeline,
+                scene,
+                variant,
+                width,
+                height,
+                options,
+            )?);
+        }
     }
     Ok(records)
+}
+
+/// One face-role record: both eyes of observer 0 at `width x height` each.
+fn bench_face_variant(
+    ctx: &GpuContext,
+    pipeline: &FacePipeline,
+    scene: &Showcase,
+    variant: &str,
+    width: u32,
+    height: u32,
+    options: &BenchOptions,
+) -> Result<Record, RenderSetupError> {
+    let s = variant_scene(scene, variant);
+    let face = bench_face(width, height);
+    let eyes_of = |state: &FrameState| {
+        let head = state.heads.first().copied().unwrap_or_default();
+        Observer::eyes(&head, s.observers.first().map_or(0.064, |o| o.ipd)).map(|e| e.as_dvec3())
+    };
+    let state0 = bench_frame(&s, variant, 0);
+    let first = FrameScene::resolve(&s, &state0)?;
+    let passes = PassList::for_face(&first);
+    let eyes = eyes_of(&state0);
+    let images = pipeline.render(ctx, &first, &face, &eyes, &passes)?;
+    let mut last_key = Some(FrameKey::projector(0, &state0, &PassList::full()));
+    let mut times = Vec::with_capacity(options.frames);
+    let mut passes_run = Vec::new();
+    for n in 1..=options.frames as u64 {
+        let state = bench_frame(&s, variant, n);
+        let start = Instant::now();
+        let frame = FrameScene::resolve(&s, &state)?;
+        let passes = PassList::for_face(&frame);
+        // Everything a face shows: lights, transforms, and the heads.
+        let key = FrameKey::projector(0, &state, &PassList::full());
+        if last_key != Some(key) {
+            let _ = pipeline.draw(ctx, &frame, &face, &eyes_of(&state), &passes)?;
+            wait_idle(&ctx.device)?;
+            passes_run = passes.passes.iter().map(|p| p.name().to_string()).collect();
+        }
+        last_key = Some(key);
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    let mut gpu_cpu = None;
+    if options.accuracy {
+        let occluders = Occluders::new(&first)?;
+        let cpu = face_image_cpu(&first, &occluders, &face, eyes[0])?;
+        let g = Image {
+            width,
+            height,
+            data: images[0]
+                .iter()
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+        };
+        let drawn = cpu.state.map(|st| !st.masked);
+        gpu_cpu = relative_rmse(&g, &cpu.radiance, Some(&drawn)).ok();
+    }
+    Ok(Record {
+        role: "face".into(),
+        width,
+        height,
+        scene_variant: variant.into(),
+        passes_run,
+        median_ms: percentile(&times, 0.5),
+        p99_ms: percentile(&times, 0.99),
+        adapter: ctx.describe(),
+        consistency_rel_rmse: None,
+        gpu_cpu_rel_rmse: gpu_cpu,
+        gpu_cpu_rel_rmse_off_edges: None,
+        outliers_off_edges: None,
+        clipped_fraction: 0.0,
+        pass_ms: Vec::new(),
+    })
 }

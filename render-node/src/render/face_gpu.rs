@@ -42,17 +42,16 @@ impl FacePipeline {
         }
     }
 
-    /// Render the views of `eyes` through `face` (the light shadow views
-    /// once, shared) and read them back: linear RGBA per eye, alpha 1
-    /// where a virtual object is drawn.
-    pub fn render(
+    /// Draw the views of `eyes` through `face` (the light shadow views
+    /// once, shared) and submit; one target per eye.
+    pub fn draw(
         &self,
         ctx: &GpuContext,
         frame: &FrameScene,
         face: &CrtFace,
         eyes: &[DVec3],
         passes: &PassList,
-    ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+    ) -> Result<Vec<OffscreenTarget>, RenderSetupError> {
         let device = &ctx.device;
         let (all, ranges) = world_vertices_by_object(&frame.showcase, None)?;
         let far = shadow_far(frame, &all, eyes.first().copied().unwrap_or(DVec3::ZERO));
@@ -119,6 +118,17 @@ impl FacePipeline {
             targets.push(target);
         }
         ctx.queue.submit([encoder.finish()]);
+        Ok(targets)
+    }
+
+    /// Read drawn targets back: linear RGBA per eye, alpha 1 where a
+    /// virtual object is drawn; non-finite values become 0.
+    pub fn read(
+        &self,
+        ctx: &GpuContext,
+        targets: &[OffscreenTarget],
+    ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+        let device = &ctx.device;
         targets
             .iter()
             .map(|t| {
@@ -128,6 +138,19 @@ impl FacePipeline {
                     .collect())
             })
             .collect()
+    }
+
+    /// [`Self::draw`] then [`Self::read`].
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        frame: &FrameScene,
+        face: &CrtFace,
+        eyes: &[DVec3],
+        passes: &PassList,
+    ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+        let targets = self.draw(ctx, frame, face, eyes, passes)?;
+        self.read(ctx, &targets)
     }
 }
 

@@ -35,7 +35,7 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
     if full {
         println!("{}", serde_json::to_string_pretty(&json)?);
     }
-    ensure!(records.len() == 5 * sizes.len());
+    ensure!(records.len() == 10 * sizes.len());
     for r in json.as_array().unwrap() {
         for key in [
             "role",
@@ -52,7 +52,26 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
             ensure!(r.get(key).is_some(), "record lacks {key}: {r}");
         }
     }
-    let by = |v: &str| records.iter().find(|r| r.scene_variant == v).unwrap();
+    let by = |v: &str| {
+        records
+            .iter()
+            .find(|r| r.role == "projector" && r.scene_variant == v)
+            .unwrap()
+    };
+    let face = |v: &str| {
+        records
+            .iter()
+            .find(|r| r.role == "face" && r.scene_variant == v)
+            .unwrap()
+    };
+    ensure!(
+        face("full").passes_run == ["light_shadow_views", "face_view"],
+        "{:?}",
+        face("full").passes_run
+    );
+    ensure!(face("no_virtual_objects").passes_run == ["face_view"]);
+    ensure!(face("static").passes_run.is_empty());
+    ensure!(face("full").gpu_cpu_rel_rmse.is_some());
     ensure!(
         by("full").passes_run.len() == 3,
         "{:?}",
