@@ -36,12 +36,15 @@ pub fn world_vertices(
     Ok(world_vertices_by_object(showcase, kind)?.0)
 }
 
+/// An object index and its vertex range in a vertex buffer.
+pub type ObjectRange = (usize, std::ops::Range<u32>);
+
 /// [`world_vertices`] with the vertex range of each object drawn, as
 /// `(object index, range)` in object order.
 pub fn world_vertices_by_object(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<(Vec<WorldVertex>, Vec<(usize, std::ops::Range<u32>)>), RenderSetupError> {
+) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderSetupError> {
     let mut out = Vec::new();
     let mut ranges = Vec::new();
     for (oi, o) in showcase.objects.iter().enumerate() {
