@@ -17,7 +17,7 @@ use super::RenderSetupError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
 use super::consistency::direct_light_consistency;
 use super::face::face_image_cpu;
-use super::face_gpu::FacePipeline;
+use super::face_gpu::{FacePipeline, other_eyes};
 use super::frame::FrameScene;
 use super::passes::{FrameKey, PassList};
 use super::projector::{Occluders, ProjectorOptions, irradiance_map_cpu};
@@ -435,9 +435,10 @@ fn bench_face_variant(
     };
     let state0 = bench_frame(&s, variant, 0);
     let first = FrameScene::resolve(&s, &state0)?;
-    let passes = PassList::for_face(&first);
+    let passes = PassList::for_face(&first, other_eyes(&first, 0).len());
     let eyes = eyes_of(&state0);
-    let images = pipeline.render(ctx, &first, &face, &eyes, &passes)?;
+    let others0 = other_eyes(&first, 0);
+    let images = pipeline.render(ctx, &first, &face, &eyes, &others0, &passes)?;
     let mut last_key = Some(FrameKey::projector(0, &state0, &PassList::full()));
     let mut times = Vec::with_capacity(options.frames);
     let mut passes_run = Vec::new();
@@ -445,11 +446,12 @@ fn bench_face_variant(
         let state = bench_frame(&s, variant, n);
         let start = Instant::now();
         let frame = FrameScene::resolve(&s, &state)?;
-        let passes = PassList::for_face(&frame);
+        let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len());
         // Everything a face shows: lights, transforms, and the heads.
         let key = FrameKey::projector(0, &state, &PassList::full());
         if last_key != Some(key) {
-            let _ = pipeline.draw(ctx, &frame, &face, &eyes_of(&state), &passes)?;
+            let others = other_eyes(&frame, 0);
+            let _ = pipeline.draw(ctx, &frame, &face, &eyes_of(&state), &others, &passes)?;
             wait_idle(&ctx.device)?;
             passes_run = passes.passes.iter().map(|p| p.name().to_string()).collect();
         }
@@ -460,7 +462,7 @@ fn bench_face_variant(
     let mut gpu_cpu = None;
     if options.accuracy {
         let occluders = Occluders::new(&first)?;
-        let cpu = face_image_cpu(&first, &occluders, &face, eyes[0])?;
+        let cpu = face_image_cpu(&first, &occluders, &face, eyes[0], &others0)?;
         let g = Image {
             width,
             height,

@@ -5,8 +5,13 @@
 //! with shadow types 2 and 3 (virtual objects and real phantoms occlude
 //! the lights), the ambient term in shadows, and phantom depth (a pixel
 //! whose first surface is a real phantom stays black: the real object is
-//! seen through the mirror). Not yet implemented: cube-map reflections
-//! and occluding occlusion shadows (paper sections 5.3, 5.4).
+//! seen through the mirror), except inside other observers' occlusion
+//! shadows: there the real surface is dark (the projector leaves it
+//! unlit for them), so this eye is shown the lit reflectance map instead,
+//! `rho / pi * E` of the real surface under the virtual lights (occluding
+//! occlusion shadows, paper section 5.4; the GPU does per fragment what
+//! the paper's stencil pass does). Not yet implemented: cube-map
+//! reflections (paper section 5.3).
 //!
 //! Pixel `(u, v)` of the CRT is drawn at its centre: the eye's ray goes
 //! through the pixel centre's *reflected* position (`mirror_view`), so a
@@ -14,7 +19,7 @@
 
 use super::RenderSetupError;
 use super::frame::FrameScene;
-use super::projector::{Occluders, PixelState, target_irradiance};
+use super::projector::{Occluders, PixelState, in_occlusion_shadow, target_irradiance};
 use crate::light::{Image, Ray, RgbImage};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -26,7 +31,9 @@ pub struct FaceImage {
     /// Linear radiance drawn on the CRT (0 where nothing virtual is seen).
     pub radiance: RgbImage,
     /// Per-pixel state: `object` is the first surface's object, `lit` the
-    /// light samples reaching it, `masked` set for background and phantoms.
+    /// light samples reaching it, `occluded` set on a phantom filled in
+    /// for another observer's occlusion shadow, `masked` set for
+    /// background and phantoms left black.
     pub state: Image<PixelState>,
 }
 
@@ -37,12 +44,15 @@ pub fn reflected_pixel(face: &CrtFace, pixel: DVec2) -> DVec3 {
     p - 2.0 * (n.dot(p) - f64::from(face.mirror.offset)) * n
 }
 
-/// Render what the eye at `eye` sees through `face` on the CPU.
+/// Render what the eye at `eye` sees through `face` on the CPU;
+/// `other_eyes` are the eyes of the other observers, whose occlusion
+/// shadows this view fills in.
 pub fn face_image_cpu(
     frame: &FrameScene,
     occluders: &Occluders,
     face: &CrtFace,
     eye: DVec3,
+    other_eyes: &[DVec3],
 ) -> Result<FaceImage, RenderSetupError> {
     if !eye.is_finite() {
         return Err(RenderSetupError::NonFinite);
@@ -53,7 +63,7 @@ pub fn face_image_cpu(
         .flat_map_iter(|y| {
             (0..w).map(move |x| {
                 let target = reflected_pixel(face, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
-                face_pixel(frame, occluders, eye, target)
+                face_pixel(frame, occluders, eye, other_eyes, target)
             })
         })
         .collect();
@@ -70,6 +80,7 @@ fn face_pixel(
     frame: &FrameScene,
     occluders: &Occluders,
     eye: DVec3,
+    other_eyes: &[DVec3],
     through: DVec3,
 ) -> (Vec3, PixelState) {
     let masked = PixelState {
@@ -88,7 +99,7 @@ fn face_pixel(
     let Some(o) = frame.showcase.objects.get(hit.object as usize) else {
         return (Vec3::ZERO, masked);
     };
-    if o.kind == ObjectKind::Real || hit.geometric_normal == DVec3::ZERO {
+    if hit.geometric_normal == DVec3::ZERO {
         return (Vec3::ZERO, PixelState { object, ..masked });
     }
     let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
@@ -96,6 +107,11 @@ fn face_pixel(
     } else {
         -hit.geometric_normal
     };
+    let occluded = o.kind == ObjectKind::Real
+        && in_occlusion_shadow(&occluders.virtual_only, other_eyes, hit.point, facing);
+    if o.kind == ObjectKind::Real && !occluded {
+        return (Vec3::ZERO, PixelState { object, ..masked });
+    }
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let rho = o
         .material
@@ -112,6 +128,7 @@ fn face_pixel(
             object,
             primitive: Some(hit.primitive),
             lit,
+            occluded,
             ..PixelState::default()
         },
     )

@@ -1,5 +1,5 @@
 //! The face role on the GPU: per-eye views through a CRT face with phantom
-//! depth and shadow types 2 and 3, and the [`Renderer`] of a face node
+//! depth, shadow types 2 and 3 and occluding occlusion shadows, and the [`Renderer`] of a face node
 //! (both eyes of one observer, side by side). CPU reference:
 //! [`super::face::face_image_cpu`].
 
@@ -10,9 +10,12 @@ use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
 use super::RenderSetupError;
 use super::frame::{DEFAULT_IPD, FrameScene};
+use super::passes::bounding_sphere;
 use super::passes::{Pass, PassList};
-use super::projector_gpu::{light_inputs, shadow_far, world_vertices_by_object};
+use super::projector_gpu::{ObjectRange, light_inputs, shadow_far, world_vertices_by_object};
 use crate::gpu::face_view::{FaceFrameUniform, FaceInputs, FaceViewPass};
+use crate::gpu::irradiance_map::EyeGpu;
+use crate::gpu::shadow_views::fitted_views;
 use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVertex};
 use crate::gpu::{GpuContext, OffscreenTarget};
 use crate::mirror_view::FaceView;
@@ -43,20 +46,45 @@ impl FacePipeline {
     }
 
     /// Draw the views of `eyes` through `face` (the light shadow views
-    /// once, shared) and submit; one target per eye.
+    /// and the `other_eyes`' views once, shared) and submit; one target
+    /// per eye.
     pub fn draw(
         &self,
         ctx: &GpuContext,
         frame: &FrameScene,
         face: &CrtFace,
         eyes: &[DVec3],
+        other_eyes: &[DVec3],
         passes: &PassList,
     ) -> Result<Vec<OffscreenTarget>, RenderSetupError> {
         let device = &ctx.device;
         let (all, ranges) = world_vertices_by_object(&frame.showcase, None)?;
         let far = shadow_far(frame, &all, eyes.first().copied().unwrap_or(DVec3::ZERO));
         let shadows = passes.runs(Pass::LightShadowViews);
-        let (views, lights) = light_inputs(frame, shadows, 1e-3, far, self.shadow_res);
+        let (mut views, lights) = light_inputs(frame, shadows, 1e-3, far, self.shadow_res);
+        let light_layers = 0..views.len() as u32;
+        let occluding = passes.runs(Pass::EyeShadowViews);
+        let virtual_points = all_ranges_points(frame, &all, &ranges);
+        let virtual_sphere = bounding_sphere(virtual_points.into_iter());
+        let mut others = Vec::with_capacity(other_eyes.len());
+        for e in other_eyes {
+            let first = views.len() as u32;
+            if let (true, Some((c, r))) = (occluding, virtual_sphere) {
+                views.extend(fitted_views(
+                    e.as_vec3(),
+                    c.as_vec3(),
+                    (r * 1.001 + 1e-6) as f32,
+                    1e-3,
+                    far,
+                    self.shadow_res,
+                ));
+            }
+            others.push(EyeGpu {
+                position: e.as_vec3().extend(0.0).to_array(),
+                views: [first, views.len() as u32 - first, 0, 0],
+            });
+        }
+        let eye_layers = light_layers.end..views.len() as u32;
         let maps = ShadowMaps::new(device, self.shadow_res, views.len() as u32)?;
         let views_buffer = self.shadow.upload_views(device, &views);
         let placeholder = [WorldVertex {
@@ -74,27 +102,45 @@ impl FacePipeline {
         });
         let mut phantoms = Vec::new();
         let mut virtuals = Vec::new();
+        let mut virtual_vertices = Vec::new();
         for (oi, r) in ranges {
             let o = &frame.showcase.objects[oi];
+            let albedo = o.material.albedo.extend(0.0).to_array();
             match o.kind {
-                ObjectKind::Real => phantoms.push(r),
-                ObjectKind::Virtual => virtuals.push((r, o.material.albedo.extend(0.0).to_array())),
+                ObjectKind::Real => phantoms.push((r, albedo)),
+                ObjectKind::Virtual => {
+                    virtual_vertices.extend_from_slice(&all[r.start as usize..r.end as usize]);
+                    virtuals.push((r, albedo));
+                }
             }
         }
         let mut encoder = device.create_command_encoder(&Default::default());
+        let virtual_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("face virtual vertices"),
+            contents: bytemuck::cast_slice(if virtual_vertices.is_empty() {
+                &placeholder[..]
+            } else {
+                &virtual_vertices
+            }),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let mut draws = Vec::new();
         if shadows {
-            self.shadow.encode(
-                device,
-                &mut encoder,
-                &maps,
-                &views_buffer,
-                &[ShadowDraw {
-                    vertices: &vertices,
-                    vertex_count: all.len() as u32,
-                    layers: 0..views.len() as u32,
-                }],
-            );
+            draws.push(ShadowDraw {
+                vertices: &vertices,
+                vertex_count: all.len() as u32,
+                layers: light_layers,
+            });
         }
+        if occluding {
+            draws.push(ShadowDraw {
+                vertices: &virtual_buffer,
+                vertex_count: virtual_vertices.len() as u32,
+                layers: eye_layers,
+            });
+        }
+        self.shadow
+            .encode(device, &mut encoder, &maps, &views_buffer, &draws);
         let mut targets = Vec::with_capacity(eyes.len());
         for &eye in eyes {
             let view =
@@ -105,13 +151,19 @@ impl FacePipeline {
                     clip_from_world: view.clip_from_world.as_mat4().to_cols_array_2d(),
                     eye: eye.as_vec3().extend(0.0).to_array(),
                     ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-                    counts: [lights.len() as u32, 0, self.shadow_res, u32::from(shadows)],
+                    counts: [
+                        lights.len() as u32,
+                        others.len() as u32,
+                        self.shadow_res,
+                        u32::from(shadows) | (u32::from(occluding) << 1),
+                    ],
                 },
                 lights: &lights,
                 views: &views_buffer,
                 maps: &maps,
                 vertices: &vertices,
                 phantoms: &phantoms,
+                other_eyes: &others,
                 virtuals: &virtuals,
             };
             self.face.encode(device, &mut encoder, &target, &inputs);
@@ -147,11 +199,37 @@ impl FacePipeline {
         frame: &FrameScene,
         face: &CrtFace,
         eyes: &[DVec3],
+        other_eyes: &[DVec3],
         passes: &PassList,
     ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
-        let targets = self.draw(ctx, frame, face, eyes, passes)?;
+        let targets = self.draw(ctx, frame, face, eyes, other_eyes, passes)?;
         self.read(ctx, &targets)
     }
+}
+
+/// The eyes of every observer but `observer` (two per head, in order).
+pub fn other_eyes(frame: &FrameScene, observer: usize) -> Vec<DVec3> {
+    frame
+        .eyes
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| i / 2 != observer)
+        .map(|(_, e)| *e)
+        .collect()
+}
+
+/// World points of the virtual objects' vertices.
+fn all_ranges_points(
+    frame: &FrameScene,
+    all: &[WorldVertex],
+    ranges: &[ObjectRange],
+) -> Vec<DVec3> {
+    ranges
+        .iter()
+        .filter(|(oi, _)| frame.showcase.objects[*oi].kind == ObjectKind::Virtual)
+        .flat_map(|(_, r)| all[r.start as usize..r.end as usize].iter())
+        .map(|v| glam::Vec3::from_array(v.position).as_dvec3())
+        .collect()
 }
 
 /// The [`Renderer`] of a face node: both eyes of one observer through one
@@ -208,10 +286,11 @@ impl FaceRenderer {
             .map_or(DEFAULT_IPD, |o| o.ipd);
         let eyes = showcase_proto::Observer::eyes(head, ipd).map(|e| e.as_dvec3());
         let resolved = FrameScene::resolve(scene, frame).map_err(|e| RenderError(e.to_string()))?;
-        let passes = PassList::for_face(&resolved);
+        let other_eyes = other_eyes(&resolved, self.observer);
+        let passes = PassList::for_face(&resolved, other_eyes.len());
         let images = self
             .pipeline
-            .render(&self.ctx, &resolved, face, &eyes, &passes)
+            .render(&self.ctx, &resolved, face, &eyes, &other_eyes, &passes)
             .map_err(|e| RenderError(e.to_string()))?;
         let (w, h) = (face.width as usize, face.height as usize);
         let mut rgba = Vec::with_capacity(2 * w * h);

@@ -54,7 +54,7 @@ impl PassList {
         self.passes.contains(&pass)
     }
 
-    /// Every pass (the full pipeline, for comparisons).
+    /// Every projector pass (the full pipeline, for comparisons).
     pub fn full() -> Self {
         Self {
             passes: vec![
@@ -65,9 +65,19 @@ impl PassList {
         }
     }
 
+    /// Every face pass.
+    pub fn full_face() -> Self {
+        Self {
+            passes: vec![Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+        }
+    }
+
     /// The passes a face frame needs: light shadow views only when an
-    /// occluder can be lit and something virtual is there to be shaded.
-    pub fn for_face(frame: &FrameScene) -> Self {
+    /// occluder can be lit and a virtual object is there (to be shaded, or
+    /// to cast the occlusion shadows that phantoms are filled in for); the
+    /// other observers' eye views (occluding occlusion shadows) only with
+    /// another observer (`other_eyes > 0`) and a virtual object.
+    pub fn for_face(frame: &FrameScene, other_eyes: usize) -> Self {
         let has_virtual = frame
             .showcase
             .objects
@@ -76,6 +86,9 @@ impl PassList {
         let mut passes = Vec::new();
         if has_virtual && some_light_emits(frame) && !coplanar(&frame.showcase) {
             passes.push(Pass::LightShadowViews);
+        }
+        if has_virtual && other_eyes > 0 {
+            passes.push(Pass::EyeShadowViews);
         }
         passes.push(Pass::FaceView);
         Self { passes }

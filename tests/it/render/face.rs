@@ -13,7 +13,7 @@ use showcase_render::node::renderer::Renderer;
 use showcase_render::render::bench::{bench_face, bench_frame};
 use showcase_render::render::compare::EDGE_RADIUS_PX;
 use showcase_render::render::face::{face_image_cpu, reflected_pixel};
-use showcase_render::render::face_gpu::{FacePipeline, FaceRenderer};
+use showcase_render::render::face_gpu::{FacePipeline, FaceRenderer, other_eyes};
 use showcase_render::render::passes::{Pass, PassList};
 use showcase_render::render::projector::edge_mask;
 use showcase_render::render::{FrameScene, Occluders};
@@ -29,7 +29,7 @@ fn face_pixels_lie_on_the_line_of_sight_through_their_reflection() -> Result<()>
     let occ = Occluders::new(&frame)?;
     let face = bench_face(96, 72);
     let eye = frame.eyes[0];
-    let image = face_image_cpu(&frame, &occ, &face, eye)?;
+    let image = face_image_cpu(&frame, &occ, &face, eye, &[])?;
     let sphere = scene
         .objects
         .iter()
@@ -67,16 +67,18 @@ fn gpu_face_view_matches_the_cpu_reference() -> Result<()> {
     let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
     let occ = Occluders::new(&frame)?;
     let face = bench_face(320, 240);
-    let eyes = [frame.eyes[0], frame.eyes[3]];
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let others = other_eyes(&frame, 0);
     let gpu = FacePipeline::new(&ctx.device, 1024).render(
         &ctx,
         &frame,
         &face,
         &eyes,
-        &PassList::full(),
+        &others,
+        &PassList::full_face(),
     )?;
     for (eye, image) in eyes.iter().zip(&gpu) {
-        let cpu = face_image_cpu(&frame, &occ, &face, *eye)?;
+        let cpu = face_image_cpu(&frame, &occ, &face, *eye, &others)?;
         let g = Image {
             width: face.width,
             height: face.height,
@@ -103,17 +105,36 @@ fn gpu_face_view_matches_the_cpu_reference() -> Result<()> {
                     > 0.01 * cpu.radiance.data[i].max_element().max(1e-6)
             })
             .count();
-        // Phantom depth: wherever the reference sees a real phantom first,
-        // the GPU draws nothing.
+        // Phantom depth: wherever the reference sees a real phantom first
+        // (outside the filled-in occlusion shadows), the GPU draws nothing.
+        let real_first = |i: usize| {
+            cpu.state.data[i]
+                .object
+                .is_some_and(|o| scene.objects[o as usize].kind == ObjectKind::Real)
+        };
         let hidden = (0..g.data.len())
-            .filter(|&i| {
-                cpu.state.data[i]
-                    .object
-                    .is_some_and(|o| scene.objects[o as usize].kind == ObjectKind::Real)
-                    && !edges.data[i]
-                    && image[i][3] != 0.0
-            })
+            .filter(|&i| real_first(i) && !cpu.state.data[i].occluded)
+            .filter(|&i| !edges.data[i] && image[i][3] != 0.0)
             .count();
+        // Occluding occlusion shadows: the other observer's occlusion
+        // shadows on the real room are filled in, on both sides.
+        let filled: Vec<usize> = (0..g.data.len())
+            .filter(|&i| real_first(i) && cpu.state.data[i].occluded)
+            .collect();
+        let filled_off_edges = filled.iter().filter(|&&i| !edges.data[i]).count();
+        let filled_gpu = filled
+            .iter()
+            .filter(|&&i| !edges.data[i] && image[i][3] == 1.0)
+            .count();
+        eprintln!(
+            "filled {} (off edges {filled_off_edges}, gpu {filled_gpu})",
+            filled.len()
+        );
+        ensure!(filled.len() > 200, "only {} filled pixels", filled.len());
+        ensure!(
+            filled_gpu == filled_off_edges,
+            "gpu fills {filled_gpu} of {filled_off_edges}"
+        );
         eprintln!(
             "eye {eye}: rel RMSE {all} (off edges {off_edges}) over {n} pixels, {outliers} outliers off edges, {hidden} phantom leaks"
         );
@@ -160,6 +181,35 @@ fn face_renderer_draws_both_eyes_side_by_side() -> Result<()> {
         left > 50 && right > 50 && differ,
         "left {left} right {right}, halves differ: {differ}"
     );
-    ensure!(r.last_passes() == [Pass::LightShadowViews, Pass::FaceView]);
+    ensure!(
+        r.last_passes() == [Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+        "{:?}",
+        r.last_passes()
+    );
+    Ok(())
+}
+
+#[test]
+fn occluding_occlusion_passes_are_skipped_with_one_observer() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("occluding_occlusion_passes_are_skipped_with_one_observer")? else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let mut state = bench_frame(&scene, "full", 0);
+    state.heads.truncate(1);
+    let frame = FrameScene::resolve(&scene, &state)?;
+    let others = other_eyes(&frame, 0);
+    ensure!(others.is_empty());
+    let passes = PassList::for_face(&frame, others.len());
+    ensure!(!passes.runs(Pass::EyeShadowViews), "{passes:?}");
+    let face = bench_face(96, 72);
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let pipeline = FacePipeline::new(&ctx.device, 256);
+    let skipped = pipeline.render(&ctx, &frame, &face, &eyes, &others, &passes)?;
+    let full = pipeline.render(&ctx, &frame, &face, &eyes, &others, &PassList::full_face())?;
+    ensure!(
+        skipped == full,
+        "skipping the other observers' views changed the output"
+    );
     Ok(())
 }

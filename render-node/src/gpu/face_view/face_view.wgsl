@@ -3,7 +3,10 @@
 // with depth, so real objects hide virtual ones; virtual objects are shaded
 // rho / pi * E with E from the virtual light samples (shadow types 2 and 3
 // from the light shadow views, which hold phantoms and virtual objects)
-// plus ambient. CPU reference: render::face.
+// plus ambient. Occluding occlusion shadows: a phantom point inside another
+// observer's occlusion shadow (a virtual object between it and that
+// observer's eye, from the eye shadow views) is drawn as the lit real
+// surface instead of black. CPU reference: render::face.
 
 struct Frame {
     // FaceView::clip_from_world of this eye.
@@ -12,7 +15,8 @@ struct Frame {
     eye: vec4<f32>,
     // rgb: ambient irradiance (W/m^2).
     ambient: vec4<f32>,
-    // light samples, _, shadow map size, flags (1: shadows).
+    // light samples, other eyes, shadow map size, flags (1: shadows,
+    // 2: occluding occlusion shadows).
     counts: vec4<u32>,
 }
 
@@ -37,8 +41,17 @@ struct ShadowView {
 @group(0) @binding(1) var<storage, read> lights: array<LightSample>;
 @group(0) @binding(2) var<storage, read> views: array<ShadowView>;
 @group(0) @binding(3) var maps: texture_2d_array<f32>;
-// Linear RGB albedo per object, indexed by the draw's instance.
+// Linear RGB albedo per draw, indexed by the draw's instance.
 @group(0) @binding(4) var<storage, read> albedos: array<vec4<f32>>;
+
+struct Eye {
+    position: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+// The other observers' eyes.
+@group(0) @binding(5) var<storage, read> eyes: array<Eye>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -108,18 +121,8 @@ fn intensity_towards(s: LightSample, dir: vec3<f32>) -> vec3<f32> {
     return s.intensity.rgb * factor;
 }
 
-@fragment
-fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
-}
-
-@fragment
-fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
-    let p = in.world;
-    var n = in.normal;
-    if (dot(n, frame.eye.xyz - p) < 0.0) {
-        n = -n;
-    }
+// rho / pi * E at p with unit normal n (the side facing the eye).
+fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
     var e = max(frame.ambient.rgb, vec3<f32>(0.0));
     for (var i = 0u; i < frame.counts.x; i++) {
         let s = lights[i];
@@ -138,6 +141,34 @@ fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
         }
         e += intensity_towards(s, -dir) * (cos_t / r2);
     }
-    let rho = albedos[in.object].rgb;
-    return vec4<f32>(rho * e * 0.31830988618379067, 1.0);
+    return rho * e * 0.31830988618379067;
+}
+
+fn facing(in: VertexOut) -> vec3<f32> {
+    var n = in.normal;
+    if (dot(n, frame.eye.xyz - in.world) < 0.0) {
+        n = -n;
+    }
+    return n;
+}
+
+@fragment
+fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
+    if ((frame.counts.w & 2u) == 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    }
+    let p = in.world;
+    let n = facing(in);
+    for (var e = 0u; e < frame.counts.y; e++) {
+        let eye = eyes[e];
+        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.views.x, eye.views.y)) {
+            return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
+        }
+    }
+    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+}
+
+@fragment
+fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(in.world, facing(in), albedos[in.object].rgb), 1.0);
 }

@@ -5,7 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-use super::irradiance_map::LightSampleGpu;
+use super::irradiance_map::{EyeGpu, LightSampleGpu};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -19,7 +19,8 @@ pub struct FaceFrameUniform {
     pub eye: [f32; 4],
     /// rgb ambient irradiance.
     pub ambient: [f32; 4],
-    /// light samples, unused, shadow map size, flags (1 shadows).
+    /// light samples, other eyes, shadow map size, flags (1 shadows, 2
+    /// occluding occlusion shadows).
     pub counts: [u32; 4],
 }
 
@@ -36,8 +37,10 @@ pub struct FaceInputs<'a> {
     pub maps: &'a ShadowMaps,
     /// World vertices of every object.
     pub vertices: &'a wgpu::Buffer,
-    /// Vertex ranges of the phantoms.
-    pub phantoms: &'a [std::ops::Range<u32>],
+    /// Vertex range and albedo of each phantom.
+    pub phantoms: &'a [(std::ops::Range<u32>, [f32; 4])],
+    /// The other observers' eyes (may be empty).
+    pub other_eyes: &'a [EyeGpu],
     /// Vertex range and albedo of each virtual object.
     pub virtuals: &'a [(std::ops::Range<u32>, [f32; 4])],
 }
@@ -93,6 +96,7 @@ impl FaceViewPass {
                     },
                 ),
                 entry(4, storage()),
+                entry(5, storage()),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -147,7 +151,8 @@ impl FaceViewPass {
     }
 
     /// Record the pass into `target`: clear to 0 and depth 1, draw the
-    /// phantoms (black, with depth), then the virtual objects shaded.
+    /// phantoms (black with depth, or lit inside other observers'
+    /// occlusion shadows), then the virtual objects shaded.
     pub fn encode(
         &self,
         device: &wgpu::Device,
@@ -178,13 +183,30 @@ impl FaceViewPass {
             bytemuck::cast_slice(lights),
             wgpu::BufferUsages::STORAGE,
         );
-        let mut albedo: Vec<[f32; 4]> = inputs.virtuals.iter().map(|(_, a)| *a).collect();
+        // Instances: virtual objects first, then phantoms.
+        let mut albedo: Vec<[f32; 4]> = inputs
+            .virtuals
+            .iter()
+            .chain(inputs.phantoms)
+            .map(|(_, a)| *a)
+            .collect();
         if albedo.is_empty() {
             albedo.push([0.0; 4]);
         }
         let albedos = buffer(
             "face albedos",
             bytemuck::cast_slice(&albedo),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let placeholder_eye = [EyeGpu::zeroed()];
+        let eyes = if inputs.other_eyes.is_empty() {
+            &placeholder_eye[..]
+        } else {
+            inputs.other_eyes
+        };
+        let eyes = buffer(
+            "face other eyes",
+            bytemuck::cast_slice(eyes),
             wgpu::BufferUsages::STORAGE,
         );
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -210,6 +232,10 @@ impl FaceViewPass {
                 wgpu::BindGroupEntry {
                     binding: 4,
                     resource: albedos.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: eyes.as_entire_binding(),
                 },
             ],
         });
@@ -239,8 +265,12 @@ impl FaceViewPass {
         pass.set_bind_group(0, &bind_group, &[]);
         pass.set_vertex_buffer(0, inputs.vertices.slice(..));
         pass.set_pipeline(&self.phantom);
-        for r in inputs.phantoms.iter().filter(|r| !r.is_empty()) {
-            pass.draw(r.clone(), 0..1);
+        let first_phantom = inputs.virtuals.len() as u32;
+        for (i, (r, _)) in inputs.phantoms.iter().enumerate() {
+            if !r.is_empty() {
+                let instance = first_phantom + i as u32;
+                pass.draw(r.clone(), instance..instance + 1);
+            }
         }
         pass.set_pipeline(&self.shaded);
         for (i, (r, _)) in inputs.virtuals.iter().enumerate() {
