@@ -439,7 +439,7 @@ fn bench_face_variant(
     let eyes = eyes_of(&state0);
     let others0 = other_eyes(&first, 0);
     let images = pipeline.render(ctx, &first, &face, &eyes, &others0, &passes)?;
-    let mut last_key = Some(FrameKey::projector(0, &state0, &PassList::full()));
+    let mut last_key = Some(FrameKey::face(0, 0, &state0));
     let mut times = Vec::with_capacity(options.frames);
     let mut passes_run = Vec::new();
     for n in 1..=options.frames as u64 {
@@ -448,7 +448,7 @@ fn bench_face_variant(
         let frame = FrameScene::resolve(&s, &state)?;
         let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len());
         // Everything a face shows: lights, transforms, and the heads.
-        let key = FrameKey::projector(0, &state, &PassList::full());
+        let key = FrameKey::face(0, 0, &state);
         if last_key != Some(key) {
             let others = other_eyes(&frame, 0);
             let _ = pipeline.draw(ctx, &frame, &face, &eyes_of(&state), &others, &passes)?;

@@ -11,7 +11,7 @@ use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 use super::RenderSetupError;
 use super::frame::{DEFAULT_IPD, FrameScene};
 use super::passes::bounding_sphere;
-use super::passes::{Pass, PassList};
+use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, light_inputs, shadow_far, world_vertices_by_object};
 use crate::gpu::face_view::{FaceFrameUniform, FaceInputs, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
@@ -242,6 +242,7 @@ pub struct FaceRenderer {
     observer: usize,
     scene_version: Option<u64>,
     last_passes: Vec<Pass>,
+    last: Option<(FrameKey, RenderOutput)>,
     presented: Vec<u64>,
 }
 
@@ -256,11 +257,12 @@ impl FaceRenderer {
             observer,
             scene_version: None,
             last_passes: Vec::new(),
+            last: None,
             presented: Vec::new(),
         }
     }
 
-    /// Passes the last frame ran.
+    /// Passes the last frame ran (empty when it reused the frame before).
     pub fn last_passes(&self) -> &[Pass] {
         &self.last_passes
     }
@@ -285,6 +287,13 @@ impl FaceRenderer {
             .get(self.observer)
             .map_or(DEFAULT_IPD, |o| o.ipd);
         let eyes = showcase_proto::Observer::eyes(head, ipd).map(|e| e.as_dvec3());
+        let key = FrameKey::face(self.face, self.observer, frame);
+        if let Some((last_key, output)) = &self.last
+            && *last_key == key
+        {
+            self.last_passes.clear();
+            return Ok(output.clone());
+        }
         let resolved = FrameScene::resolve(scene, frame).map_err(|e| RenderError(e.to_string()))?;
         let other_eyes = other_eyes(&resolved, self.observer);
         let passes = PassList::for_face(&resolved, other_eyes.len());
@@ -300,20 +309,23 @@ impl FaceRenderer {
             }
         }
         self.last_passes = passes.passes;
-        Ok(RenderOutput {
+        let output = RenderOutput {
             hash: hash_pixels(&rgba),
             image: Some(OutputImage {
                 width: 2 * face.width,
                 height: face.height,
                 rgba,
             }),
-        })
+        };
+        self.last = Some((key, output.clone()));
+        Ok(output)
     }
 }
 
 impl Renderer for FaceRenderer {
     fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
         self.scene_version = Some(version);
+        self.last = None;
         Ok(())
     }
 

@@ -162,9 +162,25 @@ impl FrameKey {
     /// The key of `frame` for a projector: heads count only when
     /// occlusion shadows are drawn (`passes` runs the eye views).
     pub fn projector(projector: usize, frame: &FrameState, passes: &PassList) -> Self {
+        Self::digest(
+            b"projector",
+            projector,
+            frame,
+            passes.runs(Pass::EyeShadowViews),
+        )
+    }
+
+    /// The key of `frame` for a face output (`face`, `observer`): every
+    /// head counts (the observer's eyes, and the others' occlusion shadows).
+    pub fn face(face: usize, observer: usize, frame: &FrameState) -> Self {
+        Self::digest(b"face", face << 8 | observer.min(255), frame, true)
+    }
+
+    fn digest(role: &[u8], output: usize, frame: &FrameState, heads: bool) -> Self {
         let mut h = Fnv64::default();
         let f = |h: &mut Fnv64, v: f32| h.write(&v.to_bits().to_le_bytes());
-        h.write(&(projector as u64).to_le_bytes());
+        h.write(role);
+        h.write(&(output as u64).to_le_bytes());
         h.write(&frame.scene_version.to_le_bytes());
         for l in &frame.lights {
             h.write(l.name.as_bytes());
@@ -176,7 +192,7 @@ impl FrameKey {
                 f(&mut h, c);
             }
         }
-        if passes.runs(Pass::EyeShadowViews) {
+        if heads {
             for p in &frame.heads {
                 for c in p
                     .position

@@ -165,7 +165,7 @@ fn face_renderer_draws_both_eyes_side_by_side() -> Result<()> {
     let mut r = FaceRenderer::new(ctx, 0, 1, 256);
     r.set_scene(1, Arc::new(scene.clone()))?;
     let out = r.render(&bench_frame(&scene, "full", 0), &scene)?;
-    let image = out.image.unwrap();
+    let image = out.image.clone().unwrap();
     ensure!((image.width, image.height) == (128, 48));
     let left: usize = (0..48)
         .flat_map(|y| (0..64).map(move |x| (x, y)))
@@ -186,6 +186,17 @@ fn face_renderer_draws_both_eyes_side_by_side() -> Result<()> {
         "{:?}",
         r.last_passes()
     );
+    // The same state again: reused, nothing ran, the same output.
+    let mut again = bench_frame(&scene, "full", 0);
+    again.frame = 1;
+    let second = r.render(&again, &scene)?;
+    ensure!(r.last_passes().is_empty() && second.hash == out.hash);
+    // Another observer's head moves: their occlusion shadows move, so the
+    // face is drawn again.
+    again.frame = 2;
+    again.heads[0].position.x += 0.03;
+    let third = r.render(&again, &scene)?;
+    ensure!(!r.last_passes().is_empty() && third.hash != out.hash);
     Ok(())
 }
 
