@@ -11,4 +11,5 @@ pub mod net;
 pub mod node;
 pub mod radiosity;
 pub mod reflectance;
+pub mod render;
 pub mod sim;

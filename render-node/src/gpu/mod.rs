@@ -10,7 +10,10 @@
 //! loaded with `include_wgsl!`, and every `.wgsl` file is validated by a
 //! naga test that needs no GPU.
 
+pub mod face_view;
 pub mod flat_lambert;
+pub mod irradiance_map;
+pub mod shadow_views;
 pub mod target;
 
 pub use flat_lambert::{FlatLambertBatch, FlatLambertPass};

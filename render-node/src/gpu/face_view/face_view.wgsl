@@ -1,0 +1,174 @@
+// Face view pass: one eye's view through a CRT face and its beam splitter
+// (mirror_view::FaceView::clip_from_world). Real phantoms are drawn black
+// with depth, so real objects hide virtual ones; virtual objects are shaded
+// rho / pi * E with E from the virtual light samples (shadow types 2 and 3
+// from the light shadow views, which hold phantoms and virtual objects)
+// plus ambient. Occluding occlusion shadows: a phantom point inside another
+// observer's occlusion shadow (a virtual object between it and that
+// observer's eye, from the eye shadow views) is drawn as the lit real
+// surface instead of black. CPU reference: render::face.
+
+struct Frame {
+    // FaceView::clip_from_world of this eye.
+    clip_from_world: mat4x4<f32>,
+    // xyz: the eye.
+    eye: vec4<f32>,
+    // rgb: ambient irradiance (W/m^2).
+    ambient: vec4<f32>,
+    // light samples, other eyes, shadow map size, flags (1: shadows,
+    // 2: occluding occlusion shadows).
+    counts: vec4<u32>,
+}
+
+struct LightSample {
+    position: vec4<f32>,
+    intensity: vec4<f32>,
+    // xyz: spot axis or emitter normal; w: 0 isotropic, 1 spot, 2 cosine.
+    axis: vec4<f32>,
+    // cos inner, cos outer.
+    cone: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+struct ShadowView {
+    clip_from_world: mat4x4<f32>,
+    // xyz origin, w texel angle (radians).
+    origin: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> lights: array<LightSample>;
+@group(0) @binding(2) var<storage, read> views: array<ShadowView>;
+@group(0) @binding(3) var maps: texture_2d_array<f32>;
+// Linear RGB albedo per draw, indexed by the draw's instance.
+@group(0) @binding(4) var<storage, read> albedos: array<vec4<f32>>;
+
+struct Eye {
+    position: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+// The other observers' eyes.
+@group(0) @binding(5) var<storage, read> eyes: array<Eye>;
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) @interpolate(flat) normal: vec3<f32>,
+    @location(2) @interpolate(flat) object: u32,
+}
+
+@vertex
+fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
+    var out: VertexOut;
+    out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.object = object;
+    return out;
+}
+
+// As in irradiance_map.wgsl.
+fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
+    let res = frame.counts.z;
+    for (var i = first; i < first + count; i++) {
+        let v = views[i];
+        let c = v.clip_from_world * vec4<f32>(p, 1.0);
+        if (c.w <= 0.0) {
+            continue;
+        }
+        let ndc = c.xy / c.w;
+        if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+            continue;
+        }
+        let fres = f32(res);
+        let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
+        let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
+        let stored = textureLoad(maps, vec2<u32>(tx, ty), i, 0).r;
+        let to = p - v.origin.xyz;
+        let dist = length(to);
+        let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
+        let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
+        let bias = dist * v.origin.w * (1.5 + 2.0 * tan_t) + 1e-4;
+        return dist <= stored + bias;
+    }
+    return true;
+}
+
+// As in irradiance_map.wgsl.
+fn intensity_towards(s: LightSample, dir: vec3<f32>) -> vec3<f32> {
+    let kind = s.axis.w;
+    var factor = 1.0;
+    if (kind > 1.5) {
+        factor = max(dot(s.axis.xyz, dir), 0.0);
+    } else if (kind > 0.5) {
+        let c = dot(s.axis.xyz, dir);
+        let width = s.cone.x - s.cone.y;
+        if (!(c > s.cone.y)) {
+            factor = 0.0;
+        } else if (width > 0.0) {
+            let t = clamp((c - s.cone.y) / width, 0.0, 1.0);
+            factor = t * t * (3.0 - 2.0 * t);
+        }
+    }
+    return s.intensity.rgb * factor;
+}
+
+// rho / pi * E at p with unit normal n (the side facing the eye).
+fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
+    var e = max(frame.ambient.rgb, vec3<f32>(0.0));
+    for (var i = 0u; i < frame.counts.x; i++) {
+        let s = lights[i];
+        let to_light = s.position.xyz - p;
+        let r2 = dot(to_light, to_light);
+        if (!(r2 > 0.0)) {
+            continue;
+        }
+        let dir = to_light / sqrt(r2);
+        let cos_t = dot(n, dir);
+        if (!(cos_t > 0.0)) {
+            continue;
+        }
+        if ((frame.counts.w & 1u) != 0u && !visible(p, n, s.views.x, s.views.y)) {
+            continue;
+        }
+        e += intensity_towards(s, -dir) * (cos_t / r2);
+    }
+    return rho * e * 0.31830988618379067;
+}
+
+fn facing(in: VertexOut) -> vec3<f32> {
+    var n = in.normal;
+    if (dot(n, frame.eye.xyz - in.world) < 0.0) {
+        n = -n;
+    }
+    return n;
+}
+
+@fragment
+fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
+    if ((frame.counts.w & 2u) == 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    }
+    let p = in.world;
+    let n = facing(in);
+    for (var e = 0u; e < frame.counts.y; e++) {
+        let eye = eyes[e];
+        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.views.x, eye.views.y)) {
+            return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
+        }
+    }
+    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+}
+
+@fragment
+fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(in.world, facing(in), albedos[in.object].rgb), 1.0);
+}

@@ -1,0 +1,191 @@
+// Irradiance map pass (paper sections 5.1, 5.2): the real phantoms seen
+// from a projector; per pixel L = E / (cos(theta_p) / r^2) in W/sr, where E
+// is the virtual lights' irradiance with shadow types 4 and 5 (distance
+// maps of the shadow views) plus ambient; occlusion shadows of every eye;
+// then device compensation. CPU reference: render::projector (the units
+// and rules are documented there).
+
+struct Frame {
+    // PinholeDevice::clip_from_world of the projector.
+    clip_from_world: mat4x4<f32>,
+    // xyz: projector centre.
+    projector: vec4<f32>,
+    // rgb: ambient irradiance (W/m^2).
+    ambient: vec4<f32>,
+    // gamma, eta, black level, cos floor.
+    response: vec4<f32>,
+    // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion).
+    counts: vec4<u32>,
+}
+
+struct LightSample {
+    // xyz position.
+    position: vec4<f32>,
+    // rgb peak radiant intensity (W/sr).
+    intensity: vec4<f32>,
+    // xyz: spot axis or emitter normal; w: 0 isotropic, 1 spot, 2 cosine.
+    axis: vec4<f32>,
+    // cos inner, cos outer.
+    cone: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+struct Eye {
+    // xyz position.
+    position: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+struct ShadowView {
+    clip_from_world: mat4x4<f32>,
+    // xyz origin, w texel angle (radians).
+    origin: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> lights: array<LightSample>;
+@group(0) @binding(2) var<storage, read> eyes: array<Eye>;
+@group(0) @binding(3) var<storage, read> views: array<ShadowView>;
+@group(0) @binding(4) var maps: texture_2d_array<f32>;
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) @interpolate(flat) normal: vec3<f32>,
+}
+
+struct FragmentOut {
+    // rgb: L (W/sr); a: 1 unclipped, 2 clipped, 3 masked (0: no surface).
+    @location(0) irradiance: vec4<f32>,
+    // rgb: compensated pixel value; a: 1.
+    @location(1) value: vec4<f32>,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    return out;
+}
+
+// True when the views `first .. first + count` see nothing nearer to their
+// origin than `p` (surface normal `n`) along the line to `p`. A point no
+// view covers is visible (eye views cover only the virtual objects).
+fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
+    let res = frame.counts.z;
+    for (var i = first; i < first + count; i++) {
+        let v = views[i];
+        let c = v.clip_from_world * vec4<f32>(p, 1.0);
+        if (c.w <= 0.0) {
+            continue;
+        }
+        let ndc = c.xy / c.w;
+        if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+            continue;
+        }
+        let fres = f32(res);
+        let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
+        let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
+        let stored = textureLoad(maps, vec2<u32>(tx, ty), i, 0).r;
+        let to = p - v.origin.xyz;
+        let dist = length(to);
+        // Slope-scaled bias: a texel spans dist * angle, stretched by the
+        // receiver's tilt to the view.
+        let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
+        let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
+        let bias = dist * v.origin.w * (1.5 + 2.0 * tan_t) + 1e-4;
+        return dist <= stored + bias;
+    }
+    return true;
+}
+
+fn intensity_towards(s: LightSample, dir: vec3<f32>) -> vec3<f32> {
+    let kind = s.axis.w;
+    var factor = 1.0;
+    if (kind > 1.5) {
+        factor = max(dot(s.axis.xyz, dir), 0.0);
+    } else if (kind > 0.5) {
+        let c = dot(s.axis.xyz, dir);
+        let width = s.cone.x - s.cone.y;
+        if (!(c > s.cone.y)) {
+            factor = 0.0;
+        } else if (width > 0.0) {
+            let t = clamp((c - s.cone.y) / width, 0.0, 1.0);
+            factor = t * t * (3.0 - 2.0 * t);
+        }
+    }
+    return s.intensity.rgb * factor;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> FragmentOut {
+    var out: FragmentOut;
+    let p = in.world;
+    let to_projector = frame.projector.xyz - p;
+    let r2 = dot(to_projector, to_projector);
+    let dir_p = to_projector / sqrt(r2);
+    var n = in.normal;
+    if (dot(n, dir_p) < 0.0) {
+        n = -n;
+    }
+    let cos_p = dot(n, dir_p);
+    if (!(cos_p >= frame.response.w) || !(r2 > 0.0)) {
+        out.irradiance = vec4<f32>(0.0, 0.0, 0.0, 3.0);
+        out.value = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        return out;
+    }
+    let flags = frame.counts.w;
+    var occluded = false;
+    if ((flags & 2u) != 0u) {
+        for (var e = 0u; e < frame.counts.y; e++) {
+            let eye = eyes[e];
+            if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.views.x, eye.views.y)) {
+                occluded = true;
+                break;
+            }
+        }
+    }
+    var l = vec3<f32>(0.0);
+    if (!occluded) {
+        var e = max(frame.ambient.rgb, vec3<f32>(0.0));
+        for (var i = 0u; i < frame.counts.x; i++) {
+            let s = lights[i];
+            let to_light = s.position.xyz - p;
+            let r2l = dot(to_light, to_light);
+            if (!(r2l > 0.0)) {
+                continue;
+            }
+            let dir = to_light / sqrt(r2l);
+            let cos_t = dot(n, dir);
+            if (!(cos_t > 0.0)) {
+                continue;
+            }
+            if ((flags & 1u) != 0u && !visible(p, n, s.views.x, s.views.y)) {
+                continue;
+            }
+            e += intensity_towards(s, -dir) * (cos_t / r2l);
+        }
+        l = e * (r2 / cos_p);
+    }
+    // Device compensation: v = ((L - black) / eta)^(1 / gamma), clamped.
+    let gamma = frame.response.x;
+    let eta = frame.response.y;
+    let black = frame.response.z;
+    let linear = (l - vec3<f32>(black)) / eta;
+    let slack = 1e-6 * (1.0 + black / eta);
+    let clipped = any(linear < vec3<f32>(-slack)) || any(linear > vec3<f32>(1.0 + slack));
+    let c = clamp(linear, vec3<f32>(0.0), vec3<f32>(1.0));
+    let v = select(pow(c, vec3<f32>(1.0 / gamma)), vec3<f32>(0.0), c <= vec3<f32>(0.0));
+    out.irradiance = vec4<f32>(l, select(1.0, 2.0, clipped));
+    out.value = vec4<f32>(v, 1.0);
+    return out;
+}

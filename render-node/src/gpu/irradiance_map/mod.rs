@@ -1,0 +1,290 @@
+//! Irradiance map pass: the projector role's per-pixel `L` and device
+//! values from the real phantoms, the light samples, the eyes and the
+//! shadow views' distance maps. CPU reference:
+//! `crate::render::projector::irradiance_map_cpu` (units and rules there).
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::GpuError;
+use super::shadow_views::{ShadowMaps, world_vertex_layout};
+use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
+
+/// Mirrors WGSL `struct Frame` in `irradiance_map.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniform {
+    /// The projector's `clip_from_world`.
+    pub clip_from_world: [[f32; 4]; 4],
+    /// xyz projector centre.
+    pub projector: [f32; 4],
+    /// rgb ambient irradiance.
+    pub ambient: [f32; 4],
+    /// gamma, eta, black level, cos floor.
+    pub response: [f32; 4],
+    /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion).
+    pub counts: [u32; 4],
+}
+
+/// Mirrors WGSL `struct LightSample` in `irradiance_map.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct LightSampleGpu {
+    /// xyz position.
+    pub position: [f32; 4],
+    /// rgb peak intensity.
+    pub intensity: [f32; 4],
+    /// xyz axis or normal, w kind (0 isotropic, 1 spot, 2 cosine).
+    pub axis: [f32; 4],
+    /// cos inner, cos outer.
+    pub cone: [f32; 4],
+    /// first view, view count.
+    pub views: [u32; 4],
+}
+
+/// Mirrors WGSL `struct Eye` in `irradiance_map.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct EyeGpu {
+    /// xyz position.
+    pub position: [f32; 4],
+    /// first view, view count.
+    pub views: [u32; 4],
+}
+
+/// Alpha codes of the irradiance output.
+pub mod state {
+    /// No real surface.
+    pub const BACKGROUND: f32 = 0.0;
+    /// Surface, value in range.
+    pub const UNCLIPPED: f32 = 1.0;
+    /// Surface, value clamped.
+    pub const CLIPPED: f32 = 2.0;
+    /// Surface below the cos floor.
+    pub const MASKED: f32 = 3.0;
+}
+
+/// The compiled irradiance-map pipeline.
+#[derive(Debug)]
+pub struct IrradianceMapPass {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+/// Everything the pass reads, uploaded.
+#[derive(Debug)]
+pub struct IrradianceInputs<'a> {
+    /// The frame uniform.
+    pub frame: FrameUniform,
+    /// Light samples (may be empty).
+    pub lights: &'a [LightSampleGpu],
+    /// Eyes (may be empty).
+    pub eyes: &'a [EyeGpu],
+    /// The shadow views buffer (from `ShadowViewsPass::upload_views`).
+    pub views: &'a wgpu::Buffer,
+    /// The distance maps.
+    pub maps: &'a ShadowMaps,
+    /// Real phantoms, world space.
+    pub vertices: &'a wgpu::Buffer,
+    /// Their vertex count.
+    pub vertex_count: u32,
+}
+
+fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn storage_buffer<T: Pod + Zeroable>(
+    device: &wgpu::Device,
+    label: &str,
+    data: &[T],
+) -> wgpu::Buffer {
+    let placeholder = [T::zeroed()];
+    let data = if data.is_empty() {
+        &placeholder[..]
+    } else {
+        data
+    };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(data),
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+impl IrradianceMapPass {
+    /// Compile the pipeline for two [`OffscreenTarget`] colour formats.
+    pub fn new(device: &wgpu::Device) -> Self {
+        let shader = device.create_shader_module(wgpu::include_wgsl!("irradiance_map.wgsl"));
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("irradiance map"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage_entry(1),
+                storage_entry(2),
+                storage_entry(3),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 4,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("irradiance map"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let target = Some(wgpu::ColorTargetState {
+            format: COLOUR_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("irradiance map"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(world_vertex_layout())],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Phantom surfaces are two-sided, as in the CPU reference.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[target.clone(), target],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// Record the pass: clear both targets to 0 and depth to 1, draw the
+    /// phantoms. `irradiance` receives `L` and the state code, `value` the
+    /// device values; both must have the projector's size.
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        irradiance: &OffscreenTarget,
+        value: &OffscreenTarget,
+        inputs: &IrradianceInputs<'_>,
+    ) -> Result<(), GpuError> {
+        if (irradiance.width(), irradiance.height()) != (value.width(), value.height()) {
+            return Err(GpuError::SizeMismatch {
+                target_width: value.width(),
+                target_height: value.height(),
+                width: irradiance.width(),
+                height: irradiance.height(),
+            });
+        }
+        let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("irradiance frame"),
+            contents: bytemuck::bytes_of(&inputs.frame),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let lights = storage_buffer(device, "light samples", inputs.lights);
+        let eyes = storage_buffer(device, "eyes", inputs.eyes);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("irradiance map"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: lights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: eyes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: inputs.views.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(inputs.maps.array_view()),
+                },
+            ],
+        });
+        let attachment = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("irradiance map"),
+            color_attachments: &[
+                attachment(irradiance.colour_view()),
+                attachment(value.colour_view()),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: irradiance.depth_view(),
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if inputs.vertex_count > 0 {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_vertex_buffer(0, inputs.vertices.slice(..));
+            pass.draw(0..inputs.vertex_count, 0..1);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,427 @@
+//! Shadow views pass: distance maps from light samples (cube faces) and
+//! eyes (one view fitted around the occluders) into layers of one R32Float
+//! array texture, which the irradiance-map pass compares against. CPU
+//! reference: visibility rays (`crate::render::projector`).
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+use wgpu::util::DeviceExt;
+
+use super::GpuError;
+use super::target::DEPTH_FORMAT;
+
+/// Format of the distance maps.
+pub const DISTANCE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+
+/// Distance stored where no surface was drawn.
+pub const FAR_DISTANCE: f32 = 1.0e30;
+
+/// Mirrors WGSL `struct ShadowView` in `shadow_views.wgsl` (and in
+/// `irradiance_map.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ShadowView {
+    /// Clip space of this view.
+    pub clip_from_world: [[f32; 4]; 4],
+    /// xyz origin, w texel angle (radians).
+    pub origin: [f32; 4],
+}
+
+/// Mirrors WGSL `struct VertexIn` of the shadow and irradiance passes: a
+/// world-space position and its triangle's unit normal.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct WorldVertex {
+    /// World position.
+    pub position: [f32; 3],
+    /// Unit geometric normal of the vertex's triangle.
+    pub normal: [f32; 3],
+}
+
+/// The vertex layout of [`WorldVertex`].
+pub fn world_vertex_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRIBUTES: [wgpu::VertexAttribute; 2] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
+    wgpu::VertexBufferLayout {
+        array_stride: size_of::<WorldVertex>() as wgpu::BufferAddress,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &ATTRIBUTES,
+    }
+}
+
+fn perspective_view(
+    origin: Vec3,
+    dir: Vec3,
+    up: Vec3,
+    fov: f32,
+    near: f32,
+    far: f32,
+) -> ShadowView {
+    let clip = Mat4::perspective_rh(fov, 1.0, near, far) * Mat4::look_to_rh(origin, dir, up);
+    ShadowView {
+        clip_from_world: clip.to_cols_array_2d(),
+        origin: [origin.x, origin.y, origin.z, 0.0],
+    }
+}
+
+/// The six 90-degree cube faces around `origin`; every direction lies in
+/// one of them. `res` is the map size in texels.
+pub fn cube_views(origin: Vec3, near: f32, far: f32, res: u32) -> Vec<ShadowView> {
+    let faces = [
+        (Vec3::X, Vec3::Y),
+        (Vec3::NEG_X, Vec3::Y),
+        (Vec3::Y, Vec3::Z),
+        (Vec3::NEG_Y, Vec3::Z),
+        (Vec3::Z, Vec3::Y),
+        (Vec3::NEG_Z, Vec3::Y),
+    ];
+    let texel = 2.0 / res.max(1) as f32;
+    faces
+        .iter()
+        .map(|&(dir, up)| {
+            let mut v = perspective_view(origin, dir, up, std::f32::consts::FRAC_PI_2, near, far);
+            v.origin[3] = texel;
+            v
+        })
+        .collect()
+}
+
+/// Views from `origin` covering the sphere `(centre, radius)`: one view
+/// fitted around it, or the cube when `origin` is (nearly) inside it.
+pub fn fitted_views(
+    origin: Vec3,
+    centre: Vec3,
+    radius: f32,
+    near: f32,
+    far: f32,
+    res: u32,
+) -> Vec<ShadowView> {
+    let to = centre - origin;
+    let d = to.length();
+    if !(d > 1.05 * radius && radius > 0.0) {
+        return cube_views(origin, near, far, res);
+    }
+    let half = (radius / d).asin() * 1.02 + 1e-3;
+    if half >= 1.2 {
+        return cube_views(origin, near, far, res);
+    }
+    let dir = to / d;
+    let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+    let mut v = perspective_view(origin, dir, up, 2.0 * half, near, far);
+    v.origin[3] = 2.0 * half.tan() / res.max(1) as f32;
+    vec![v]
+}
+
+/// The distance maps: one `res x res` layer per view.
+#[derive(Debug)]
+pub struct ShadowMaps {
+    res: u32,
+    layers: u32,
+    texture: wgpu::Texture,
+    array_view: wgpu::TextureView,
+    layer_views: Vec<wgpu::TextureView>,
+    depth_view: wgpu::TextureView,
+}
+
+impl ShadowMaps {
+    /// Allocate `layers` maps of `res x res` (at least one layer, so that
+    /// the binding exists even without views).
+    pub fn new(device: &wgpu::Device, res: u32, layers: u32) -> Result<Self, GpuError> {
+        let limits = device.limits();
+        let layers = layers.max(1);
+        if res == 0
+            || res > limits.max_texture_dimension_2d
+            || layers > limits.max_texture_array_layers
+        {
+            return Err(GpuError::BadTargetSize {
+                width: res,
+                height: layers,
+                limit: limits
+                    .max_texture_dimension_2d
+                    .min(limits.max_texture_array_layers),
+            });
+        }
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow distance maps"),
+            size: wgpu::Extent3d {
+                width: res,
+                height: res,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DISTANCE_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let layer_views = (0..layers)
+            .map(|layer| {
+                texture.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("shadow layer"),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: layer,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect();
+        let array_view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("shadow maps"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow depth"),
+            size: wgpu::Extent3d {
+                width: res,
+                height: res,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        Ok(Self {
+            res,
+            layers,
+            texture,
+            array_view,
+            layer_views,
+            depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
+        })
+    }
+
+    /// Size of a layer in texels.
+    pub fn res(&self) -> u32 {
+        self.res
+    }
+
+    /// Number of layers.
+    pub fn layers(&self) -> u32 {
+        self.layers
+    }
+
+    /// The whole array, for sampling.
+    pub fn array_view(&self) -> &wgpu::TextureView {
+        &self.array_view
+    }
+
+    /// The texture.
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.texture
+    }
+}
+
+/// The compiled shadow-views pipeline.
+#[derive(Debug)]
+pub struct ShadowViewsPass {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+/// Geometry to draw into a range of layers.
+#[derive(Debug)]
+pub struct ShadowDraw<'a> {
+    /// World-space vertices, [`WorldVertex`] layout.
+    pub vertices: &'a wgpu::Buffer,
+    /// Number of vertices.
+    pub vertex_count: u32,
+    /// Layers (= view indices) to draw into.
+    pub layers: std::ops::Range<u32>,
+}
+
+impl ShadowViewsPass {
+    /// Compile the pipeline.
+    pub fn new(device: &wgpu::Device) -> Self {
+        let shader = device.create_shader_module(wgpu::include_wgsl!("shadow_views.wgsl"));
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow views"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("shadow views"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("shadow views"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(world_vertex_layout())],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Surfaces are two-sided occluders.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: DISTANCE_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// Upload `views` as the storage buffer both passes read.
+    pub fn upload_views(&self, device: &wgpu::Device, views: &[ShadowView]) -> wgpu::Buffer {
+        let placeholder = [ShadowView::zeroed()];
+        let data = if views.is_empty() {
+            &placeholder[..]
+        } else {
+            views
+        };
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shadow views"),
+            contents: bytemuck::cast_slice(data),
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+    }
+
+    /// Record one render pass per layer of each draw: clear to
+    /// [`FAR_DISTANCE`], draw the geometry with that layer's view.
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &ShadowMaps,
+        views: &wgpu::Buffer,
+        draws: &[ShadowDraw<'_>],
+    ) {
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow views"),
+            layout: &self.layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: views.as_entire_binding(),
+            }],
+        });
+        for draw in draws {
+            for layer in draw.layers.clone() {
+                let Some(target) = maps.layer_views.get(layer as usize) else {
+                    continue;
+                };
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("shadow view"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: f64::from(FAR_DISTANCE),
+                                g: 0.0,
+                                b: 0.0,
+                                a: 1.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &maps.depth_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                if draw.vertex_count == 0 {
+                    continue;
+                }
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_vertex_buffer(0, draw.vertices.slice(..));
+                pass.draw(0..draw.vertex_count, layer..layer + 1);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ndc(v: &ShadowView, p: Vec3) -> Option<Vec3> {
+        let c = Mat4::from_cols_array_2d(&v.clip_from_world) * p.extend(1.0);
+        (c.w > 0.0).then(|| c.truncate() / c.w)
+    }
+
+    #[test]
+    fn every_direction_falls_in_exactly_one_cube_face_interior() {
+        let o = Vec3::new(0.1, 0.2, 0.3);
+        let views = cube_views(o, 1e-3, 10.0, 256);
+        for d in [
+            Vec3::new(1.0, 0.3, -0.2),
+            Vec3::new(-0.2, -1.0, 0.5),
+            Vec3::new(0.4, 0.4, -0.9),
+            Vec3::new(0.0, 0.99, 0.1),
+        ] {
+            let inside = views
+                .iter()
+                .filter(|v| {
+                    ndc(v, o + d).is_some_and(|n| {
+                        n.x.abs() < 1.0 && n.y.abs() < 1.0 && n.z > 0.0 && n.z < 1.0
+                    })
+                })
+                .count();
+            assert_eq!(inside, 1, "{d}");
+        }
+    }
+
+    #[test]
+    fn fitted_view_covers_the_sphere() {
+        let o = Vec3::new(0.0, 0.5, 2.0);
+        let (c, r) = (Vec3::new(0.2, 0.1, 0.0), 0.3);
+        let views = fitted_views(o, c, r, 1e-3, 10.0, 256);
+        assert_eq!(views.len(), 1);
+        for d in [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::NEG_X,
+            Vec3::NEG_Y,
+            Vec3::NEG_Z,
+        ] {
+            let n = ndc(&views[0], c + d * r).unwrap();
+            assert!(n.x.abs() < 1.0 && n.y.abs() < 1.0, "{d}: {n}");
+        }
+        let inside = fitted_views(c, c, r, 1e-3, 10.0, 256);
+        assert_eq!(inside.len(), 6);
+    }
+}

@@ -1,0 +1,226 @@
+//! The face role: per-eye views through the beam splitter against the CPU
+//! reference (virtual objects shaded with shadow types 2 and 3, phantom
+//! depth), and the geometric line-of-sight property of drawn pixels.
+
+use std::sync::Arc;
+
+use anyhow::{Result, ensure};
+use glam::{DVec2, Vec3};
+use showcase_proto::ObjectKind;
+use showcase_render::light::metrics::relative_rmse;
+use showcase_render::light::{Image, Ray};
+use showcase_render::node::renderer::Renderer;
+use showcase_render::render::bench::{bench_face, bench_frame};
+use showcase_render::render::compare::EDGE_RADIUS_PX;
+use showcase_render::render::face::{face_image_cpu, reflected_pixel};
+use showcase_render::render::face_gpu::{FacePipeline, FaceRenderer, other_eyes};
+use showcase_render::render::passes::{Pass, PassList};
+use showcase_render::render::projector::edge_mask;
+use showcase_render::render::{FrameScene, Occluders};
+
+use super::gpu_or_skip;
+use super::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};
+use super::scenes::bench;
+
+#[test]
+fn face_pixels_lie_on_the_line_of_sight_through_their_reflection() -> Result<()> {
+    let scene = bench()?;
+    let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
+    let occ = Occluders::new(&frame)?;
+    let face = bench_face(96, 72);
+    let eye = frame.eyes[0];
+    let image = face_image_cpu(&frame, &occ, &face, eye, &[])?;
+    let sphere = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "virtual sphere")
+        .unwrap() as u32;
+    let mut checked = 0;
+    for y in 0..face.height {
+        for x in 0..face.width {
+            if image.state.get(x, y).unwrap().object != Some(sphere) {
+                continue;
+            }
+            // The sphere's surface point is on the line eye -> reflection.
+            let through = reflected_pixel(&face, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
+            let ray = Ray::new(eye, (through - eye).normalize());
+            let hit = occ.all.closest_hit(&ray, 0.0, f64::INFINITY).unwrap();
+            let view = showcase_render::mirror_view::FaceView::new(&face, eye, 0.01, 20.0).unwrap();
+            let px = view.pixel(hit.point, face.width, face.height).unwrap();
+            ensure!(
+                (px - DVec2::new(x as f64 + 0.5, y as f64 + 0.5)).length() < 1e-6,
+                "{x},{y} -> {px}"
+            );
+            checked += 1;
+        }
+    }
+    ensure!(checked > 20, "the sphere covers only {checked} pixels");
+    Ok(())
+}
+
+#[test]
+fn gpu_face_view_matches_the_cpu_reference() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("gpu_face_view_matches_the_cpu_reference")? else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
+    let occ = Occluders::new(&frame)?;
+    let face = bench_face(320, 240);
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let others = other_eyes(&frame, 0);
+    let gpu = FacePipeline::new(&ctx.device, 1024).render(
+        &ctx,
+        &frame,
+        &face,
+        &eyes,
+        &others,
+        &PassList::full_face(),
+    )?;
+    for (eye, image) in eyes.iter().zip(&gpu) {
+        let cpu = face_image_cpu(&frame, &occ, &face, *eye, &others)?;
+        let g = Image {
+            width: face.width,
+            height: face.height,
+            data: image.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+        };
+        let edges = edge_mask(&cpu.state, EDGE_RADIUS_PX, false);
+        let drawn = cpu.state.map(|s| !s.masked);
+        let off = Image {
+            data: drawn
+                .data
+                .iter()
+                .zip(&edges.data)
+                .map(|(d, e)| *d && !e)
+                .collect(),
+            ..drawn.clone()
+        };
+        let all = relative_rmse(&g, &cpu.radiance, Some(&drawn))?;
+        let off_edges = relative_rmse(&g, &cpu.radiance, Some(&off))?;
+        let n = drawn.data.iter().filter(|d| **d).count();
+        let outliers = (0..g.data.len())
+            .filter(|&i| off.data[i])
+            .filter(|&i| {
+                (g.data[i] - cpu.radiance.data[i]).abs().max_element()
+                    > 0.01 * cpu.radiance.data[i].max_element().max(1e-6)
+            })
+            .count();
+        // Phantom depth: wherever the reference sees a real phantom first
+        // (outside the filled-in occlusion shadows), the GPU draws nothing.
+        let real_first = |i: usize| {
+            cpu.state.data[i]
+                .object
+                .is_some_and(|o| scene.objects[o as usize].kind == ObjectKind::Real)
+        };
+        let hidden = (0..g.data.len())
+            .filter(|&i| real_first(i) && !cpu.state.data[i].occluded)
+            .filter(|&i| !edges.data[i] && image[i][3] != 0.0)
+            .count();
+        // Occluding occlusion shadows: the other observer's occlusion
+        // shadows on the real room are filled in, on both sides.
+        let filled: Vec<usize> = (0..g.data.len())
+            .filter(|&i| real_first(i) && cpu.state.data[i].occluded)
+            .collect();
+        let filled_off_edges = filled.iter().filter(|&&i| !edges.data[i]).count();
+        let filled_gpu = filled
+            .iter()
+            .filter(|&&i| !edges.data[i] && image[i][3] == 1.0)
+            .count();
+        eprintln!(
+            "filled {} (off edges {filled_off_edges}, gpu {filled_gpu})",
+            filled.len()
+        );
+        ensure!(filled.len() > 200, "only {} filled pixels", filled.len());
+        ensure!(
+            filled_gpu == filled_off_edges,
+            "gpu fills {filled_gpu} of {filled_off_edges}"
+        );
+        eprintln!(
+            "eye {eye}: rel RMSE {all} (off edges {off_edges}) over {n} pixels, {outliers} outliers off edges, {hidden} phantom leaks"
+        );
+        ensure!(n > 2000, "only {n} virtual pixels");
+        ensure!(
+            off_edges <= GPU_CPU_REL_RMSE,
+            "face rel RMSE off edges {off_edges}"
+        );
+        ensure!(
+            outliers as f64 <= OFF_EDGE_OUTLIERS * n as f64,
+            "{outliers} outliers off edges"
+        );
+        ensure!(
+            hidden == 0,
+            "{hidden} pixels draw a virtual object behind a phantom"
+        );
+    }
+    Ok(())
+}
+
+#[test]
+fn face_renderer_draws_both_eyes_side_by_side() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("face_renderer_draws_both_eyes_side_by_side")? else {
+        return Ok(());
+    };
+    let mut scene = bench()?;
+    scene.faces.push(bench_face(64, 48));
+    let mut r = FaceRenderer::new(ctx, 0, 1, 256);
+    r.set_scene(1, Arc::new(scene.clone()))?;
+    let out = r.render(&bench_frame(&scene, "full", 0), &scene)?;
+    let image = out.image.clone().unwrap();
+    ensure!((image.width, image.height) == (128, 48));
+    let left: usize = (0..48)
+        .flat_map(|y| (0..64).map(move |x| (x, y)))
+        .filter(|&(x, y)| image.rgba[y * 128 + x][3] > 0.0)
+        .count();
+    let right: usize = (0..48)
+        .flat_map(|y| (64..128).map(move |x| (x, y)))
+        .filter(|&(x, y)| image.rgba[y * 128 + x][3] > 0.0)
+        .count();
+    let differ =
+        (0..48).any(|y| (0..64).any(|x| image.rgba[y * 128 + x] != image.rgba[y * 128 + 64 + x]));
+    ensure!(
+        left > 50 && right > 50 && differ,
+        "left {left} right {right}, halves differ: {differ}"
+    );
+    ensure!(
+        r.last_passes() == [Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+        "{:?}",
+        r.last_passes()
+    );
+    // The same state again: reused, nothing ran, the same output.
+    let mut again = bench_frame(&scene, "full", 0);
+    again.frame = 1;
+    let second = r.render(&again, &scene)?;
+    ensure!(r.last_passes().is_empty() && second.hash == out.hash);
+    // Another observer's head moves: their occlusion shadows move, so the
+    // face is drawn again.
+    again.frame = 2;
+    again.heads[0].position.x += 0.03;
+    let third = r.render(&again, &scene)?;
+    ensure!(!r.last_passes().is_empty() && third.hash != out.hash);
+    Ok(())
+}
+
+#[test]
+fn occluding_occlusion_passes_are_skipped_with_one_observer() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("occluding_occlusion_passes_are_skipped_with_one_observer")? else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let mut state = bench_frame(&scene, "full", 0);
+    state.heads.truncate(1);
+    let frame = FrameScene::resolve(&scene, &state)?;
+    let others = other_eyes(&frame, 0);
+    ensure!(others.is_empty());
+    let passes = PassList::for_face(&frame, others.len());
+    ensure!(!passes.runs(Pass::EyeShadowViews), "{passes:?}");
+    let face = bench_face(96, 72);
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let pipeline = FacePipeline::new(&ctx.device, 256);
+    let skipped = pipeline.render(&ctx, &frame, &face, &eyes, &others, &passes)?;
+    let full = pipeline.render(&ctx, &frame, &face, &eyes, &others, &PassList::full_face())?;
+    ensure!(
+        skipped == full,
+        "skipping the other observers' views changed the output"
+    );
+    Ok(())
+}
