@@ -181,9 +181,9 @@ pub struct BenchArgs {
     /// Report folder (without --json).
     #[arg(long, default_value = "showcase-bench")]
     pub out: PathBuf,
-    /// Frames per configuration (cluster bench).
-    #[arg(long, default_value_t = 600)]
-    pub frames: u64,
+    /// Frames per configuration (default: 600 for cluster, 30 for render).
+    #[arg(long)]
+    pub frames: Option<u64>,
 }
 
 /// Subcommands of `sim`.
@@ -217,27 +217,6 @@ pub struct SimRenderArgs {
     /// Output file (.pfm).
     #[arg(long)]
     pub out: PathBuf,
-}
-
-/// A capability that a later piece of work will build.
-#[derive(Debug, thiserror::Error)]
-#[error("{command}: {capability} is not built yet (tracked in issue #{issue}); nothing was done")]
-pub struct NotBuilt {
-    /// The command line that asked for it.
-    pub command: &'static str,
-    /// What is missing.
-    pub capability: &'static str,
-    /// The issue that delivers it.
-    pub issue: u32,
-}
-
-fn not_built(command: &'static str, capability: &'static str, issue: u32) -> anyhow::Error {
-    NotBuilt {
-        command,
-        capability,
-        issue,
-    }
-    .into()
 }
 
 /// A file of the shared data set: `../shared/data/NAME` from the working
@@ -398,7 +377,13 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Bench(args) => match args.target {
             BenchTarget::Calibration => {
-                Err(not_built("bench calibration", "device calibration", 4))
+                let records = crate::calibrate::bench_calibration();
+                if !args.json {
+                    crate::calibrate::write_bench_report(&records, &args.out).with_context(
+                        || format!("cannot write the report to {}", args.out.display()),
+                    )?;
+                }
+                emit_bench(&args, &records)
             }
             BenchTarget::Reflectance => {
                 let opts = crate::capture::bench::BenchOptions {
@@ -419,11 +404,48 @@ pub fn run(cli: Cli) -> Result<()> {
                 }
                 emit_bench(&args, &records)
             }
-            BenchTarget::Render => Err(not_built("bench render", "the real-time renderer", 6)),
+            BenchTarget::Render => {
+                use showcase_render::render::bench::{BenchOptions, bench_render, bench_scene};
+                let room =
+                    crate::capture::scenes::load_obj_showcase(&shared_data("cornell-box.obj"))?;
+                let walls = room
+                    .objects
+                    .iter()
+                    .filter(|o| {
+                        ["floor", "ceiling", "back", "right_green", "left_red"]
+                            .contains(&o.name.as_str())
+                    })
+                    .filter_map(|o| {
+                        Some((
+                            o.name.clone(),
+                            room.mesh(&o.mesh)?.clone(),
+                            o.material.albedo,
+                        ))
+                    })
+                    .collect();
+                let bunny = crate::capture::scenes::load_obj_showcase(&shared_data("bunny.obj"))?;
+                let bunny = bunny
+                    .objects
+                    .first()
+                    .and_then(|o| bunny.mesh(&o.mesh))
+                    .context("bunny.obj has no mesh")?
+                    .clone();
+                let scene = bench_scene(walls, bunny);
+                let ctx = showcase_render::gpu::GpuContext::new_headless()?;
+                eprintln!("bench render on {}", ctx.describe());
+                let mut opts = BenchOptions::default();
+                if let Some(f) = args.frames {
+                    opts.frames = f as usize;
+                }
+                let records = bench_render(&ctx, &scene, &opts)?;
+                emit_bench(&args, &records)
+            }
             BenchTarget::Cluster => {
                 let scene = crate::scene_file::load_scene(&crate::demo::default_scene())?;
-                let records = runtime()?
-                    .block_on(crate::cluster::commands::bench_cluster(&scene, args.frames))?;
+                let records = runtime()?.block_on(crate::cluster::commands::bench_cluster(
+                    &scene,
+                    args.frames.unwrap_or(600),
+                ))?;
                 emit_bench(&args, &records)
             }
         },
@@ -470,14 +492,24 @@ mod tests {
     }
 
     #[test]
-    fn unbuilt_commands_fail_naming_the_capability() {
-        let cli =
-            Cli::try_parse_from(["showcase-master", "radiosity", "--scene", "x", "--out", "y"])
-                .unwrap();
-        let err = run(cli).unwrap_err().to_string();
+    fn bad_input_names_the_file_or_value() {
+        let cli = Cli::try_parse_from([
+            "showcase-master",
+            "radiosity",
+            "--scene",
+            "no-such.toml",
+            "--out",
+            "y",
+        ])
+        .unwrap();
+        let err = format!("{:#}", run(cli).unwrap_err());
+        assert!(err.contains("no-such.toml"), "{err}");
         assert_eq!(
-            err,
-            "radiosity: augmented radiosity is not built yet (tracked in issue #5); nothing was done"
+            parse_vec3("--eye", "1,2").unwrap_err().to_string(),
+            "--eye \"1,2\": expected three finite numbers x,y,z"
         );
+        assert!(parse_vec3("--eye", "1,nan,2").is_err());
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        assert!(parse_size("0x480").is_err() && parse_size("640").is_err());
     }
 }
