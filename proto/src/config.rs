@@ -414,7 +414,7 @@ mod tests {
             "unknown variant `wall`",
         );
         check(
-            |s| s.replace("observer:alice", "alice"),
+            |s| s.replace("observer:observer-0", "observer-0"),
             "is not observer:<name>",
         );
     }
