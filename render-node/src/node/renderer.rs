@@ -169,6 +169,22 @@ impl Renderer for StateHashRenderer {
     }
 }
 
+impl<R: Renderer + ?Sized> Renderer for Box<R> {
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
+        (**self).set_scene(version, scene)
+    }
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
+        (**self).render(frame, scene)
+    }
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        (**self).present(frame)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,21 +230,5 @@ mod tests {
             other.render(&f, &scene).unwrap().hash,
             r.render(&f, &scene).unwrap().hash
         );
-    }
-}
-
-impl<R: Renderer + ?Sized> Renderer for Box<R> {
-    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
-        (**self).set_scene(version, scene)
-    }
-    fn render(
-        &mut self,
-        frame: &FrameState,
-        scene: &Showcase,
-    ) -> Result<RenderOutput, RenderError> {
-        (**self).render(frame, scene)
-    }
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        (**self).present(frame)
     }
 }
