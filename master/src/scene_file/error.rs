@@ -5,13 +5,13 @@
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The scene file itself could not be read.
-    #[error("{file}: cannot read scene file: {source}")]
+    #[error("{file}: cannot read scene file: {error}")]
     Read {
         /// The scene file.
         file: String,
-        /// The I/O failure.
-        #[source]
-        source: std::io::Error,
+        /// The I/O failure (shown in the message, so not also a `source`,
+        /// which would print it twice in error chains).
+        error: std::io::Error,
     },
     /// The text is not a scene: malformed TOML, an unknown key, a value of
     /// the wrong type, a missing key, or a non-finite number.

@@ -139,9 +139,9 @@ pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
 /// resolved against its folder; errors name it as `path` is written.
 pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
     let file = path.display().to_string();
-    let read_err = |source| SceneError::Read {
+    let read_err = |error| SceneError::Read {
         file: file.clone(),
-        source,
+        error,
     };
     let meta = std::fs::metadata(path).map_err(read_err)?;
     if meta.len() > MAX_SCENE_FILE_BYTES {
