@@ -92,6 +92,8 @@ pub struct ClusterRun {
     pub frame_messages: u64,
     /// Master-clock ns when the frame clock started.
     pub started_ns: u64,
+    /// Master-clock ns when the run loop ended.
+    pub finished_ns: u64,
 }
 
 enum Inbound {
@@ -351,6 +353,7 @@ impl Server {
                 _ = sleep => core.handle_timeout(now()),
             }
         }
+        run.finished_ns = now();
         core.shutdown(now(), "the master is shutting down");
         while let Some(out) = core.poll() {
             if let MasterOutput::Transmit { conn, message } = out {
