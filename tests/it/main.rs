@@ -6,6 +6,7 @@ mod calibration;
 mod capture;
 mod cluster;
 mod codec;
+mod demo;
 mod gpu;
 mod light;
 mod radiosity;

@@ -1,0 +1,68 @@
+//! The main job end to end, short: `demo` with few frames must run every
+//! built stage, write `report.json` and `index.html`, give a reason for
+//! every skipped stage, and report finite headline figures.
+
+use showcase_master::cli::{Cli, run};
+
+#[test]
+fn short_demo_writes_an_honest_report() {
+    use clap::Parser;
+    let out = std::env::temp_dir().join(format!("showcase-demo-{}", std::process::id()));
+    let cli = Cli::try_parse_from([
+        "showcase-master",
+        "demo",
+        "--frames",
+        "30",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .unwrap();
+    run(cli).expect("the demo runs");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let session = std::fs::read_to_string(out.join("session.jsonl")).unwrap();
+    std::fs::remove_dir_all(&out).unwrap();
+
+    let phases = report["phases"].as_array().unwrap();
+    let names: Vec<&str> = phases.iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "scene",
+            "calibration",
+            "reflectance",
+            "radiosity",
+            "interactive",
+            "rendering"
+        ]
+    );
+    let skipped: Vec<&serde_json::Value> =
+        phases.iter().filter(|p| p["status"] == "skipped").collect();
+    for p in &skipped {
+        assert!(p["detail"].as_str().unwrap().contains("issue #"), "{p}");
+    }
+    // Nothing skipped may be passed off as complete.
+    assert_eq!(report["complete"], serde_json::json!(skipped.is_empty()));
+    let figures = &report["figures"];
+    for key in [
+        "calibration_rms_px",
+        "calibration_center_error_m",
+        "frame_rate_hz",
+        "swap_skew_ms_p99",
+        "tracking_to_swap_ms_p99",
+    ] {
+        let v = figures[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} missing: {figures}"));
+        assert!(v.is_finite() && v >= 0.0, "{key} = {v}");
+    }
+    // Calibration from 0.5 px marks: residuals of that order (issue 4).
+    assert!(figures["calibration_rms_px"].as_f64().unwrap() < 1.0);
+    assert_eq!(figures["dropped_frames"], 0);
+    for phase in &names {
+        assert!(html.contains(phase), "index.html lacks {phase}");
+    }
+    // The walk was recorded: a header plus one datagram per frame.
+    assert_eq!(session.lines().count(), 31);
+}
