@@ -255,6 +255,17 @@ async fn loopback_cluster_of_four_nodes() {
         run.dropped_ticks
     );
     assert_eq!(run.submitted, FRAMES);
+    // Every live node was sent every frame's state, and the writers counted it.
+    assert!(
+        run.frame_messages >= 3 * FRAMES,
+        "{} FrameStates sent",
+        run.frame_messages
+    );
+    assert!(
+        run.frame_bytes >= 50 * run.frame_messages,
+        "{} bytes",
+        run.frame_bytes
+    );
     // DTrack moved alice: the last frames show her at (0.3, 0.4, 0.5).
     let last = reference.last().unwrap();
     assert!(

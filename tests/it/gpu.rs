@@ -7,7 +7,7 @@
 mod compare;
 mod wgsl;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, Result, bail, ensure};
 use compare::{MESH_TOLERANCE, Tolerance, compare};
@@ -38,47 +38,12 @@ fn gpu_or_skip(test: &str) -> Result<Option<GpuContext>> {
     }
 }
 
-/// `../shared/data/<name>` from the workspace root.
-fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(name)
-}
-
 /// All models of an OBJ as meshes, with each model's diffuse albedo
-/// (grey 0.8 where it has none).
+/// (grey 0.8 where it has none): the render tests' loader without names.
 fn load_obj(path: &Path) -> Result<Vec<(Mesh, Vec3)>> {
-    let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
-        .with_context(|| format!("loading {}", path.display()))?;
-    let materials = materials.unwrap_or_default();
-    Ok(models
+    Ok(crate::render::scenes::load_obj(path)?
         .into_iter()
-        .map(|m| {
-            let positions = m
-                .mesh
-                .positions
-                .chunks_exact(3)
-                .map(|p| Vec3::new(p[0], p[1], p[2]))
-                .collect();
-            let triangles = m
-                .mesh
-                .indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect();
-            let albedo = m
-                .mesh
-                .material_id
-                .and_then(|i| materials.get(i))
-                .and_then(|mat| mat.diffuse)
-                .map_or(Vec3::splat(0.8), Vec3::from_array);
-            let mesh = Mesh {
-                positions,
-                triangles,
-                ..Mesh::default()
-            };
-            (mesh, albedo)
-        })
+        .map(|(_, mesh, albedo)| (mesh, albedo))
         .collect())
 }
 
@@ -135,7 +100,7 @@ fn check_scene(
 
 /// The Stanford bunny as shipped (about 10 units tall, y up).
 fn bunny_mesh() -> Result<Mesh> {
-    let mut models = load_obj(&data("bunny.obj"))?;
+    let mut models = load_obj(&crate::render::scenes::data("bunny.obj"))?;
     ensure!(models.len() == 1, "bunny.obj has {} models", models.len());
     Ok(models.remove(0).0)
 }
@@ -195,7 +160,7 @@ fn cornell_box_gpu_matches_cpu_reference() -> Result<()> {
     let Some(ctx) = gpu_or_skip("cornell_box_gpu_matches_cpu_reference")? else {
         return Ok(());
     };
-    let models = load_obj(&data("cornell-box.obj"))?;
+    let models = load_obj(&crate::render::scenes::data("cornell-box.obj"))?;
     ensure!(
         models.len() >= 8,
         "cornell-box.obj has {} models",

@@ -11,7 +11,7 @@ mod face;
 mod golden;
 mod passes;
 mod projector;
-mod scenes;
+pub(crate) mod scenes;
 
 use anyhow::{Context, Result, bail};
 use showcase_render::gpu::{GpuContext, GpuError};

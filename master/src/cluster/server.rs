@@ -7,7 +7,6 @@
 
 use super::metrics::{FrameMetrics, frame_metrics};
 use super::show::Show;
-use showcase_proto::codec::{MAX_FRAME_LEN, encode_frame};
 use showcase_proto::session::{
     ConnId, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, SwapReport,
 };
@@ -19,6 +18,8 @@ use showcase_render::net::{
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use tokio::task::JoinSet;
@@ -86,7 +87,7 @@ pub struct ClusterRun {
     pub joins: Vec<(String, u64)>,
     /// `(node, master-clock ns)` of every connection closed, with why.
     pub closes: Vec<(Option<String>, u64, String)>,
-    /// Bytes of FrameState messages sent, in total.
+    /// Bytes of FrameState messages written to the nodes, in total.
     pub frame_bytes: u64,
     /// FrameState messages sent.
     pub frame_messages: u64,
@@ -188,17 +189,12 @@ impl Server {
         let mut next_frame = 0u64;
         let mut last_swap_at: Option<Instant> = None;
         let mut udp_buf = vec![0u8; 64 * 1024];
+        let traffic = Arc::new(FrameTraffic::default());
 
         'run: loop {
             while let Some(out) = core.poll() {
                 match out {
                     MasterOutput::Transmit { conn, message } => {
-                        if let Message::FrameState(_) = &message
-                            && let Ok(f) = encode_frame(&message, MAX_FRAME_LEN)
-                        {
-                            run.frame_bytes += f.len() as u64;
-                            run.frame_messages += 1;
-                        }
                         if let Some(c) = conns.get(&conn) {
                             let _ = c.send(Outbound::Send(message));
                         }
@@ -279,7 +275,7 @@ impl Server {
                     next_conn += 1;
                     let tx = tx.clone();
                     let span = info_span!("connection", conn = %id, peer = %incoming.remote_address());
-                    tasks.spawn(connection(incoming, id, tx).instrument(span));
+                    tasks.spawn(connection(incoming, id, tx, traffic.clone()).instrument(span));
                 }
                 Some(ev) = rx.recv() => match ev {
                     Inbound::Connected(id, out) => {
@@ -354,6 +350,8 @@ impl Server {
             }
         }
         run.finished_ns = now();
+        run.frame_bytes = traffic.bytes.load(Ordering::Relaxed);
+        run.frame_messages = traffic.messages.load(Ordering::Relaxed);
         core.shutdown(now(), "the master is shutting down");
         while let Some(out) = core.poll() {
             if let MasterOutput::Transmit { conn, message } = out {
@@ -380,7 +378,19 @@ impl Server {
 
 /// One node connection: TLS handshake, the name check, then a reader that
 /// forwards messages and a writer that sends what the core transmits.
-async fn connection(incoming: quinn::Incoming, id: ConnId, tx: mpsc::UnboundedSender<Inbound>) {
+/// FrameState bytes the writers actually sent, over all connections.
+#[derive(Debug, Default)]
+struct FrameTraffic {
+    bytes: AtomicU64,
+    messages: AtomicU64,
+}
+
+async fn connection(
+    incoming: quinn::Incoming,
+    id: ConnId,
+    tx: mpsc::UnboundedSender<Inbound>,
+    traffic: Arc<FrameTraffic>,
+) {
     let conn = match incoming.await {
         Ok(c) => c,
         Err(e) => {
@@ -409,11 +419,15 @@ async fn connection(incoming: quinn::Incoming, id: ConnId, tx: mpsc::UnboundedSe
     let writer_task = async move {
         while let Some(o) = out_rx.recv().await {
             match o {
-                Outbound::Send(m) => {
-                    if writer.send(&m).await.is_err() {
-                        break;
+                Outbound::Send(m) => match writer.send(&m).await {
+                    Ok(n) => {
+                        if let Message::FrameState(_) = m {
+                            traffic.bytes.fetch_add(n as u64, Ordering::Relaxed);
+                            traffic.messages.fetch_add(1, Ordering::Relaxed);
+                        }
                     }
-                }
+                    Err(_) => break,
+                },
                 Outbound::Close(reason) => {
                     writer.finish();
                     // Give the Bye a moment to leave before the close frame.

@@ -38,7 +38,7 @@ impl MessageStream {
 
     /// Send one message.
     pub async fn send(&mut self, msg: &Message) -> Result<(), StreamError> {
-        self.writer.send(msg).await
+        self.writer.send(msg).await.map(|_| ())
     }
 
     /// Receive the next message. Cancel-safe: bytes already read stay
@@ -97,11 +97,11 @@ impl MessageWriter {
         Self { send }
     }
 
-    /// Send one message.
-    pub async fn send(&mut self, msg: &Message) -> Result<(), StreamError> {
+    /// Send one message; returns the bytes written (prefix included).
+    pub async fn send(&mut self, msg: &Message) -> Result<usize, StreamError> {
         let frame = encode_frame(msg, MAX_FRAME_LEN)?;
         self.send.write_all(&frame).await?;
-        Ok(())
+        Ok(frame.len())
     }
 
     /// Finish the stream (the peer reads to the end, then sees it closed).

@@ -12,14 +12,15 @@ use showcase_proto::{
 use showcase_render::render::bench::bench_scene;
 
 /// `../shared/data/<name>` from the workspace root.
-pub(super) fn data(name: &str) -> PathBuf {
+pub(crate) fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../shared/data")
         .join(name)
 }
 
-/// Every model of an OBJ: name, mesh and diffuse albedo.
-fn load_obj(path: &Path) -> Result<Vec<(String, Mesh, Vec3)>> {
+/// Every model of an OBJ: name, mesh and diffuse albedo (grey 0.8 where
+/// it has none). Shared with the GPU bring-up tests.
+pub(crate) fn load_obj(path: &Path) -> Result<Vec<(String, Mesh, Vec3)>> {
     let (models, materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
         .with_context(|| format!("loading {}", path.display()))?;
     let materials = materials.unwrap_or_default();
