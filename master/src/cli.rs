@@ -184,6 +184,12 @@ pub struct BenchArgs {
     /// Frames per configuration (default: 600 for cluster, 30 for render).
     #[arg(long)]
     pub frames: Option<u64>,
+    /// Cluster only: node counts to run (default: 2,4,8).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub nodes: Vec<u16>,
+    /// Cluster only: frame rates to run, in Hz (default: 60,120).
+    #[arg(long, value_delimiter = ',')]
+    pub hz: Vec<f32>,
 }
 
 /// Subcommands of `sim`.
@@ -442,9 +448,27 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             BenchTarget::Cluster => {
                 let scene = crate::scene_file::load_scene(&crate::demo::default_scene())?;
+                let nodes: Vec<usize> = if args.nodes.is_empty() {
+                    vec![2, 4, 8]
+                } else {
+                    args.nodes.iter().map(|&n| n as usize).collect()
+                };
+                let hz = if args.hz.is_empty() {
+                    vec![60.0, 120.0]
+                } else {
+                    args.hz.clone()
+                };
+                if let Some(bad) = hz
+                    .iter()
+                    .find(|h| !(h.is_finite() && (1.0..=1000.0).contains(*h)))
+                {
+                    anyhow::bail!("--hz {bad}: a frame rate must be between 1 and 1000 Hz");
+                }
                 let records = runtime()?.block_on(crate::cluster::commands::bench_cluster(
                     &scene,
                     args.frames.unwrap_or(600),
+                    &nodes,
+                    &hz,
                 ))?;
                 emit_bench(&args, &records)
             }

@@ -120,13 +120,19 @@ pub fn bench_record(nodes: usize, hz: f32, frames: u64, r: &LoopbackResult) -> C
     }
 }
 
-/// `bench cluster`: loopback clusters of 2, 4 and 8 nodes at 60 and 120
-/// Hz on the demo scene with the scripted walk; one node is killed and
+/// `bench cluster`: a loopback cluster of each of `node_counts` at each of
+/// `rates` Hz (the command's defaults: 2, 4 and 8 nodes at 60 and 120 Hz)
+/// on the demo scene with the scripted walk; one node is killed and
 /// restarted a third of the way in.
-pub async fn bench_cluster(scene: &Showcase, frames: u64) -> Result<Vec<ClusterBenchRecord>> {
+pub async fn bench_cluster(
+    scene: &Showcase,
+    frames: u64,
+    node_counts: &[usize],
+    rates: &[f32],
+) -> Result<Vec<ClusterBenchRecord>> {
     let mut out = Vec::new();
-    for nodes in [2usize, 4, 8] {
-        for hz in [60.0f32, 120.0] {
+    for &nodes in node_counts {
+        for &hz in rates {
             let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
             let plan = LoopbackPlan {
                 scene: scene.clone(),
