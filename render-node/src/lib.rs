@@ -9,6 +9,7 @@ pub mod light;
 pub mod mirror_view;
 pub mod net;
 pub mod node;
+pub mod observer_view;
 pub mod radiosity;
 pub mod reflectance;
 pub mod render;
