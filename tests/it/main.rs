@@ -9,6 +9,7 @@ mod codec;
 mod demo;
 mod gpu;
 mod light;
+mod observer;
 mod radiosity;
 mod render;
 mod scene_files;

@@ -10,6 +10,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bench;
+pub mod blend;
 pub mod compare;
 pub mod consistency;
 pub mod face;

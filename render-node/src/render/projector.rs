@@ -37,6 +37,7 @@
 //! wheel turn per frame.
 
 use super::RenderSetupError;
+use super::blend::Blend;
 use super::frame::FrameScene;
 use crate::light::{DeviceRays, Image, ObjectFilter, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
@@ -189,6 +190,10 @@ pub struct ProjectorOptions {
     pub shadows: bool,
     /// Occlusion shadows of the frame's eyes.
     pub occlusion: bool,
+    /// Share the light with the scene's other projectors where they
+    /// overlap ([`super::blend`]); off, this projector alone delivers the
+    /// whole target everywhere it reaches.
+    pub blend: bool,
 }
 
 impl Default for ProjectorOptions {
@@ -196,6 +201,7 @@ impl Default for ProjectorOptions {
         Self {
             shadows: true,
             occlusion: true,
+            blend: true,
         }
     }
 }
@@ -222,12 +228,23 @@ pub fn irradiance_map_cpu(
         };
         &unshadowed
     };
+    let blend = match frame
+        .showcase
+        .projectors
+        .iter()
+        .position(|p| p.name == projector.name && p.device == projector.device)
+    {
+        Some(i) if options.blend && frame.showcase.projectors.len() > 1 => {
+            Some((Blend::new(&frame.showcase.projectors)?, i))
+        }
+        _ => None,
+    };
     let pixels: Vec<(Vec3, Vec3, PixelState)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
-            let rays = &rays;
+            let (rays, blend) = (&rays, &blend);
             (0..w).map(move |x| {
-                let (l, state) = pixel_irradiance(frame, occ, rays, options, x, y);
+                let (l, state) = pixel_irradiance(frame, occ, rays, options, blend, x, y);
                 let (value, clipped) = if state.masked {
                     (DVec3::ZERO, false)
                 } else {
@@ -268,6 +285,7 @@ fn pixel_irradiance(
     occluders: &Occluders,
     rays: &DeviceRays,
     options: ProjectorOptions,
+    blend: &Option<(Blend, usize)>,
     x: u32,
     y: u32,
 ) -> (DVec3, PixelState) {
@@ -319,7 +337,10 @@ fn pixel_irradiance(
         );
     }
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
-    let l = e * (r2 / cos_p);
+    let share = blend.as_ref().map_or(1.0, |(b, i)| {
+        b.weight(*i, &occluders.real_only, hit.point, facing)
+    });
+    let l = e * (share * r2 / cos_p);
     (
         if l.is_finite() { l } else { DVec3::ZERO },
         PixelState {

@@ -263,7 +263,7 @@ fn direct_light_consistency_within_one_percent() -> Result<()> {
             &projector,
             ProjectorOptions {
                 shadows: false,
-                occlusion: true,
+                ..ProjectorOptions::default()
             },
         )?;
         let wrong = direct_light_consistency(&frame, &occ, &projector, &unshadowed, &camera)?;

@@ -1,0 +1,100 @@
+//! What an observer sees, simulated (`showcase_render::observer_view`),
+//! and the projector blending it exposes: on the demo cabinet, whose two
+//! projectors overlap on most of the room, the CPU reference irradiance
+//! maps of both projectors, sent through the true projectors onto the real
+//! objects, must give the target radiance once, not twice.
+
+use glam::DVec3;
+use showcase_proto::{ObjectKind, Showcase};
+use showcase_render::light::{Image, metrics::relative_rmse};
+use showcase_render::observer_view::{ObserverView, ProjectedLight, observer_view};
+use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
+
+/// The demo cabinet's real objects and lamp (virtual objects removed, so
+/// that what the eye sees of the real room is the whole target), with its
+/// projectors at a quarter of their pixels.
+fn real_cabinet() -> Showcase {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
+    let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
+    s.objects.retain(|o| o.kind == ObjectKind::Real);
+    for p in &mut s.projectors {
+        let d = &mut p.device;
+        d.k = glam::DMat3::from_diagonal(DVec3::new(0.5, 0.5, 1.0)) * d.k;
+        d.width /= 2;
+        d.height /= 2;
+    }
+    s
+}
+
+/// The cabinet's real room seen from above its front edge, lit by both
+/// projectors' maps made with `options`.
+fn view(scene: &Showcase, options: ProjectorOptions) -> ObserverView {
+    let frame = FrameScene::from_parts(scene.clone(), &[]).unwrap();
+    let occluders = Occluders::new(&frame).unwrap();
+    let maps: Vec<_> = scene
+        .projectors
+        .iter()
+        .map(|p| irradiance_map_cpu(&frame, &occluders, p, options).unwrap())
+        .collect();
+    let projected: Vec<ProjectedLight<'_>> = scene
+        .projectors
+        .iter()
+        .zip(&maps)
+        .map(|(projector, m)| ProjectedLight {
+            projector,
+            value: &m.value,
+        })
+        .collect();
+    let eye = showcase_proto::PinholeDevice::look_at(
+        DVec3::new(0.15, 0.55, 0.9),
+        DVec3::new(-0.05, 0.1, -0.05),
+        DVec3::Y,
+        35.0,
+        240,
+        180,
+    );
+    observer_view(&frame, &occluders, &eye, &projected, None).unwrap()
+}
+
+/// Over the pixels the eye sees off edges, where some projector reaches
+/// the surface (the rest of the room is out of every projector's frustum
+/// or shadowed from it: no map can light it).
+fn rel_rmse_off_edges(v: &ObserverView) -> f64 {
+    let mask = Image {
+        width: v.covered.width,
+        height: v.covered.height,
+        data: v
+            .covered
+            .data
+            .iter()
+            .zip(&v.edge.data)
+            .zip(&v.reachable.data)
+            .map(|((c, e), r)| *c && !e && *r)
+            .collect(),
+    };
+    relative_rmse(&v.composite, &v.target, Some(&mask)).unwrap()
+}
+
+#[test]
+fn blended_projectors_deliver_the_target_once() {
+    let scene = real_cabinet();
+    assert_eq!(scene.projectors.len(), 2);
+    let blended = view(&scene, ProjectorOptions::default());
+    let e = rel_rmse_off_edges(&blended);
+    eprintln!("blended: rel RMSE {e:.4}");
+    // Left: black level, and a projector pixel's footprint seen through
+    // the nearest pixel on smoothly lit surfaces.
+    assert!(e <= 0.02, "blended projectors miss the target by {e}");
+    // Each projector alone delivering the whole target doubles the overlap.
+    let unblended = view(
+        &scene,
+        ProjectorOptions {
+            blend: false,
+            ..ProjectorOptions::default()
+        },
+    );
+    let e = rel_rmse_off_edges(&unblended);
+    eprintln!("unblended: rel RMSE {e:.4}");
+    assert!(e > 0.3, "unblended projectors pass ({e})");
+}
