@@ -1,5 +1,5 @@
-//! The built-in tracking session: two observers walking around the
-//! cabinet and a light carried above it, produced as DTrack datagrams so
+//! The built-in tracking session: two observers strolling in front of the
+//! cabinet's two CRT sides and a light carried above it, produced as DTrack datagrams so
 //! that it travels the same path as live tracking (parser, filter,
 //! recording, replay).
 
@@ -38,19 +38,22 @@ fn body_block(id: u32, quality: f64, position: DVec3, rotation: DMat3) -> String
 }
 
 /// The datagram of frame `frame` at time `t` seconds of the walk: two
-/// observers circling the cabinet in opposite directions at 1.0 and 1.2 m
-/// with a slight bob, looking at its centre, and a light circling 0.5 m
-/// above the floor. The second observer steps out of the tracked volume
+/// observers strolling to and fro around the cabinet, 1.0 and 1.2 m from
+/// its centre, each in front of its own CRT side (the first in front of
+/// the front side, +z, the second in front of the right side, +x, as in
+/// `deploy/scenes/showcase.toml`), sweeping 0.4 rad either way with a
+/// slight bob, looking at its centre, and a light circling 0.5 m above the
+/// floor. The second observer steps out of the tracked volume
 /// (quality -1) for half a second every 10 s, as happens in practice.
 pub fn walk_datagram(frame: u64, t: f64) -> String {
     let centre = DVec3::new(0.0, 0.15, 0.0);
-    let a = 0.15 * t;
+    let a = std::f64::consts::FRAC_PI_2 + 0.4 * (0.35 * t).sin();
     let alice = DVec3::new(
         1.0 * a.cos(),
         0.45 + 0.02 * (TAU * 0.9 * t).sin(),
         1.0 * a.sin(),
     );
-    let b = -0.11 * t + 2.0;
+    let b = 0.4 * (0.3 * t + 0.5).sin();
     let bob = DVec3::new(
         1.2 * b.cos(),
         0.40 + 0.02 * (TAU * 1.1 * t).sin(),
@@ -96,6 +99,13 @@ mod tests {
                 assert!(forward.dot(to_centre) > 0.9999, "{forward} vs {to_centre}");
                 let r = (b.position.x.powi(2) + b.position.z.powi(2)).sqrt();
                 assert!((0.99..1.21).contains(&r), "radius {r}");
+            }
+            // Each stays in front of its own side: the first on +z, the
+            // second on +x, within 0.4 rad of the side's axis.
+            let angle = |b: &crate::tracking::dtrack::Body6d| b.position.z.atan2(b.position.x);
+            assert!((angle(&f.bodies[0]) - std::f64::consts::FRAC_PI_2).abs() <= 0.4 + 1e-9);
+            if f.bodies[1].is_tracked() {
+                assert!(angle(&f.bodies[1]).abs() <= 0.4 + 1e-9);
             }
         }
         assert!(!parse_datagram(&walk_datagram(0, 9.7)).unwrap().bodies[1].is_tracked());
