@@ -2,6 +2,8 @@
 //! Stages that are not built yet are reported as skipped, in the console
 //! and in `report.json`, never passed off as done.
 
+mod views;
+
 use crate::cli::DemoArgs;
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -35,6 +37,17 @@ pub struct Report {
     pub phases: Vec<Phase>,
     /// Headline figures, by name.
     pub figures: serde_json::Map<String, serde_json::Value>,
+    /// Images written, in rows, for `index.html`.
+    pub gallery: Vec<GalleryRow>,
+}
+
+/// A row of images in `index.html`.
+#[derive(Debug, Clone, Serialize)]
+pub struct GalleryRow {
+    /// What the row shows.
+    pub title: String,
+    /// `(caption, path relative to the output folder)`.
+    pub images: Vec<(String, String)>,
 }
 
 impl Report {
@@ -82,6 +95,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         ),
     );
 
+    let truth = scene.clone();
     let t = Instant::now();
     let calibration = calibration_stage(&mut scene)?;
     report.ran("calibration", t, calibration.detail);
@@ -100,10 +114,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let interactive = interactive_stage(&scene, args)?;
     report.ran("interactive", t, interactive.detail);
     report.figures.extend(interactive.figures);
-    report.skipped(
-        "rendering",
-        "the real-time renderers (issue #6) are not wired into the demo yet: on lavapipe they take 1-2 s per 1024x768 frame, far beyond the demo's budget, so the nodes drew digests of each frame's state, not images",
-    );
+    let t = Instant::now();
+    let rendering = rendering_stage(&truth, &scene, args, &mut report.gallery)?;
+    report.ran("rendering", t, rendering.detail);
+    report.figures.extend(rendering.figures);
 
     report.complete = report.phases.iter().all(|p| p.status == "ran");
     write_report(&args.out, &report)?;
@@ -221,10 +235,175 @@ fn calibration_stage(scene: &mut showcase_proto::Showcase) -> Result<StageOutcom
     })
 }
 
+/// Frames of the walk the rendering stage draws: a quarter, half and
+/// three quarters of the way.
+fn rendered_frames(frames: u64) -> Vec<u64> {
+    let mut v: Vec<u64> = [1, 2, 3].iter().map(|q| q * frames / 4).collect();
+    v.dedup();
+    v
+}
+
+/// Every output of the cabinet rendered by the node renderers at a few
+/// frames of the walk (calibrated devices, demo resolution), and what each
+/// observer sees of them through the simulated cabinet (true devices)
+/// next to its target, with CIEDE2000 heat maps.
+fn rendering_stage(
+    truth: &showcase_proto::Showcase,
+    calibrated: &showcase_proto::Showcase,
+    args: &DemoArgs,
+    gallery: &mut Vec<GalleryRow>,
+) -> Result<StageOutcome> {
+    use crate::cluster::commands::walk_tracking;
+    use crate::cluster::{Show, Tracking};
+    use showcase_proto::config::TrackingSource;
+
+    let frames = rendered_frames(args.frames);
+    let truth = views::at_demo_resolution(truth);
+    let calibrated = std::sync::Arc::new(views::at_demo_resolution(calibrated));
+    // The frame states the cluster sent: the same scripted walk, replayed.
+    let tracker =
+        crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;
+    let mut show = Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64);
+    let last = frames.last().copied().unwrap_or(0);
+    let mut states = Vec::new();
+    for f in 0..=last {
+        let (state, _) = show.frame_state(f, 0.0, &truth, 1);
+        if frames.contains(&f) {
+            states.push(state);
+        }
+    }
+    let backend = views::Backend::open();
+    eprintln!(
+        "[demo] rendering: {} frames x {} outputs with {}...",
+        states.len(),
+        calibrated.projectors.len() + calibrated.faces.len(),
+        backend.describe()
+    );
+    let observers = truth.observers.len();
+    let mut all_de = Vec::new();
+    let mut per_observer: Vec<(Vec<f64>, f64)> = vec![(Vec::new(), 0.0); observers];
+    let mut render_s = Vec::new();
+    for state in &states {
+        let dir_name = format!("frames/frame-{:04}", state.frame);
+        let dir = args.out.join(&dir_name);
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        let t = Instant::now();
+        let outputs = views::render_outputs(&backend, &calibrated, state)?;
+        render_s.push(t.elapsed().as_secs_f64());
+        let mut nodes = Vec::new();
+        for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
+            let file = format!("{dir_name}/{}.png", p.name);
+            views::write_values(&args.out.join(&file), img)?;
+            nodes.push((format!("{} (pixel values)", p.name), file));
+        }
+        let mut rows = Vec::new();
+        for o in 0..observers {
+            let r = views::observe(&truth, state, &outputs, o)?;
+            let name = &truth.observers[o].name;
+            let mut images = Vec::new();
+            for (what, img) in [
+                ("target", &r.view.target),
+                ("composite", &r.view.composite),
+                ("through-mirror", &r.view.reflected),
+            ] {
+                let file = format!("{dir_name}/{name}-{what}.png");
+                views::write_radiance(&args.out.join(&file), img, r.exposure)?;
+                images.push((format!("{name}: {what}"), file));
+            }
+            let file = format!("{dir_name}/{name}-delta-e.png");
+            views::write_heat_map(
+                &args.out.join(&file),
+                r.view.target.width,
+                r.view.target.height,
+                &r.delta_e,
+            )?;
+            let median = views::quantile(&r.delta_e, 0.5).unwrap_or(f64::NAN);
+            images.push((
+                format!("{name}: CIEDE2000 (median {median:.2}; black 0, red >= 10)"),
+                file,
+            ));
+            rows.push(GalleryRow {
+                title: format!("frame {}: {name} (rel RMSE {:.3})", state.frame, r.rel_rmse),
+                images,
+            });
+            all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+            per_observer[o]
+                .0
+                .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+            per_observer[o].1 = per_observer[o].1.max(r.rel_rmse);
+        }
+        for (observer, [left, right]) in &outputs.faces {
+            let face = calibrated
+                .faces
+                .iter()
+                .enumerate()
+                .find(|(f, _)| views::face_observer(&calibrated, *f) == Some(*observer))
+                .map_or("face".to_string(), |(_, f)| f.name.clone());
+            for (eye, img) in [("left", left), ("right", right)] {
+                let file = format!("{dir_name}/{face}-{eye}.png");
+                views::write_radiance(&args.out.join(&file), img, 1.0)?;
+                nodes.push((format!("{face}: {eye} eye"), file));
+            }
+        }
+        gallery.push(GalleryRow {
+            title: format!("frame {}: node outputs", state.frame),
+            images: nodes,
+        });
+        gallery.extend(rows);
+    }
+    let mut figures = serde_json::Map::new();
+    let median = views::quantile(&all_de, 0.5);
+    let p95 = views::quantile(&all_de, 0.95);
+    figures.insert("delta_e2000_median".into(), serde_json::json!(median));
+    figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
+    let worst = per_observer.iter().map(|p| p.1).fold(0.0f64, f64::max);
+    figures.insert(
+        "interactive_consistency_rel_rmse".into(),
+        serde_json::json!(worst),
+    );
+    figures.insert(
+        "observers".into(),
+        serde_json::json!(
+            per_observer
+                .iter()
+                .enumerate()
+                .map(|(o, (de, rel))| serde_json::json!({
+                    "observer": truth.observers[o].name,
+                    "delta_e2000_median": views::quantile(de, 0.5),
+                    "delta_e2000_p95": views::quantile(de, 0.95),
+                    "consistency_rel_rmse": rel,
+                }))
+                .collect::<Vec<_>>()
+        ),
+    );
+    figures.insert("renderer".into(), serde_json::json!(backend.describe()));
+    render_s.sort_by(f64::total_cmp);
+    Ok(StageOutcome {
+        detail: format!(
+            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE off edges {worst:.3}; images in {}/frames",
+            calibrated.projectors.len(),
+            calibrated.faces.len(),
+            backend.describe(),
+            render_s
+                .get(render_s.len() / 2)
+                .copied()
+                .unwrap_or(f64::NAN),
+            median.unwrap_or(f64::NAN),
+            p95.unwrap_or(f64::NAN),
+            args.out.display()
+        ),
+        figures,
+    })
+}
+
 struct StageOutcome {
     detail: String,
     figures: serde_json::Map<String, serde_json::Value>,
 }
+
+/// Frame rate of the interactive stage.
+const INTERACTIVE_HZ: f32 = 60.0;
 
 /// The loopback cluster: master plus one node per face and projector,
 /// frame-locked over QUIC, driven by the built-in walk (recorded to
@@ -236,7 +415,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
     use crate::cluster::{LoopbackPlan, Show, Tracking, run_loopback};
     use showcase_proto::config::TrackingSource;
 
-    const HZ: f32 = 60.0;
+    const HZ: f32 = INTERACTIVE_HZ;
     let tracker =
         crate::tracking::Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
     let mut show = Show::new(Tracking::Scripted(tracker), HZ as f64);
@@ -331,12 +510,31 @@ fn write_report(out: &Path, report: &Report) -> Result<()> {
             html_escape(&p.detail)
         ));
     }
+    let mut gallery = String::new();
+    if !report.gallery.is_empty() {
+        gallery.push_str("<h2>Images</h2>\n");
+    }
+    for row in &report.gallery {
+        gallery.push_str(&format!(
+            "<h3>{}</h3><div class=\"row\">\n",
+            html_escape(&row.title)
+        ));
+        for (caption, file) in &row.images {
+            gallery.push_str(&format!(
+                "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>\n",
+                html_escape(file),
+                html_escape(caption)
+            ));
+        }
+        gallery.push_str("</div>\n");
+    }
     let html = format!(
         "<!doctype html><meta charset=\"utf-8\"><title>Showcase demo</title>\n\
          <style>body{{font-family:sans-serif;margin:2em}}td,th{{padding:4px 10px;border-bottom:1px solid #ddd}}\
-         tr.skipped{{color:#a00}}</style>\n<h1>Showcase demo</h1>\n<p>Complete: <b>{}</b></p>\n\
+         tr.skipped{{color:#a00}}.row{{display:flex;flex-wrap:wrap;gap:8px}}figure{{margin:0}}\
+         figcaption{{font-size:small;max-width:320px}}img{{image-rendering:pixelated;max-width:400px}}</style>\n<h1>Showcase demo</h1>\n<p>Complete: <b>{}</b></p>\n\
          <table><tr><th>phase</th><th>status</th><th>seconds</th><th>detail</th></tr>\n{rows}</table>\n\
-         <h2>Figures</h2><pre>{}</pre>\n",
+         <h2>Figures</h2><pre>{}</pre>\n{gallery}",
         report.complete,
         html_escape(&serde_json::to_string_pretty(&report.figures).unwrap_or_default())
     );
@@ -349,4 +547,5 @@ fn html_escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }

@@ -1,0 +1,384 @@
+//! The demo's rendering stage: the render nodes' outputs at a few frames
+//! of the walk, and what each observer sees of them.
+//!
+//! The outputs come from the renderers the nodes run (the wgpu projector
+//! and face renderers; their CPU references when no GPU adapter opens),
+//! fed the *calibrated* devices. What the observer sees is then simulated
+//! with the *true* devices and the true reflectance
+//! ([`showcase_render::observer_view`]): calibration error, projector
+//! resolution and device compensation all show up in the comparison with
+//! the target (all lighting virtual).
+
+use anyhow::{Context, Result};
+use glam::{DVec3, Vec3};
+use showcase_proto::{FrameState, Showcase};
+use showcase_render::gpu::GpuContext;
+use showcase_render::light::{Image, RgbImage, metrics};
+use showcase_render::node::Renderer;
+use showcase_render::observer_view::{MirrorImage, ObserverView, ProjectedLight, observer_view};
+use showcase_render::render::face::face_image_cpu;
+use showcase_render::render::face_gpu::FaceRenderer;
+use showcase_render::render::projector_gpu::ProjectorRenderer;
+use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Demo rendering resolutions: a quarter of the pixels of the cabinet's
+/// projectors, a CRT face of 320x256 per eye, 320x240 eye views.
+pub(super) const PROJECTOR_SCALE: f64 = 0.5;
+/// Face size per eye at the demo resolution.
+pub(super) const FACE_SIZE: (u32, u32) = (320, 256);
+/// The simulated eye camera.
+pub(super) const EYE_SIZE: (u32, u32) = (320, 240);
+/// Horizontal field of view of the eye camera (degrees).
+pub(super) const EYE_FOV_DEG: f64 = 30.0;
+/// Shadow map size per view at the demo resolution.
+pub(super) const SHADOW_RES: u32 = 512;
+
+/// `scene` with its projectors and cameras scaled by `PROJECTOR_SCALE` (the
+/// same view, fewer pixels) and its faces at `FACE_SIZE`.
+pub(super) fn at_demo_resolution(scene: &Showcase) -> Showcase {
+    let mut s = scene.clone();
+    let devices = s
+        .projectors
+        .iter_mut()
+        .map(|p| &mut p.device)
+        .chain(s.cameras.iter_mut().map(|c| &mut c.device));
+    for d in devices {
+        let w = ((d.width as f64 * PROJECTOR_SCALE).round() as u32).max(1);
+        let h = ((d.height as f64 * PROJECTOR_SCALE).round() as u32).max(1);
+        let (sx, sy) = (w as f64 / d.width as f64, h as f64 / d.height as f64);
+        let scale = glam::DMat3::from_diagonal(DVec3::new(sx, sy, 1.0));
+        d.k = scale * d.k;
+        d.width = w;
+        d.height = h;
+    }
+    for f in &mut s.faces {
+        (f.width, f.height) = FACE_SIZE;
+    }
+    s
+}
+
+/// The observer a face serves: the one farthest in front of its mirror.
+pub(super) fn face_observer(scene: &Showcase, face: usize) -> Option<usize> {
+    let m = scene.faces.get(face)?.mirror;
+    scene
+        .observers
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (i, m.normal.dot(o.head.position) - m.offset))
+        .filter(|(_, d)| *d > 0.0)
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+/// What renders the outputs.
+pub(super) enum Backend {
+    /// The nodes' wgpu renderers.
+    Gpu(GpuContext),
+    /// The CPU references, because no adapter opened (the reason).
+    Cpu(String),
+}
+
+impl Backend {
+    pub(super) fn open() -> Self {
+        match GpuContext::new_headless() {
+            Ok(ctx) => Self::Gpu(ctx),
+            Err(e) => Self::Cpu(e.to_string()),
+        }
+    }
+
+    pub(super) fn describe(&self) -> String {
+        match self {
+            Self::Gpu(ctx) => format!("wgpu on {}", ctx.describe()),
+            Self::Cpu(why) => format!("CPU reference renderers (no GPU adapter: {why})"),
+        }
+    }
+}
+
+fn share(ctx: &GpuContext) -> GpuContext {
+    GpuContext {
+        device: ctx.device.clone(),
+        queue: ctx.queue.clone(),
+        adapter_info: ctx.adapter_info.clone(),
+    }
+}
+
+/// The render nodes' outputs for one frame.
+pub(super) struct Outputs {
+    /// Per projector: pixel values in `0..=1`.
+    pub projectors: Vec<RgbImage>,
+    /// Per face: `(observer, [left eye, right eye])` radiance.
+    pub faces: Vec<(usize, [RgbImage; 2])>,
+}
+
+fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
+    Image::from_fn(w, height, |x, y| {
+        let p = rgba[(y * width + x0 + x) as usize];
+        Vec3::new(p[0], p[1], p[2])
+    })
+}
+
+/// Render every output of `scene` (calibrated devices) for `state`.
+pub(super) fn render_outputs(
+    backend: &Backend,
+    scene: &Arc<Showcase>,
+    state: &FrameState,
+) -> Result<Outputs> {
+    let mut out = Outputs {
+        projectors: Vec::new(),
+        faces: Vec::new(),
+    };
+    match backend {
+        Backend::Gpu(ctx) => {
+            for i in 0..scene.projectors.len() {
+                let mut r = ProjectorRenderer::new(share(ctx), i, SHADOW_RES);
+                r.set_scene(state.scene_version, scene.clone())?;
+                let o = r.render(state, scene)?;
+                let img = o.image.context("the projector renderer kept no image")?;
+                out.projectors
+                    .push(split_rgba(img.width, img.height, &img.rgba, 0, img.width));
+            }
+            for f in 0..scene.faces.len() {
+                let Some(observer) = face_observer(scene, f) else {
+                    continue;
+                };
+                let mut r = FaceRenderer::new(share(ctx), f, observer, SHADOW_RES);
+                r.set_scene(state.scene_version, scene.clone())?;
+                let o = r.render(state, scene)?;
+                let img = o.image.context("the face renderer kept no image")?;
+                let w = img.width / 2;
+                out.faces.push((
+                    observer,
+                    [
+                        split_rgba(img.width, img.height, &img.rgba, 0, w),
+                        split_rgba(img.width, img.height, &img.rgba, w, w),
+                    ],
+                ));
+            }
+        }
+        Backend::Cpu(_) => {
+            let frame = FrameScene::resolve(scene, state)?;
+            let occluders = Occluders::new(&frame)?;
+            for p in &scene.projectors {
+                let map = irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
+                out.projectors.push(map.value);
+            }
+            for (f, face) in scene.faces.iter().enumerate() {
+                let Some(observer) = face_observer(scene, f) else {
+                    continue;
+                };
+                let eyes = eyes_of(scene, state, observer);
+                let others: Vec<DVec3> = (0..state.heads.len())
+                    .filter(|&o| o != observer)
+                    .flat_map(|o| eyes_of(scene, state, o))
+                    .collect();
+                let l = face_image_cpu(&frame, &occluders, face, eyes[0], &others)?;
+                let r = face_image_cpu(&frame, &occluders, face, eyes[1], &others)?;
+                out.faces.push((observer, [l.radiance, r.radiance]));
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn eyes_of(scene: &Showcase, state: &FrameState, observer: usize) -> [DVec3; 2] {
+    let ipd = scene.observers.get(observer).map_or(0.064, |o| o.ipd);
+    let head = state.heads.get(observer).copied().unwrap_or_default();
+    showcase_proto::Observer::eyes(&head, ipd).map(|e| e.as_dvec3())
+}
+
+/// The left eye's camera of `observer` at `state`, looking where the head
+/// looks.
+pub(super) fn eye_camera(
+    scene: &Showcase,
+    state: &FrameState,
+    observer: usize,
+) -> showcase_proto::PinholeDevice {
+    let head = state.heads.get(observer).copied().unwrap_or_default();
+    let eye = eyes_of(scene, state, observer)[0];
+    let forward = (head.orientation * glam::Vec3::NEG_Z).as_dvec3();
+    let up = (head.orientation * glam::Vec3::Y).as_dvec3();
+    let mut cam = showcase_proto::PinholeDevice::look_at(
+        eye,
+        eye + forward,
+        up,
+        EYE_FOV_DEG,
+        EYE_SIZE.0,
+        EYE_SIZE.1,
+    );
+    cam.near = 0.05;
+    cam.far = 10.0;
+    cam
+}
+
+/// One observer's view at one frame, with its figures.
+pub(super) struct ObserverResult {
+    pub view: ObserverView,
+    /// Exposure that maps the target's 99th-percentile channel to 0.9.
+    pub exposure: f64,
+    /// CIEDE2000 per covered pixel, at `exposure` (row-major, NaN elsewhere).
+    pub delta_e: Vec<f64>,
+    /// Relative RMSE of composite against target over covered pixels off
+    /// the edges.
+    pub rel_rmse: f64,
+}
+
+/// Simulate `observer`'s view of `outputs` in the true scene `truth` (at
+/// the demo resolution) and compare it with the target.
+pub(super) fn observe(
+    truth: &Showcase,
+    state: &FrameState,
+    outputs: &Outputs,
+    observer: usize,
+) -> Result<ObserverResult> {
+    let frame = FrameScene::resolve(truth, state)?;
+    let occluders = Occluders::new(&frame)?;
+    let projected: Vec<ProjectedLight<'_>> = truth
+        .projectors
+        .iter()
+        .zip(&outputs.projectors)
+        .map(|(projector, value)| ProjectedLight { projector, value })
+        .collect();
+    let mirror = outputs
+        .faces
+        .iter()
+        .enumerate()
+        .find(|(_, (o, _))| *o == observer)
+        .map(|(f, (_, [left, _]))| MirrorImage {
+            face: &truth.faces[f],
+            radiance: left,
+        });
+    let cam = eye_camera(truth, state, observer);
+    let view = observer_view(&frame, &occluders, &cam, &projected, mirror)?;
+    let mut peaks: Vec<f64> = view
+        .target
+        .data
+        .iter()
+        .zip(&view.covered.data)
+        .filter(|(_, c)| **c)
+        .map(|(t, _)| f64::from(t.max_element()))
+        .collect();
+    anyhow::ensure!(
+        !peaks.is_empty(),
+        "observer {observer} sees no object at frame {}",
+        state.frame
+    );
+    peaks.sort_by(f64::total_cmp);
+    let p99 = peaks[((peaks.len() - 1) as f64 * 0.99) as usize];
+    let exposure = if p99 > 0.0 { 0.9 / p99 } else { 1.0 };
+    let delta_e = view
+        .composite
+        .data
+        .iter()
+        .zip(&view.target.data)
+        .zip(&view.covered.data)
+        .map(|((c, t), covered)| {
+            if !covered {
+                return f64::NAN;
+            }
+            let lab = |v: &Vec3| metrics::linear_srgb_to_lab(v.as_dvec3() * exposure);
+            metrics::delta_e_2000(lab(c), lab(t)).unwrap_or(f64::NAN)
+        })
+        .collect();
+    let mask = Image {
+        width: view.covered.width,
+        height: view.covered.height,
+        data: view
+            .covered
+            .data
+            .iter()
+            .zip(&view.edge.data)
+            .map(|(c, e)| *c && !e)
+            .collect(),
+    };
+    let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
+        .with_context(|| format!("observer {observer} at frame {}", state.frame))?;
+    Ok(ObserverResult {
+        view,
+        exposure,
+        delta_e,
+        rel_rmse,
+    })
+}
+
+/// `q`-quantile of the finite values.
+pub(super) fn quantile(values: &[f64], q: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[((v.len() - 1) as f64 * q).round() as usize])
+}
+
+/// Write an 8-bit RGB PNG from a per-pixel colour function.
+pub(super) fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixel: impl Fn(u32, u32) -> [u8; 3],
+) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc
+        .write_header()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let mut data = Vec::with_capacity((width * height * 3) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            data.extend_from_slice(&pixel(x, y));
+        }
+    }
+    w.write_image_data(&data)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Linear radiance times `exposure`, sRGB-encoded.
+pub(super) fn write_radiance(path: &Path, image: &RgbImage, exposure: f64) -> Result<()> {
+    let enc = showcase_render::node::png_out::srgb8;
+    write_png(path, image.width, image.height, |x, y| {
+        let c = image.get(x, y).copied().unwrap_or(Vec3::ZERO) * exposure as f32;
+        [enc(c.x), enc(c.y), enc(c.z)]
+    })
+}
+
+/// Projector pixel values as they are sent to the device (already
+/// compensated: no further encoding).
+pub(super) fn write_values(path: &Path, image: &RgbImage) -> Result<()> {
+    let b = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    write_png(path, image.width, image.height, |x, y| {
+        let c = image.get(x, y).copied().unwrap_or(Vec3::ZERO);
+        [b(c.x), b(c.y), b(c.z)]
+    })
+}
+
+/// A CIEDE2000 heat map: black (0) through blue, green and yellow to red
+/// (10 and above); uncovered pixels dark grey.
+pub(super) fn write_heat_map(path: &Path, width: u32, height: u32, delta_e: &[f64]) -> Result<()> {
+    const STOPS: [(f64, [f64; 3]); 5] = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (2.5, [0.0, 0.2, 1.0]),
+        (5.0, [0.0, 0.85, 0.3]),
+        (7.5, [1.0, 0.9, 0.0]),
+        (10.0, [1.0, 0.0, 0.0]),
+    ];
+    write_png(path, width, height, |x, y| {
+        let d = delta_e[(y * width + x) as usize];
+        if !d.is_finite() {
+            return [40, 40, 40];
+        }
+        let d = d.clamp(0.0, 10.0);
+        let i = STOPS
+            .windows(2)
+            .position(|w| d <= w[1].0)
+            .unwrap_or(STOPS.len() - 2);
+        let (a, b) = (STOPS[i], STOPS[i + 1]);
+        let t = (d - a.0) / (b.0 - a.0);
+        let c = |k: usize| ((a.1[k] + t * (b.1[k] - a.1[k])) * 255.0 + 0.5) as u8;
+        [c(0), c(1), c(2)]
+    })
+}
