@@ -21,7 +21,7 @@ use showcase_render::light::raster::{
 
 /// Open a headless GPU, or explain why the test is skipped. With `CI` set
 /// a missing adapter is an error, so CI cannot pass by skipping.
-fn gpu_or_skip(test: &str) -> Result<Option<GpuContext>> {
+pub(crate) fn gpu_or_skip(test: &str) -> Result<Option<GpuContext>> {
     match GpuContext::new_headless() {
         Ok(ctx) => {
             eprintln!("{test}: adapter {}", ctx.describe());

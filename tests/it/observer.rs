@@ -98,3 +98,73 @@ fn blended_projectors_deliver_the_target_once() {
     eprintln!("unblended: rel RMSE {e:.4}");
     assert!(e > 0.3, "unblended projectors pass ({e})");
 }
+
+/// The demo cabinet, whole, with its devices at a quarter of their pixels.
+fn cabinet() -> Showcase {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
+    let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
+    for p in &mut s.projectors {
+        let d = &mut p.device;
+        d.k = glam::DMat3::from_diagonal(DVec3::new(0.25, 0.25, 1.0)) * d.k;
+        d.width /= 4;
+        d.height /= 4;
+    }
+    for f in &mut s.faces {
+        f.width /= 8;
+        f.height /= 8;
+    }
+    s
+}
+
+/// A node's renderer finds its output by name in each snapshot and draws
+/// exactly what the role's renderer draws for that output; a face serves
+/// the observer in front of its mirror. Bad names and roles are errors
+/// that name them.
+#[test]
+fn a_node_renders_its_named_output() -> anyhow::Result<()> {
+    use showcase_proto::Role;
+    use showcase_render::node::{OutputRenderer, Renderer, observer_in_front};
+    use showcase_render::render::face_gpu::FaceRenderer;
+    use showcase_render::render::projector_gpu::ProjectorRenderer;
+    use std::sync::Arc;
+
+    let scene = Arc::new(cabinet());
+    assert_eq!(observer_in_front(&scene, 0), Some(0));
+    assert_eq!(observer_in_front(&scene, 1), Some(1));
+    let Some(ctx) = crate::gpu::gpu_or_skip("a_node_renders_its_named_output")? else {
+        return Ok(());
+    };
+    let share = || showcase_render::gpu::GpuContext {
+        device: ctx.device.clone(),
+        queue: ctx.queue.clone(),
+        adapter_info: ctx.adapter_info.clone(),
+    };
+    let frame = showcase_master::tracking::initial_frame(&scene, 3, 0.05, 7);
+    let mut node = OutputRenderer::new(share(), "projector-1", Role::Projector, 128)?;
+    node.set_scene(7, scene.clone())?;
+    let got = node.render(&frame, &scene)?;
+    let mut direct = ProjectorRenderer::new(share(), 1, 128);
+    direct.set_scene(7, scene.clone())?;
+    assert_eq!(got, direct.render(&frame, &scene)?);
+    let mut node = OutputRenderer::new(share(), "face-1", Role::Face, 128)?;
+    node.set_scene(7, scene.clone())?;
+    let got = node.render(&frame, &scene)?;
+    let mut direct = FaceRenderer::new(share(), 1, 1, 128);
+    direct.set_scene(7, scene.clone())?;
+    assert_eq!(got, direct.render(&frame, &scene)?);
+
+    let mut wrong = OutputRenderer::new(share(), "projector-9", Role::Projector, 128)?;
+    let e = wrong.set_scene(7, scene.clone()).unwrap_err().to_string();
+    assert!(
+        e.contains("projector-9") && e.contains("projector-0"),
+        "{e}"
+    );
+    let e = wrong.render(&frame, &scene).unwrap_err().to_string();
+    assert!(e.contains("before any scene"), "{e}");
+    let e = OutputRenderer::new(share(), "camera-0", Role::Camera, 128)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("camera-0"), "{e}");
+    Ok(())
+}

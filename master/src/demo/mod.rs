@@ -50,6 +50,39 @@ pub struct GalleryRow {
     pub images: Vec<(String, String)>,
 }
 
+/// Phases of the demo, in order.
+const PHASES: [&str; 6] = [
+    "scene",
+    "calibration",
+    "reflectance",
+    "radiosity",
+    "interactive",
+    "rendering",
+];
+
+/// A spinner (or, with `len`, a bar) for the phase about to run, on a
+/// terminal only; the `[demo]` lines carry the same news in logs.
+fn progress(name: &str, len: Option<u64>) -> indicatif::ProgressBar {
+    let i = PHASES.iter().position(|p| *p == name).map_or(0, |i| i + 1);
+    eprintln!("[demo] phase {i}/{}: {name}...", PHASES.len());
+    let pb = match len {
+        Some(n) => indicatif::ProgressBar::new(n).with_style(
+            indicatif::ProgressStyle::with_template(
+                "  {prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        ),
+        None => indicatif::ProgressBar::new_spinner().with_style(
+            indicatif::ProgressStyle::with_template("  {spinner} {prefix} {msg} ({elapsed})")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        ),
+    };
+    pb.set_prefix(format!("{i}/{} {name}", PHASES.len()));
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
 impl Report {
     fn ran(&mut self, name: &str, started: Instant, detail: String) {
         let seconds = started.elapsed().as_secs_f64();
@@ -79,7 +112,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let mut report = Report::default();
 
     let t = Instant::now();
+    let pb = progress("scene", None);
     let mut scene = crate::scene_file::load_scene(&scene_path)?;
+    pb.finish_and_clear();
     report.ran(
         "scene",
         t,
@@ -97,7 +132,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     let truth = scene.clone();
     let t = Instant::now();
+    let pb = progress("calibration", None);
     let calibration = calibration_stage(&mut scene)?;
+    pb.finish_and_clear();
     report.ran("calibration", t, calibration.detail);
     report.figures.extend(calibration.figures);
     report.skipped(
@@ -107,11 +144,16 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let t = Instant::now();
+    let pb = progress("radiosity", None);
     let radiosity = radiosity_stage(&args.out)?;
+    pb.finish_and_clear();
     report.ran("radiosity", t, radiosity.detail);
     report.figures.extend(radiosity.figures);
     let t = Instant::now();
+    let pb = progress("interactive", None);
+    pb.set_message(format!("{} frames at {INTERACTIVE_HZ} Hz", args.frames));
     let interactive = interactive_stage(&scene, args)?;
+    pb.finish_and_clear();
     report.ran("interactive", t, interactive.detail);
     report.figures.extend(interactive.figures);
     let t = Instant::now();
@@ -273,6 +315,7 @@ fn rendering_stage(
         }
     }
     let backend = views::Backend::open();
+    let mut renderers = views::NodeRenderers::new(&backend, calibrated.clone())?;
     eprintln!(
         "[demo] rendering: {} frames x {} outputs with {}...",
         states.len(),
@@ -283,13 +326,15 @@ fn rendering_stage(
     let mut all_de = Vec::new();
     let mut per_observer: Vec<(Vec<f64>, f64)> = vec![(Vec::new(), 0.0); observers];
     let mut render_s = Vec::new();
+    let pb = progress("rendering", Some(states.len() as u64));
     for state in &states {
+        pb.set_message(format!("frame {}", state.frame));
         let dir_name = format!("frames/frame-{:04}", state.frame);
         let dir = args.out.join(&dir_name);
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create {}", dir.display()))?;
         let t = Instant::now();
-        let outputs = views::render_outputs(&backend, &calibrated, state)?;
+        let outputs = renderers.render(state)?;
         render_s.push(t.elapsed().as_secs_f64());
         let mut nodes = Vec::new();
         for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
@@ -351,7 +396,9 @@ fn rendering_stage(
             images: nodes,
         });
         gallery.extend(rows);
+        pb.inc(1);
     }
+    pb.finish_and_clear();
     let mut figures = serde_json::Map::new();
     let median = views::quantile(&all_de, 0.5);
     let p95 = views::quantile(&all_de, 0.95);

@@ -59,18 +59,7 @@ pub(super) fn at_demo_resolution(scene: &Showcase) -> Showcase {
     s
 }
 
-/// The observer a face serves: the one farthest in front of its mirror.
-pub(super) fn face_observer(scene: &Showcase, face: usize) -> Option<usize> {
-    let m = scene.faces.get(face)?.mirror;
-    scene
-        .observers
-        .iter()
-        .enumerate()
-        .map(|(i, o)| (i, m.normal.dot(o.head.position) - m.offset))
-        .filter(|(_, d)| *d > 0.0)
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i)
-}
+pub(super) use showcase_render::node::observer_in_front as face_observer;
 
 /// What renders the outputs.
 pub(super) enum Backend {
@@ -119,67 +108,107 @@ fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> Rg
     })
 }
 
-/// Render every output of `scene` (calibrated devices) for `state`.
-pub(super) fn render_outputs(
-    backend: &Backend,
-    scene: &Arc<Showcase>,
-    state: &FrameState,
-) -> Result<Outputs> {
-    let mut out = Outputs {
-        projectors: Vec::new(),
-        faces: Vec::new(),
-    };
-    match backend {
-        Backend::Gpu(ctx) => {
-            for i in 0..scene.projectors.len() {
-                let mut r = ProjectorRenderer::new(share(ctx), i, SHADOW_RES);
-                r.set_scene(state.scene_version, scene.clone())?;
-                let o = r.render(state, scene)?;
-                let img = o.image.context("the projector renderer kept no image")?;
-                out.projectors
-                    .push(split_rgba(img.width, img.height, &img.rgba, 0, img.width));
+/// The renderers of every output of a scene, as the nodes run them.
+pub(super) struct NodeRenderers {
+    scene: Arc<Showcase>,
+    kind: RenderersKind,
+}
+
+enum RenderersKind {
+    Gpu {
+        projectors: Vec<ProjectorRenderer>,
+        faces: Vec<(usize, FaceRenderer)>,
+    },
+    Cpu,
+}
+
+impl NodeRenderers {
+    /// One renderer per projector and per face of `scene` (calibrated
+    /// devices); each face serves the observer in front of its mirror.
+    pub(super) fn new(backend: &Backend, scene: Arc<Showcase>) -> Result<Self> {
+        const VERSION: u64 = 1;
+        let kind = match backend {
+            Backend::Gpu(ctx) => {
+                let mut projectors = Vec::new();
+                for i in 0..scene.projectors.len() {
+                    let mut r = ProjectorRenderer::new(share(ctx), i, SHADOW_RES);
+                    r.set_scene(VERSION, scene.clone())?;
+                    projectors.push(r);
+                }
+                let mut faces = Vec::new();
+                for f in 0..scene.faces.len() {
+                    let Some(observer) = face_observer(&scene, f) else {
+                        continue;
+                    };
+                    let mut r = FaceRenderer::new(share(ctx), f, observer, SHADOW_RES);
+                    r.set_scene(VERSION, scene.clone())?;
+                    faces.push((observer, r));
+                }
+                RenderersKind::Gpu { projectors, faces }
             }
-            for f in 0..scene.faces.len() {
-                let Some(observer) = face_observer(scene, f) else {
-                    continue;
-                };
-                let mut r = FaceRenderer::new(share(ctx), f, observer, SHADOW_RES);
-                r.set_scene(state.scene_version, scene.clone())?;
-                let o = r.render(state, scene)?;
-                let img = o.image.context("the face renderer kept no image")?;
-                let w = img.width / 2;
-                out.faces.push((
-                    observer,
-                    [
-                        split_rgba(img.width, img.height, &img.rgba, 0, w),
-                        split_rgba(img.width, img.height, &img.rgba, w, w),
-                    ],
-                ));
-            }
-        }
-        Backend::Cpu(_) => {
-            let frame = FrameScene::resolve(scene, state)?;
-            let occluders = Occluders::new(&frame)?;
-            for p in &scene.projectors {
-                let map = irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
-                out.projectors.push(map.value);
-            }
-            for (f, face) in scene.faces.iter().enumerate() {
-                let Some(observer) = face_observer(scene, f) else {
-                    continue;
-                };
-                let eyes = eyes_of(scene, state, observer);
-                let others: Vec<DVec3> = (0..state.heads.len())
-                    .filter(|&o| o != observer)
-                    .flat_map(|o| eyes_of(scene, state, o))
-                    .collect();
-                let l = face_image_cpu(&frame, &occluders, face, eyes[0], &others)?;
-                let r = face_image_cpu(&frame, &occluders, face, eyes[1], &others)?;
-                out.faces.push((observer, [l.radiance, r.radiance]));
-            }
-        }
+            Backend::Cpu(_) => RenderersKind::Cpu,
+        };
+        Ok(Self { scene, kind })
     }
-    Ok(out)
+
+    /// Render every output for `state` (its scene version is taken as the
+    /// renderers').
+    pub(super) fn render(&mut self, state: &FrameState) -> Result<Outputs> {
+        let state = FrameState {
+            scene_version: 1,
+            ..state.clone()
+        };
+        let scene = &self.scene;
+        let mut out = Outputs {
+            projectors: Vec::new(),
+            faces: Vec::new(),
+        };
+        match &mut self.kind {
+            RenderersKind::Gpu { projectors, faces } => {
+                for r in projectors {
+                    let o = r.render(&state, scene)?;
+                    let img = o.image.context("the projector renderer kept no image")?;
+                    out.projectors
+                        .push(split_rgba(img.width, img.height, &img.rgba, 0, img.width));
+                }
+                for (observer, r) in faces {
+                    let o = r.render(&state, scene)?;
+                    let img = o.image.context("the face renderer kept no image")?;
+                    let w = img.width / 2;
+                    out.faces.push((
+                        *observer,
+                        [
+                            split_rgba(img.width, img.height, &img.rgba, 0, w),
+                            split_rgba(img.width, img.height, &img.rgba, w, w),
+                        ],
+                    ));
+                }
+            }
+            RenderersKind::Cpu => {
+                let frame = FrameScene::resolve(scene, &state)?;
+                let occluders = Occluders::new(&frame)?;
+                for p in &scene.projectors {
+                    let map =
+                        irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
+                    out.projectors.push(map.value);
+                }
+                for (f, face) in scene.faces.iter().enumerate() {
+                    let Some(observer) = face_observer(scene, f) else {
+                        continue;
+                    };
+                    let eyes = eyes_of(scene, &state, observer);
+                    let others: Vec<DVec3> = (0..state.heads.len())
+                        .filter(|&o| o != observer)
+                        .flat_map(|o| eyes_of(scene, &state, o))
+                        .collect();
+                    let l = face_image_cpu(&frame, &occluders, face, eyes[0], &others)?;
+                    let r = face_image_cpu(&frame, &occluders, face, eyes[1], &others)?;
+                    out.faces.push((observer, [l.radiance, r.radiance]));
+                }
+            }
+        }
+        Ok(out)
+    }
 }
 
 fn eyes_of(scene: &Showcase, state: &FrameState, observer: usize) -> [DVec3; 2] {

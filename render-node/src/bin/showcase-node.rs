@@ -5,8 +5,10 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use showcase_proto::config::ClusterConfig;
+use showcase_render::gpu::GpuContext;
 use showcase_render::net::ClusterIdentity;
-use showcase_render::node::{NodeRuntime, StateHashRenderer, run_node};
+use showcase_render::node::{NodeRuntime, OutputRenderer, Renderer, StateHashRenderer, run_node};
+use showcase_render::render::projector_gpu::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -31,6 +33,23 @@ struct NodeCli {
     /// Folder for --write-frames.
     #[arg(long, default_value = "frames")]
     frames_dir: PathBuf,
+    /// What draws the frames: `gpu` (the real-time renderer, wgpu; on a
+    /// machine without a GPU, Mesa's lavapipe) or `state-hash` (a digest
+    /// of each frame's state, no pixels: for cluster tests).
+    #[arg(long, value_enum, default_value_t = RendererKind::Gpu)]
+    renderer: RendererKind,
+    /// Shadow map size per view, in texels a side.
+    #[arg(long, default_value_t = DEFAULT_SHADOW_RES)]
+    shadow_res: u32,
+}
+
+/// What draws the frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum RendererKind {
+    /// The real-time renderer on the GPU.
+    Gpu,
+    /// A digest of each frame's state.
+    StateHash,
 }
 
 fn main() -> ExitCode {
@@ -70,11 +89,32 @@ fn run(cli: NodeCli) -> Result<()> {
         write_frames: (!cli.write_frames.is_empty())
             .then(|| (cli.frames_dir.clone(), cli.write_frames.clone())),
     };
-    tracing::warn!(
-        "output {:?}: the real-time renderer (issue #6) is not built yet; this node presents a digest of each frame's state, no pixels",
-        node.output
+    anyhow::ensure!(
+        (16..=8192).contains(&cli.shadow_res),
+        "--shadow-res {}: must be between 16 and 8192",
+        cli.shadow_res
     );
-    let mut renderer = StateHashRenderer::new(node.output.clone(), node.role);
+    let mut renderer: Box<dyn Renderer> = match (cli.renderer, node.role) {
+        (RendererKind::StateHash, role) => {
+            Box::new(StateHashRenderer::new(node.output.clone(), role))
+        }
+        (RendererKind::Gpu, showcase_proto::Role::Camera) => {
+            tracing::info!(output = %node.output, "a camera node captures, it does not render: presenting frame-state digests");
+            Box::new(StateHashRenderer::new(node.output.clone(), node.role))
+        }
+        (RendererKind::Gpu, role) => {
+            let ctx = GpuContext::new_headless().context(
+                "no GPU adapter (install mesa-vulkan-drivers for lavapipe, or run with --renderer state-hash)",
+            )?;
+            tracing::info!(output = %node.output, adapter = %ctx.describe(), "rendering on the GPU");
+            Box::new(OutputRenderer::new(
+                ctx,
+                node.output.clone(),
+                role,
+                cli.shadow_res,
+            )?)
+        }
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -86,7 +126,7 @@ fn run(cli: NodeCli) -> Result<()> {
             let _ = tokio::signal::ctrl_c().await;
             s.cancel();
         });
-        let log = run_node(rt, &mut renderer, stop).await?;
+        let log = run_node(rt, renderer.as_mut(), stop).await?;
         eprintln!(
             "node stopped after presenting {} frames ({} joins)",
             log.presented.len(),

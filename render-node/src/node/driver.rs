@@ -94,7 +94,7 @@ async fn dial(ep: &quinn::Endpoint, addr: SocketAddr) -> Result<Link, String> {
 }
 
 /// Run a node until `shutdown` is cancelled.
-pub async fn run_node<R: Renderer>(
+pub async fn run_node<R: Renderer + ?Sized>(
     rt: NodeRuntime,
     renderer: &mut R,
     shutdown: CancellationToken,
@@ -103,7 +103,7 @@ pub async fn run_node<R: Renderer>(
     run_inner(rt, renderer, shutdown).instrument(span).await
 }
 
-async fn run_inner<R: Renderer>(
+async fn run_inner<R: Renderer + ?Sized>(
     rt: NodeRuntime,
     renderer: &mut R,
     shutdown: CancellationToken,
@@ -200,7 +200,7 @@ async fn run_inner<R: Renderer>(
     Ok(log)
 }
 
-fn handle_event<R: Renderer>(
+fn handle_event<R: Renderer + ?Sized>(
     ev: NodeEvent,
     rt: &NodeRuntime,
     renderer: &mut R,

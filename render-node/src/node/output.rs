@@ -1,0 +1,167 @@
+//! The renderer a real node runs: it drives the scene output it is named
+//! for (a projector or a CRT face), found by name in each scene snapshot,
+//! with the wgpu renderers of `crate::render`.
+//!
+//! A face serves the observer standing in front of its mirror
+//! ([`observer_in_front`]), chosen again with every snapshot.
+
+use super::renderer::{RenderError, RenderOutput, Renderer};
+use crate::gpu::GpuContext;
+use crate::render::face_gpu::FaceRenderer;
+use crate::render::projector_gpu::ProjectorRenderer;
+use showcase_proto::{FrameState, Role, Showcase};
+use std::sync::Arc;
+
+/// The observer a face serves: the one farthest in front of its mirror
+/// (on the side the mirror's normal points to); `None` when nobody stands
+/// in front of it.
+pub fn observer_in_front(scene: &Showcase, face: usize) -> Option<usize> {
+    let m = scene.faces.get(face)?.mirror;
+    scene
+        .observers
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (i, m.normal.dot(o.head.position) - m.offset))
+        .filter(|(_, d)| *d > 0.0)
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+enum Inner {
+    None,
+    Projector(ProjectorRenderer),
+    Face(FaceRenderer),
+}
+
+/// Renders the output called `output` in role `role` of whatever scene the
+/// master sends.
+pub struct OutputRenderer {
+    ctx: GpuContext,
+    output: String,
+    role: Role,
+    shadow_res: u32,
+    inner: Inner,
+}
+
+impl std::fmt::Debug for OutputRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OutputRenderer")
+            .field("output", &self.output)
+            .field("role", &self.role)
+            .field("shadow_res", &self.shadow_res)
+            .finish_non_exhaustive()
+    }
+}
+
+impl OutputRenderer {
+    /// A renderer for `output` (a projector's or a face's name) in `role`
+    /// on `ctx`, with shadow maps of `shadow_res` texels a side. Cameras
+    /// capture rather than render: `role` must be a projector or a face.
+    pub fn new(
+        ctx: GpuContext,
+        output: impl Into<String>,
+        role: Role,
+        shadow_res: u32,
+    ) -> Result<Self, RenderError> {
+        let output = output.into();
+        if !matches!(role, Role::Projector | Role::Face) {
+            return Err(RenderError(format!(
+                "output {output:?}: role {role:?} has no renderer (only projectors and faces render)"
+            )));
+        }
+        Ok(Self {
+            ctx,
+            output,
+            role,
+            shadow_res,
+            inner: Inner::None,
+        })
+    }
+
+    fn context(&self) -> GpuContext {
+        GpuContext {
+            device: self.ctx.device.clone(),
+            queue: self.ctx.queue.clone(),
+            adapter_info: self.ctx.adapter_info.clone(),
+        }
+    }
+}
+
+impl Renderer for OutputRenderer {
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
+        let inner = match self.role {
+            Role::Projector => {
+                let index = scene
+                    .projectors
+                    .iter()
+                    .position(|p| p.name == self.output)
+                    .ok_or_else(|| {
+                        RenderError(format!(
+                            "the scene has no projector {:?} (it has {:?})",
+                            self.output,
+                            scene.projectors.iter().map(|p| &p.name).collect::<Vec<_>>()
+                        ))
+                    })?;
+                Inner::Projector(ProjectorRenderer::new(
+                    self.context(),
+                    index,
+                    self.shadow_res,
+                ))
+            }
+            _ => {
+                let index = scene
+                    .faces
+                    .iter()
+                    .position(|f| f.name == self.output)
+                    .ok_or_else(|| {
+                        RenderError(format!(
+                            "the scene has no face {:?} (it has {:?})",
+                            self.output,
+                            scene.faces.iter().map(|f| &f.name).collect::<Vec<_>>()
+                        ))
+                    })?;
+                let observer = observer_in_front(&scene, index).ok_or_else(|| {
+                    RenderError(format!(
+                        "face {:?}: no observer stands in front of its mirror",
+                        self.output
+                    ))
+                })?;
+                Inner::Face(FaceRenderer::new(
+                    self.context(),
+                    index,
+                    observer,
+                    self.shadow_res,
+                ))
+            }
+        };
+        self.inner = inner;
+        match &mut self.inner {
+            Inner::Projector(r) => r.set_scene(version, scene),
+            Inner::Face(r) => r.set_scene(version, scene),
+            Inner::None => Ok(()),
+        }
+    }
+
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
+        match &mut self.inner {
+            Inner::Projector(r) => r.render(frame, scene),
+            Inner::Face(r) => r.render(frame, scene),
+            Inner::None => Err(RenderError(format!(
+                "output {:?}: frame {} arrived before any scene",
+                self.output, frame.frame
+            ))),
+        }
+    }
+
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        match &mut self.inner {
+            Inner::Projector(r) => r.present(frame),
+            Inner::Face(r) => r.present(frame),
+            Inner::None => Ok(()),
+        }
+    }
+}
