@@ -14,3 +14,5 @@ pub mod radiosity;
 pub mod reflectance;
 pub mod render;
 pub mod sim;
+#[cfg(feature = "window")]
+pub mod window;

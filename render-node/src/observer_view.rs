@@ -22,6 +22,9 @@
 //!
 //! Pure: no IO, no GPU.
 
+// `!(x > 0.0)` is deliberate: it is also true for NaN (as in `light`).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use crate::light::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
 use crate::render::projector::{Occluders, emitted_intensity, target_irradiance};
 use crate::render::{FrameScene, RenderSetupError};

@@ -41,6 +41,17 @@ struct NodeCli {
     /// Shadow map size per view, in texels a side.
     #[arg(long, default_value_t = DEFAULT_SHADOW_RES)]
     shadow_res: u32,
+    /// Show the presented frames full screen on this machine's display
+    /// (built with the `window` feature).
+    #[cfg(feature = "window")]
+    #[arg(long)]
+    window: bool,
+    /// With --window: the display's gamma, applied as 1/gamma to the
+    /// frame's linear values (default: 2.2 for a CRT face, 1 for a
+    /// projector, whose values are already drive values).
+    #[cfg(feature = "window")]
+    #[arg(long)]
+    display_gamma: Option<f32>,
 }
 
 /// What draws the frames.
@@ -115,18 +126,56 @@ fn run(cli: NodeCli) -> Result<()> {
             )?)
         }
     };
+    let stop = CancellationToken::new();
+    #[cfg(feature = "window")]
+    if cli.window {
+        use showcase_render::node::present::Presenting;
+        let gamma = cli.display_gamma.unwrap_or(match node.role {
+            showcase_proto::Role::Face => 2.2,
+            _ => 1.0,
+        });
+        anyhow::ensure!(
+            gamma.is_finite() && gamma > 0.0,
+            "--display-gamma {gamma}: must be a positive number"
+        );
+        let (event_loop, sink) = showcase_render::window::event_loop()?;
+        let title = format!("showcase {}", node.name);
+        let node_stop = stop.clone();
+        let quit = sink.clone();
+        let node_thread = std::thread::spawn(move || {
+            let mut presenting = Presenting::new(renderer, sink);
+            let r = drive(rt, &mut presenting, node_stop);
+            quit.quit();
+            r
+        });
+        let shown = showcase_render::window::run(event_loop, &title, gamma);
+        stop.cancel();
+        let node = node_thread
+            .join()
+            .map_err(|_| anyhow::anyhow!("the node thread panicked"))?;
+        shown?;
+        return node;
+    }
+    drive(rt, renderer.as_mut(), stop)
+}
+
+/// Run the node until Ctrl-C, `stop`, or a fatal error.
+fn drive<R: Renderer + ?Sized>(
+    rt: NodeRuntime,
+    renderer: &mut R,
+    stop: CancellationToken,
+) -> Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
     runtime.block_on(async {
-        let stop = CancellationToken::new();
         let s = stop.clone();
         tokio::spawn(async move {
             let _ = tokio::signal::ctrl_c().await;
             s.cancel();
         });
-        let log = run_node(rt, renderer.as_mut(), stop).await?;
+        let log = run_node(rt, renderer, stop).await?;
         eprintln!(
             "node stopped after presenting {} frames ({} joins)",
             log.presented.len(),

@@ -4,6 +4,7 @@
 pub mod driver;
 pub mod output;
 pub mod png_out;
+pub mod present;
 pub mod renderer;
 
 pub use driver::{NodeLog, NodeRunError, NodeRuntime, run_node};

@@ -73,7 +73,7 @@ impl Blend {
         let to = rays.center() - point;
         let r2 = to.length_squared();
         let cos = facing.dot(to) / r2.sqrt();
-        if !(cos > 0.0 && r2 > 0.0) || !real_only.visible(point, facing, rays.center(), false) {
+        if !(cos > 0.0 && r2 > 0.0 && real_only.visible(point, facing, rays.center(), false)) {
             return 0.0;
         }
         let d = rays.device();
