@@ -64,7 +64,7 @@ impl Default for GatherOptions {
 #[derive(Clone, Debug)]
 pub struct VertexGather {
     /// Per target vertex: `(patch, F * V)`.
-    rows: Vec<Vec<(u32, f32)>>,
+    rows: Vec<GatherRow>,
     /// Gather point of each vertex (pulled off edges).
     points: Vec<DVec3>,
     /// Vertex normals.
@@ -78,6 +78,9 @@ pub struct VertexGather {
     keys: Vec<[i64; 6]>,
     options: GatherOptions,
 }
+
+/// One vertex's gather row: `(patch, F * V)`.
+type GatherRow = Vec<(u32, f32)>;
 
 fn key(position: DVec3, normal: DVec3) -> [i64; 6] {
     let p = (position * 1e7).round().as_i64vec3().to_array();
@@ -121,7 +124,7 @@ impl VertexGather {
             .collect();
         let samples = options.samples.max(1);
         let emitter_samples = options.emitter_samples.max(1);
-        let computed: Vec<(DVec3, bool, Vec<(u32, f32)>)> = target
+        let computed: Vec<(DVec3, bool, GatherRow)> = target
             .vertices
             .par_iter()
             .enumerate()
