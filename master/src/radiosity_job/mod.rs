@@ -4,6 +4,7 @@
 //! the projectors' irradiance maps and the virtual objects' light maps.
 
 pub mod bench;
+pub mod consistency;
 pub mod export;
 pub mod report;
 pub mod scene;
