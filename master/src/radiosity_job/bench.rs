@@ -4,9 +4,15 @@
 //! light moves, and one augmented-radiosity record.
 //!
 //! - `rel_error`: B (with the ambient term) against a fine solution
-//!   (ray-cast form factors, 16 elements per 0.01 m^2 patch, threshold
-//!   1e-3, see `reference_config`), area-weighted relative RMSE of the
-//!   interpolated solutions ([`radiosity::relative_error`]).
+//!   (ray-cast form factors on 0.01 m^2 patches to a threshold of 1e-4,
+//!   then a final gather at the vertices of 64 elements per patch refined
+//!   once where B changes fast, 16 visibility rays per patch and 256 per
+//!   emitter patch; see `reference_config`), area-weighted relative RMSE
+//!   of the interpolated per-vertex solutions
+//!   ([`radiosity::relative_error_vertices`]). Records with `"gather"`
+//!   solve on patches and gather at the vertices of a finer mesh
+//!   ([`radiosity::gather_adaptive`]); the others interpolate element
+//!   averages.
 //! - `analytic_direct_error`: the solver's direct irradiance (the light's
 //!   patches shot once, B / rho interpolated) at 20 floor and wall points
 //!   that see the whole light, against Lambert's closed-form polygon
@@ -19,8 +25,9 @@ use serde_json::{Value, json};
 use showcase_proto::{Light, ObjectKind, PinholeDevice, Projector, ProjectorResponse, Showcase};
 use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_render::radiosity::{
-    self, B1Pass, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions, Shooter,
-    SolveOptions, augmented_radiosity, augmented_radiosity_with, irradiance_map,
+    self, B1Pass, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, RefineOptions,
+    Shooter, SolveOptions, VertexGather, augmented_radiosity, augmented_radiosity_with,
+    gather_adaptive, irradiance_map,
 };
 use std::path::Path;
 use std::time::Instant;
@@ -38,37 +45,80 @@ struct Config {
     element_depth: u32,
     refine: bool,
     solve: SolveOptions,
+    /// Final gather at the vertices of a mesh with `4^depth` elements per
+    /// patch, refined `refine_rounds` times where B changes fast.
+    gather: Option<GatherConfig>,
 }
 
+#[derive(Clone, Debug)]
+struct GatherConfig {
+    depth: u32,
+    refine_rounds: u32,
+    options: GatherOptions,
+}
+
+/// A solution as per-vertex values of `mesh`.
 struct Measured {
     mesh: RadiosityMesh,
-    radiosity: Vec<DVec3>,
+    vertex_values: Vec<DVec3>,
     seconds: f64,
     shots: usize,
+}
+
+fn mesh_with(
+    showcase: &Showcase,
+    all: &SceneGeometry,
+    area: f64,
+    depth: u32,
+) -> anyhow::Result<RadiosityMesh> {
+    Ok(RadiosityMesh::build(
+        showcase,
+        all,
+        &MeshOptions {
+            max_patch_area: area,
+            element_depth: depth,
+            ..MeshOptions::default()
+        },
+    )?)
 }
 
 fn measure(showcase: &Showcase, c: &Config) -> anyhow::Result<Measured> {
     let start = Instant::now();
     let all = SceneGeometry::build(showcase, &ObjectFilter::All)?;
-    let mut mesh = RadiosityMesh::build(
-        showcase,
-        &all,
-        &MeshOptions {
-            max_patch_area: c.max_patch_area,
-            element_depth: c.element_depth,
-            ..MeshOptions::default()
-        },
-    )?;
+    let mut mesh = mesh_with(showcase, &all, c.max_patch_area, c.element_depth)?;
     let lights: Vec<Light> = showcase.lights.iter().map(|l| l.light.clone()).collect();
     let refine = RefineOptions {
         rounds: u32::from(c.refine),
         ..RefineOptions::default()
     };
     let s = radiosity::solve_adaptive(&mut mesh, &all, &lights, &c.solve, &refine)?;
+    let (mesh, vertex_values) = match &c.gather {
+        Some(g) => {
+            let mut target = mesh_with(showcase, &all, c.max_patch_area, g.depth)?;
+            let refine = RefineOptions {
+                rounds: g.refine_rounds,
+                ..RefineOptions::default()
+            };
+            let (_, v) = gather_adaptive(
+                &mesh,
+                &s.display,
+                &mut target,
+                &all,
+                &lights,
+                &g.options,
+                &refine,
+            );
+            (target, v)
+        }
+        None => {
+            let v = mesh.vertex_values(&s.display);
+            (mesh, v)
+        }
+    };
     Ok(Measured {
         seconds: start.elapsed().as_secs_f64(),
         shots: s.shots,
-        radiosity: s.display,
+        vertex_values,
         mesh,
     })
 }
@@ -110,10 +160,28 @@ fn analytic_direct_error(showcase: &Showcase, c: &Config) -> anyhow::Result<f64>
                 .any(|&e| mesh.elements[e as usize].emission != DVec3::ZERO)
         })
         .collect();
-    for p in emitters {
-        shooter.shoot_patch(p);
-    }
-    let values = mesh.vertex_values(shooter.radiosity());
+    let (mesh, values) = match &c.gather {
+        // The gather's direct light: the emitters' own exitance gathered.
+        Some(g) => {
+            let target = mesh_with(showcase, &all, c.max_patch_area, g.depth)?;
+            let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
+            let v = VertexGather::build(&mesh, &target, &all, &g.options, None).apply(
+                &mesh,
+                &emission,
+                &target,
+                &all,
+                &[],
+            );
+            (target, v)
+        }
+        None => {
+            for p in emitters {
+                shooter.shoot_patch(p);
+            }
+            let v = mesh.vertex_values(shooter.radiosity());
+            (mesh, v)
+        }
+    };
     let (light, radiance) = light_triangles(showcase, &all);
     let corners: Vec<DVec3> = light.iter().flatten().copied().collect();
     let receivers: Vec<u32> = (0..mesh.primitives.len() as u32)
@@ -192,23 +260,75 @@ fn base() -> Config {
             method: FormFactorMethod::Hybrid,
             ..SolveOptions::default()
         },
+        gather: None,
     }
 }
 
-/// The converged fine solution every record is compared with: ray-cast
-/// form factors, 16 elements per patch. Kept affordable on a shared
-/// 2-core machine; tighten it where more time is available.
-fn reference_config() -> Config {
-    Config {
-        max_patch_area: 0.01,
-        element_depth: 2,
-        refine: false,
-        solve: SolveOptions {
-            threshold: 1e-3,
+/// The fast configuration: ray-cast form factors between 0.02 m^2 patches
+/// (one element each) to an unshot fraction of 1e-2, then a final gather
+/// at the vertices of 16 elements per patch, refined once where B changes
+/// fast, one visibility ray per patch pair and 16 per emitter patch.
+pub fn gathered_config() -> (f64, SolveOptions, u32, u32, GatherOptions) {
+    (
+        0.02,
+        SolveOptions {
+            threshold: 1e-2,
             method: FormFactorMethod::RayCast,
             visibility_samples: 2,
             ..SolveOptions::default()
         },
+        2,
+        1,
+        GatherOptions {
+            samples: 1,
+            emitter_samples: 16,
+            seed: 1,
+        },
+    )
+}
+
+fn gathered() -> Config {
+    let (area, solve, depth, refine_rounds, options) = gathered_config();
+    Config {
+        max_patch_area: area,
+        element_depth: 0,
+        refine: false,
+        solve,
+        gather: Some(GatherConfig {
+            depth,
+            refine_rounds,
+            options,
+        }),
+    }
+}
+
+/// The converged fine solution every record is compared with: ray-cast
+/// form factors between 0.01 m^2 patches (4 elements each) to an unshot
+/// fraction of 1e-4, then a final gather at the vertices of 64 elements
+/// per patch, refined once, with 16 visibility rays per patch pair and 256
+/// per emitter patch. Its own gather makes its per-vertex values point
+/// values, not element averages (on a closed furnace box the gather
+/// matches the exact `pi L / (1 - rho)` to 0.1%, see the unit tests).
+fn reference_config() -> Config {
+    Config {
+        max_patch_area: 0.01,
+        element_depth: 1,
+        refine: false,
+        solve: SolveOptions {
+            threshold: 1e-4,
+            method: FormFactorMethod::RayCast,
+            visibility_samples: 4,
+            ..SolveOptions::default()
+        },
+        gather: Some(GatherConfig {
+            depth: 3,
+            refine_rounds: 1,
+            options: GatherOptions {
+                samples: 16,
+                emitter_samples: 256,
+                seed: 3,
+            },
+        }),
     }
 }
 
@@ -219,18 +339,25 @@ fn record(
     kind: &str,
 ) -> anyhow::Result<BenchRecord> {
     let m = measure(showcase, c)?;
-    let rel = radiosity::relative_error(
+    let rel = radiosity::relative_error_vertices(
         &m.mesh,
-        &m.radiosity,
+        &m.vertex_values,
         &reference.mesh,
-        &reference.radiosity,
+        &reference.vertex_values,
         6,
     );
     Ok(json!({
         "kind": kind,
         "method": method_name(c.solve.method),
+        "gather": c.gather.as_ref().map(|g| json!({
+            "depth": g.depth,
+            "refine_rounds": g.refine_rounds,
+            "samples": g.options.samples,
+            "emitter_samples": g.options.emitter_samples,
+        })),
         "patches": m.mesh.patches.len(),
         "elements": m.mesh.elements.len(),
+        "vertices": m.mesh.vertices.len(),
         "hemicube": c.solve.hemicube,
         "threshold": c.solve.threshold,
         "seconds": m.seconds,
@@ -269,26 +396,46 @@ pub fn figure3_scene(cornell: &Showcase) -> Showcase {
     s
 }
 
-fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
+/// Augmented radiosity on the figure-3 scene: both B1 passes (the paper's
+/// converged one and one bounce), their irradiance maps and their
+/// end-to-end consistency on the simulated showcase.
+pub fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
     let s = figure3_scene(cornell);
-    let c = base();
+    let mut c = base();
+    c.max_patch_area = 0.02;
     let start = Instant::now();
     let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
     let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
-    let mesh = RadiosityMesh::build(
-        &s,
-        &all,
-        &MeshOptions {
-            max_patch_area: c.max_patch_area,
-            element_depth: c.element_depth,
-            ..MeshOptions::default()
-        },
-    )?;
+    let mesh = mesh_with(&s, &all, c.max_patch_area, c.element_depth)?;
     let a = augmented_radiosity(&mesh, &all, &real, &[], &c.solve)?;
     let b2 = mesh.vertex_values(&a.b2);
     let map = irradiance_map(&mesh, &real, &b2, &s.projectors, 0)?;
     let seconds = start.elapsed().as_secs_f64();
     let one = augmented_radiosity_with(&mesh, &all, &real, &[], &c.solve, B1Pass::OneBounce)?;
+    let one_map = irradiance_map(&mesh, &real, &mesh.vertex_values(&one.b2), &s.projectors, 0)?;
+    let camera = super::consistency::figure3_camera();
+    let check = |a: &radiosity::AugmentedSolution, map: &radiosity::IrradianceMap| {
+        let unclipped: Vec<bool> =
+            a.b0.iter()
+                .zip(&a.b1)
+                .map(|(b0, b1)| (2.0 * *b0 - *b1).min_element() >= 0.0)
+                .collect();
+        super::consistency::consistency(
+            &s,
+            &super::consistency::Promise {
+                mesh: &mesh,
+                real: &real,
+                b0_vertices: &mesh.vertex_values(&a.b0),
+                b2_vertices: &mesh.vertex_values(&a.b2),
+                unclipped: &unclipped,
+            },
+            std::slice::from_ref(map),
+            &camera,
+            256,
+        )
+    };
+    let paper = check(&a, &map)?;
+    let one_bounce = check(&one, &one_map)?;
     Ok(json!({
         "kind": "augmented",
         "patches": mesh.patches.len(),
@@ -296,56 +443,71 @@ fn augmented_record(cornell: &Showcase) -> anyhow::Result<BenchRecord> {
         "hemicube": c.solve.hemicube,
         "threshold": c.solve.threshold,
         "seconds": seconds,
-        // Needs the simulated showcase (projecting L through the sim with
-        // its own interreflection); not available in this crate yet.
-        "consistency_rel_rmse": Value::Null,
+        // The sim (path tracing, independent of this solver) shows the
+        // irradiance map on the real walls; a camera compares with B0.
+        "consistency_rel_rmse": paper.rel_rmse,
+        "consistency_pixels": paper.pixels,
+        "consistency_real_pixels": paper.real_pixels,
+        "consistency_direct_rel_rmse": paper.direct_rel_rmse,
+        "consistency_level": paper.level,
         "clipped_fraction": map.clipped_fraction(),
         "clipped_elements": a.clipped_elements,
         "real_elements": a.real_elements,
         "b1_b0_deviation_rgb": a.b1_b0_deviation_rgb,
         "b3_b0_deviation_rgb": a.b3_b0_deviation_rgb,
+        "one_bounce_consistency_rel_rmse": one_bounce.rel_rmse,
+        "one_bounce_consistency_pixels": one_bounce.pixels,
+        "one_bounce_consistency_direct_rel_rmse": one_bounce.direct_rel_rmse,
+        "one_bounce_consistency_level": one_bounce.level,
+        "one_bounce_clipped_fraction": one_map.clipped_fraction(),
         "one_bounce_b3_b0_deviation_rgb": one.b3_b0_deviation_rgb,
         "one_bounce_clipped_elements": one.clipped_elements,
     }))
 }
 
 /// A virtual point light of `intensity` (W/sr) moves inside the box beside
-/// the box's own light: time of a full re-solve against shooting the
-/// difference (remove the old direct light, add the new, shoot), to the
-/// same absolute unshot-power tolerance, and the error of each against a
-/// tightly converged solve of the new state. The speed-up grows as the
-/// moving light's share of the power falls.
+/// the box's own light, in the gathered configuration
+/// ([`gathered_config`], without the gather's refinement so both sides
+/// share one output mesh). Three ways to the new per-vertex solution, all
+/// to the same absolute unshot-power tolerance, each timed from the moment
+/// the light moved:
+/// - `full`: from scratch: form factors, shooting, gather matrix, gather;
+/// - `warm`: shooting from scratch but with the cached form-factor rows
+///   and gather matrix (geometry is unchanged);
+/// - `incremental`: shoot the difference: remove the old light's direct
+///   deposit (negative energy), add the new one, shoot what is unshot with
+///   the cached rows, and gather again with the cached matrix.
+///
+/// Errors are against a solve of the new state to 1e-5 gathered with the
+/// same matrix.
 pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<BenchRecord> {
-    let c = base();
+    let (area, solve, depth, _, gather_options) = gathered_config();
     let all = SceneGeometry::build(cornell, &ObjectFilter::All)?;
-    let mesh = RadiosityMesh::build(
-        cornell,
-        &all,
-        &MeshOptions {
-            max_patch_area: c.max_patch_area,
-            element_depth: c.element_depth,
-            ..MeshOptions::default()
-        },
-    )?;
+    let mesh = mesh_with(cornell, &all, area, 0)?;
+    let target = mesh_with(cornell, &all, area, depth)?;
     let light = |x: f32| Light::Point {
         position: Vec3::new(x, 0.4, 0.3),
         intensity: Vec3::splat(intensity),
     };
     let (old, new) = (light(0.15), light(0.4));
-    let mut base_solve = Shooter::new(&mesh, &all, None, &c.solve)?;
+    let mut base_solve = Shooter::new(&mesh, &all, None, &solve)?;
     base_solve.add_surface_emission();
     base_solve.add_light(&old, 1.0);
     // The static solution is precomputed offline to a tenth of the
     // interactive tolerance, so an update need not first pay off the
     // residual the precompute left at exactly the limit.
-    let limit = c.solve.threshold * base_solve.injected_power();
+    let limit = solve.threshold * base_solve.injected_power();
     base_solve.run_to_power(0.1 * limit);
+    let gather = VertexGather::build(&mesh, &target, &all, &gather_options, None);
+    let lights = [new.clone()];
 
     let start = Instant::now();
-    let mut full = Shooter::new(&mesh, &all, None, &c.solve)?;
+    let mut full = Shooter::new(&mesh, &all, None, &solve)?;
     full.add_surface_emission();
     full.add_light(&new, 1.0);
     full.run_to_power(limit);
+    let full_gather = VertexGather::build(&mesh, &target, &all, &gather_options, None);
+    let full_v = full_gather.apply(&mesh, &full.display_radiosity(), &target, &all, &lights);
     let full_seconds = start.elapsed().as_secs_f64();
 
     let start = Instant::now();
@@ -353,26 +515,42 @@ pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<
     inc.add_light(&old, -1.0);
     inc.add_light(&new, 1.0);
     let inc_shots = inc.run_to_power(limit);
+    let inc_v = gather.apply(&mesh, &inc.display_radiosity(), &target, &all, &lights);
     let inc_seconds = start.elapsed().as_secs_f64();
 
-    let mut tight = c.solve.clone();
+    let mut tight = solve.clone();
     tight.threshold = 1e-5;
-    let converged = radiosity::solve(&mesh, &all, &[new], &tight)?;
-    let err = |b: &[DVec3]| radiosity::relative_error(&mesh, b, &mesh, &converged.radiosity, 6);
+    let converged = radiosity::solve(&mesh, &all, &lights, &tight)?;
+    let converged_v = gather.apply(&mesh, &converged.display, &target, &all, &lights);
+    let err =
+        |v: &[DVec3]| radiosity::relative_error_vertices(&target, v, &target, &converged_v, 6);
+    let (full_err, inc_err) = (err(&full_v), err(&inc_v));
+
+    let start = Instant::now();
+    let mut warm = inc;
+    warm.restart();
+    warm.add_surface_emission();
+    warm.add_light(&new, 1.0);
+    warm.run_to_power(limit);
+    let warm_v = gather.apply(&mesh, &warm.display_radiosity(), &target, &all, &lights);
+    let warm_seconds = start.elapsed().as_secs_f64();
     Ok(json!({
         "kind": "incremental",
         "light_intensity": intensity,
         "patches": mesh.patches.len(),
-        "elements": mesh.elements.len(),
-        "hemicube": c.solve.hemicube,
-        "threshold": c.solve.threshold,
+        "vertices": target.vertices.len(),
+        "threshold": solve.threshold,
         "full_seconds": full_seconds,
         "full_shots": full.shots(),
-        "full_rel_error": err(full.radiosity()),
+        "full_rel_error": full_err,
+        "warm_seconds": warm_seconds,
+        "warm_shots": warm.shots(),
+        "warm_rel_error": err(&warm_v),
         "incremental_seconds": inc_seconds,
         "incremental_shots": inc_shots,
-        "incremental_rel_error": err(inc.radiosity()),
+        "incremental_rel_error": inc_err,
         "speedup": full_seconds / inc_seconds.max(1e-9),
+        "speedup_over_warm": warm_seconds / inc_seconds.max(1e-9),
     }))
 }
 
@@ -400,6 +578,9 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         c
     };
     let (hybrid, raycast) = (FormFactorMethod::Hybrid, FormFactorMethod::RayCast);
+    for _ in 0..3 {
+        records.push(record(&showcase, &reference, &gathered(), "gathered")?);
+    }
     let configs = [
         with(0.04, 32, 1e-2, hybrid, 4),
         with(0.04, 64, 1e-2, hybrid, 4),
@@ -417,6 +598,11 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         refine: false,
         ..with(0.02, 32, 1e-2, raycast, 1)
     };
+    records.push(record(&showcase, &reference, &scaling, "scaling")?);
+    let mut scaling = gathered();
+    if let Some(g) = &mut scaling.gather {
+        g.depth = 3;
+    }
     records.push(record(&showcase, &reference, &scaling, "scaling")?);
     for intensity in [0.5, 0.05, 0.005] {
         records.push(incremental_record(&showcase, intensity)?);

@@ -4,6 +4,7 @@
 //! the projectors' irradiance maps and the virtual objects' light maps.
 
 pub mod bench;
+pub mod consistency;
 pub mod export;
 pub mod report;
 pub mod scene;
@@ -16,8 +17,9 @@ use glam::DVec3;
 use showcase_proto::{ObjectKind, Showcase};
 use showcase_render::light::{ObjectFilter, SceneGeometry};
 use showcase_render::radiosity::{
-    self, ConvergencePoint, FormFactorMethod, MeshOptions, RadiosityMesh, RefineOptions,
-    SolveOptions, augmented_radiosity, irradiance_map, vertex_mesh,
+    self, ConvergencePoint, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh,
+    RefineOptions, SolveOptions, augmented_radiosity, gather_adaptive, irradiance_map,
+    vertex_mesh_from_vertices,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -103,6 +105,13 @@ pub struct Solved {
     pub unshot_fraction: f64,
     /// Convergence curve of the last B0 round.
     pub convergence: Vec<ConvergencePoint>,
+    /// The output mesh: the patches at 16 elements each, refined where B0
+    /// changes fast.
+    pub output_mesh: RadiosityMesh,
+    /// B0 at the output mesh's vertices by a final gather
+    /// ([`radiosity::gather_adaptive`]): point values, not element
+    /// averages, so edges and corners are not smeared.
+    pub b0_vertices: Vec<DVec3>,
 }
 
 /// Mesh, solve with one round of adaptive refinement, and run the augmented
@@ -122,10 +131,31 @@ pub fn solve_showcase(showcase: &Showcase, options: &RadiosityOptions) -> anyhow
     } else {
         None
     };
+    let b0 = augmented
+        .as_ref()
+        .map_or(solution.display, |a| a.b0.clone());
+    let mut output_mesh = RadiosityMesh::build(
+        showcase,
+        &all,
+        &MeshOptions {
+            element_depth: 2,
+            ..options.mesh()
+        },
+    )
+    .context("meshing the output")?;
+    let (_, b0_vertices) = gather_adaptive(
+        &mesh,
+        &b0,
+        &mut output_mesh,
+        &all,
+        &lights,
+        &GatherOptions::default(),
+        &RefineOptions::default(),
+    );
     Ok(Solved {
-        b0: augmented
-            .as_ref()
-            .map_or(solution.display, |a| a.b0.clone()),
+        b0,
+        output_mesh,
+        b0_vertices,
         mesh,
         augmented,
         real,
@@ -149,8 +179,9 @@ fn file_name(name: &str) -> String {
 }
 
 /// `showcase-master radiosity`: solve `scene` (OBJ or TOML) and write
-/// `solution.ply` (B0 per vertex; without projectors B plus the ambient
-/// estimate of the energy still unshot at the threshold), `irradiance_map_<projector>.pfm` (linear
+/// `solution.ply` (B0 per vertex of the output mesh, by a final gather
+/// from the solution with the ambient estimate of the energy still unshot
+/// at the threshold), `irradiance_map_<projector>.pfm` (linear
 /// drive), `light_map_<object>.ply` per virtual object and `summary.json`
 /// into `out`.
 pub fn run_radiosity(
@@ -174,7 +205,7 @@ pub fn run_radiosity(
     let seconds = start.elapsed().as_secs_f64();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let solution = out.join("solution.ply");
-    let whole = vertex_mesh(&solved.mesh, &solved.b0, |_| true);
+    let whole = vertex_mesh_from_vertices(&solved.output_mesh, &solved.b0_vertices, |_| true);
     std::fs::write(&solution, export::ply_ascii(&whole))
         .with_context(|| format!("writing {}", solution.display()))?;
     let mut irradiance_maps = Vec::new();
@@ -189,7 +220,9 @@ pub fn run_radiosity(
         if o.kind != ObjectKind::Virtual {
             continue;
         }
-        let m = vertex_mesh(&solved.mesh, &solved.b0, |e| e.object as usize == i);
+        let m = vertex_mesh_from_vertices(&solved.output_mesh, &solved.b0_vertices, |e| {
+            e.object as usize == i
+        });
         let path = out.join(format!("light_map_{}.ply", file_name(&o.name)));
         std::fs::write(&path, export::ply_ascii(&m))
             .with_context(|| format!("writing {}", path.display()))?;

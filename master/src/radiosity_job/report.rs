@@ -121,14 +121,19 @@ pub fn write_report(records: &[BenchRecord], out: &Path, machine: &str) -> anyho
         .filter(|r| {
             matches!(
                 r.get("kind").and_then(|k| k.as_str()),
-                Some("sweep" | "scaling")
+                Some("sweep" | "scaling" | "gathered")
             )
         })
         .collect();
     let label = |r: &BenchRecord| {
         format!(
-            "{} p{} h{} t{}",
+            "{}{} p{} h{} t{}",
             r.get("method").and_then(|m| m.as_str()).unwrap_or(""),
+            if r.get("gather").is_some_and(|g| !g.is_null()) {
+                "+gather"
+            } else {
+                ""
+            },
             num(r, "patches"),
             num(r, "hemicube"),
             num(r, "threshold")

@@ -166,6 +166,8 @@ pub struct IrradianceMap {
     pub valid: usize,
     /// Masked pixels where a channel had to be clamped (or the floor hit).
     pub clipped: usize,
+    /// Which masked pixels were clipped.
+    pub clipped_mask: Image<bool>,
 }
 
 impl IrradianceMap {
@@ -261,6 +263,11 @@ pub fn irradiance_map(
             width: w,
             height: h,
             data: pixels.iter().map(Option::is_some).collect(),
+        },
+        clipped_mask: Image {
+            width: w,
+            height: h,
+            data: pixels.iter().map(|p| p.is_some_and(|(_, c)| c)).collect(),
         },
         valid,
         clipped,

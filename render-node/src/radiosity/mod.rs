@@ -35,6 +35,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod augmented;
+pub mod gather;
 pub mod hemicube;
 pub mod mesh;
 pub mod shooting;
@@ -43,6 +44,9 @@ pub mod sources;
 pub use augmented::{
     AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity, augmented_radiosity_with,
     irradiance_map,
+};
+pub use gather::{
+    GatherOptions, VertexGather, gather_adaptive, gather_vertices, refine_by_vertices,
 };
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
@@ -205,7 +209,16 @@ pub fn vertex_mesh(
     element_values: &[DVec3],
     keep: impl Fn(&Element) -> bool,
 ) -> VertexMesh {
-    let values = mesh.vertex_values(element_values);
+    vertex_mesh_from_vertices(mesh, &mesh.vertex_values(element_values), keep)
+}
+
+/// [`vertex_mesh`] from per-vertex values (indexed like `mesh.vertices`,
+/// e.g. from [`gather_vertices`]); missing values are zero.
+pub fn vertex_mesh_from_vertices(
+    mesh: &RadiosityMesh,
+    values: &[DVec3],
+    keep: impl Fn(&Element) -> bool,
+) -> VertexMesh {
     let mut remap = vec![u32::MAX; mesh.vertices.len()];
     let mut out = VertexMesh::default();
     for e in mesh.elements.iter().filter(|e| keep(e)) {
@@ -216,7 +229,8 @@ pub fn vertex_mesh(
                 *slot = out.positions.len() as u32;
                 out.positions.push(mesh.vertices[v as usize].position);
                 out.normals.push(mesh.vertices[v as usize].normal);
-                out.values.push(values[v as usize]);
+                out.values
+                    .push(values.get(v as usize).copied().unwrap_or(DVec3::ZERO));
             }
             tri[k] = *slot;
         }
@@ -236,8 +250,24 @@ pub fn relative_error(
     reference: &[DVec3],
     samples_per_side: u32,
 ) -> Option<f64> {
-    let tv = test_mesh.vertex_values(test);
-    let rv = reference_mesh.vertex_values(reference);
+    relative_error_vertices(
+        test_mesh,
+        &test_mesh.vertex_values(test),
+        reference_mesh,
+        &reference_mesh.vertex_values(reference),
+        samples_per_side,
+    )
+}
+
+/// [`relative_error`] of per-vertex solutions (indexed like the meshes'
+/// `vertices`, e.g. from [`gather_vertices`]).
+pub fn relative_error_vertices(
+    test_mesh: &RadiosityMesh,
+    tv: &[DVec3],
+    reference_mesh: &RadiosityMesh,
+    rv: &[DVec3],
+    samples_per_side: u32,
+) -> Option<f64> {
     let n = samples_per_side.max(1);
     let (mut sq, mut sum, mut weight) = (0.0, 0.0, 0.0);
     for (pi, prim) in reference_mesh.primitives.iter().enumerate() {
@@ -247,8 +277,8 @@ pub fn relative_error(
         let w = prim.area() / (n * n) as f64;
         for b in mesh::sub_centroids(n) {
             let (Some(r), Some(t)) = (
-                reference_mesh.interpolate(pi as u32, b, &rv),
-                test_mesh.interpolate(ti, b, &tv),
+                reference_mesh.interpolate(pi as u32, b, rv),
+                test_mesh.interpolate(ti, b, tv),
             ) else {
                 continue;
             };

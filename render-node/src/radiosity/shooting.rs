@@ -7,6 +7,14 @@
 //! by the area-weighted share. Shots may carry negative power, which is how
 //! an incremental update removes the light of a source that moved.
 //!
+//! Form factors are cached per shooting patch (up to
+//! [`SolveOptions::form_factor_cache_bytes`]): a patch shoots several times
+//! in a solve (it keeps receiving), and every later shot reuses its row.
+//! A row depends only on the mesh, the geometry and the patch (its jitter
+//! and hemi-cube rotation are seeded by the patch index), so a cached row
+//! equals a recomputed one, and an incremental update after a virtual light
+//! moves reuses every row.
+//!
 //! Energy: the form factors of one shot are scaled down if they sum above 1,
 //! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so
 //! every shot passes on strictly less power than it takes: the unshot power
@@ -78,6 +86,8 @@ pub struct SolveOptions {
     pub min_pixels: f64,
     /// Visibility rays per ray-cast form factor (and per area light).
     pub visibility_samples: u32,
+    /// Memory for cached form-factor rows (bytes); 0 disables the cache.
+    pub form_factor_cache_bytes: usize,
 }
 
 impl Default for SolveOptions {
@@ -91,6 +101,7 @@ impl Default for SolveOptions {
             proximity: 2.0,
             min_pixels: 4.0,
             visibility_samples: 4,
+            form_factor_cache_bytes: 1 << 30,
         }
     }
 }
@@ -128,6 +139,12 @@ pub struct Shooter<'a> {
     injected: f64,
     shots: usize,
     curve: Vec<ConvergencePoint>,
+    /// Cached form-factor rows per patch.
+    rows: Vec<Option<Vec<(u32, f64)>>>,
+    /// Bytes held in `rows`.
+    row_bytes: usize,
+    /// Rows computed (cache misses).
+    rows_computed: usize,
 }
 
 impl<'a> Shooter<'a> {
@@ -170,6 +187,9 @@ impl<'a> Shooter<'a> {
             injected: 0.0,
             shots: 0,
             curve: Vec::new(),
+            rows: vec![None; mesh.patches.len()],
+            row_bytes: 0,
+            rows_computed: 0,
         })
     }
 
@@ -226,6 +246,16 @@ impl<'a> Shooter<'a> {
             self.unshot[e.patch as usize] += *d * (e.area / p.area);
             self.injected += power(*d, e.area);
         }
+    }
+
+    /// Forget all energy (B, unshot, injected, shots, curve) but keep the
+    /// cached form-factor rows: a fresh solve of the same geometry.
+    pub fn restart(&mut self) {
+        self.radiosity.iter_mut().for_each(|b| *b = DVec3::ZERO);
+        self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        self.injected = 0.0;
+        self.shots = 0;
+        self.curve.clear();
     }
 
     /// Power injected so far (sum of channels, W).
@@ -317,15 +347,32 @@ impl<'a> Shooter<'a> {
             return false;
         }
         self.unshot[shooter] = DVec3::ZERO;
-        let shot_seed = hash64(self.options.seed ^ (self.shots as u64).wrapping_mul(0x9e37_79b9));
-        let ff = self.form_factors(shooter, shot_seed);
+        let (ff, cached) = match self.rows[shooter].take() {
+            Some(row) => (row, true),
+            None => {
+                let seed = hash64(
+                    self.options.seed ^ (shooter as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                );
+                self.rows_computed += 1;
+                (self.form_factors(shooter, seed), false)
+            }
+        };
         let p_area = self.mesh.patches[shooter].area;
-        for (j, f) in ff {
+        for &(j, f) in &ff {
             let e = &self.mesh.elements[j as usize];
             let gain = finite(e.reflectance * delta * (f * p_area / e.area));
             self.radiosity[j as usize] += gain;
             let q = &self.mesh.patches[e.patch as usize];
             self.unshot[e.patch as usize] += gain * (e.area / q.area);
+        }
+        let bytes = ff.capacity() * std::mem::size_of::<(u32, f64)>();
+        if cached {
+            self.rows[shooter] = Some(ff);
+        } else if self.options.form_factor_cache_bytes > 0
+            && self.row_bytes + bytes <= self.options.form_factor_cache_bytes
+        {
+            self.row_bytes += bytes;
+            self.rows[shooter] = Some(ff);
         }
         self.shots += 1;
         self.curve.push(ConvergencePoint {
@@ -460,6 +507,11 @@ impl<'a> Shooter<'a> {
     /// Shots so far.
     pub fn shots(&self) -> usize {
         self.shots
+    }
+
+    /// Form-factor rows computed so far (shots that found no cached row).
+    pub fn rows_computed(&self) -> usize {
+        self.rows_computed
     }
 
     /// The unshot fraction after every shot.
