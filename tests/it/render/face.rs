@@ -215,7 +215,7 @@ fn occluding_occlusion_passes_are_skipped_with_one_observer() -> Result<()> {
     ensure!(!passes.runs(Pass::EyeShadowViews), "{passes:?}");
     let face = bench_face(96, 72);
     let eyes = [frame.eyes[0], frame.eyes[1]];
-    let pipeline = FacePipeline::new(&ctx.device, 256);
+    let mut pipeline = FacePipeline::new(&ctx.device, 256);
     let skipped = pipeline.render(&ctx, &frame, &face, &eyes, &others, &passes)?;
     let full = pipeline.render(&ctx, &frame, &face, &eyes, &others, &PassList::full_face())?;
     ensure!(

@@ -5,7 +5,6 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::target::DEPTH_FORMAT;
@@ -112,7 +111,13 @@ pub fn fitted_views(
     vec![v]
 }
 
-/// The distance maps: one `res x res` layer per view.
+/// What a layer of [`ShadowMaps`] holds: the view it was drawn with and
+/// the identity of the geometry drawn (see [`ShadowDraw::geometry`]).
+type LayerContent = (ShadowView, u64);
+
+/// The distance maps: one `res x res` layer per view. They remember what
+/// each layer was drawn with, so that a layer whose view and geometry did
+/// not change is not drawn again (a light or eye that did not move).
 #[derive(Debug)]
 pub struct ShadowMaps {
     res: u32,
@@ -121,6 +126,7 @@ pub struct ShadowMaps {
     array_view: wgpu::TextureView,
     layer_views: Vec<wgpu::TextureView>,
     depth_view: wgpu::TextureView,
+    contents: Vec<Option<LayerContent>>,
 }
 
 impl ShadowMaps {
@@ -192,7 +198,13 @@ impl ShadowMaps {
             array_view,
             layer_views,
             depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
+            contents: vec![None; layers as usize],
         })
+    }
+
+    /// Forget what the layers hold, so that the next draw redraws them all.
+    pub fn invalidate(&mut self) {
+        self.contents.iter_mut().for_each(|c| *c = None);
     }
 
     /// Size of a layer in texels.
@@ -232,6 +244,11 @@ pub struct ShadowDraw<'a> {
     pub vertex_count: u32,
     /// Layers (= view indices) to draw into.
     pub layers: std::ops::Range<u32>,
+    /// Identity of the vertex data: the same value promises the same
+    /// vertices, so that a layer already drawn with the same view and
+    /// geometry is kept instead of drawn again. Callers must change it
+    /// whenever the buffer's contents change.
+    pub geometry: u64,
 }
 
 impl ShadowViewsPass {
@@ -295,44 +312,46 @@ impl ShadowViewsPass {
         Self { pipeline, layout }
     }
 
-    /// Upload `views` as the storage buffer both passes read.
-    pub fn upload_views(&self, device: &wgpu::Device, views: &[ShadowView]) -> wgpu::Buffer {
-        let placeholder = [ShadowView::zeroed()];
-        let data = if views.is_empty() {
-            &placeholder[..]
-        } else {
-            views
-        };
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("shadow views"),
-            contents: bytemuck::cast_slice(data),
-            usage: wgpu::BufferUsages::STORAGE,
-        })
-    }
-
-    /// Record one render pass per layer of each draw: clear to
-    /// [`FAR_DISTANCE`], draw the geometry with that layer's view.
-    pub fn encode(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        maps: &ShadowMaps,
-        views: &wgpu::Buffer,
-        draws: &[ShadowDraw<'_>],
-    ) {
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+    /// The bind group of the views buffer (create once per buffer).
+    pub fn bind_group(&self, device: &wgpu::Device, views: &wgpu::Buffer) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shadow views"),
             layout: &self.layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: views.as_entire_binding(),
             }],
-        });
+        })
+    }
+
+    /// Record one render pass per layer of each draw whose content
+    /// changed: clear to [`FAR_DISTANCE`], draw the geometry with that
+    /// layer's view (`views[layer]`, as uploaded into the buffer of
+    /// `bind_group`). A layer that already holds the same view and
+    /// geometry is skipped. Returns the number of layers drawn.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &mut ShadowMaps,
+        bind_group: &wgpu::BindGroup,
+        views: &[ShadowView],
+        draws: &[ShadowDraw<'_>],
+    ) -> u32 {
+        let mut drawn = 0;
         for draw in draws {
             for layer in draw.layers.clone() {
-                let Some(target) = maps.layer_views.get(layer as usize) else {
+                let (Some(target), Some(view)) = (
+                    maps.layer_views.get(layer as usize),
+                    views.get(layer as usize),
+                ) else {
                     continue;
                 };
+                let content = Some((*view, draw.geometry));
+                if maps.contents[layer as usize] == content {
+                    continue;
+                }
+                maps.contents[layer as usize] = content;
+                drawn += 1;
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("shadow view"),
                     color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -365,11 +384,12 @@ impl ShadowViewsPass {
                     continue;
                 }
                 pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_bind_group(0, bind_group, &[]);
                 pass.set_vertex_buffer(0, draw.vertices.slice(..));
                 pass.draw(0..draw.vertex_count, layer..layer + 1);
             }
         }
+        drawn
     }
 }
 
