@@ -77,12 +77,35 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
+// The cube face (0..6 as in shadow_views::cube_views) whose view holds
+// direction d: the major axis and its sign.
+fn cube_face(d: vec3<f32>) -> u32 {
+    let a = abs(d);
+    if (a.x >= a.y && a.x >= a.z) {
+        return select(1u, 0u, d.x > 0.0);
+    }
+    if (a.y >= a.z) {
+        return select(3u, 2u, d.y > 0.0);
+    }
+    return select(5u, 4u, d.z > 0.0);
+}
+
 // True when the views `first .. first + count` see nothing nearer to their
 // origin than `p` (surface normal `n`) along the line to `p`. A point no
 // view covers is visible (eye views cover only the virtual objects).
 fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
     let res = frame.counts.z;
-    for (var i = first; i < first + count; i++) {
+    // Six views are a cube (shadow_views::cube_views: +x, -x, +y, -y, +z,
+    // -z around one origin): only the face of the major axis can hold p,
+    // so test that one instead of searching them all.
+    var lo = first;
+    var hi = first + count;
+    if (count == 6u) {
+        let f = first + cube_face(p - views[first].origin.xyz);
+        lo = f;
+        hi = f + 1u;
+    }
+    for (var i = lo; i < hi; i++) {
         let v = views[i];
         let c = v.clip_from_world * vec4<f32>(p, 1.0);
         if (c.w <= 0.0) {

@@ -85,6 +85,22 @@ pub fn cube_views(origin: Vec3, near: f32, far: f32, res: u32) -> Vec<ShadowView
         .collect()
 }
 
+/// The face of [`cube_views`] (0 to 5) whose view holds direction `d`
+/// from the origin: the major axis and its sign. Mirrors WGSL
+/// `cube_face` of the passes that sample the maps.
+pub fn cube_face(d: Vec3) -> usize {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if d.x > 0.0 { 0 } else { 1 }
+    } else if a.y >= a.z {
+        if d.y > 0.0 { 2 } else { 3 }
+    } else if d.z > 0.0 {
+        4
+    } else {
+        5
+    }
+}
+
 /// Views from `origin` covering the sphere `(centre, radius)`: one view
 /// fitted around it, or the cube when `origin` is (nearly) inside it.
 pub fn fitted_views(
@@ -421,6 +437,26 @@ mod tests {
                 })
                 .count();
             assert_eq!(inside, 1, "{d}");
+        }
+    }
+
+    #[test]
+    fn the_major_axis_face_holds_every_direction() {
+        use rand::{Rng, SeedableRng};
+        let o = Vec3::new(0.3, -0.1, 0.2);
+        let views = cube_views(o, 1e-3, 10.0, 256);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..2000 {
+            let d = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if d.length() < 1e-3 {
+                continue;
+            }
+            let n = ndc(&views[cube_face(d)], o + d).expect("in front of its face");
+            assert!(n.x.abs() <= 1.0 && n.y.abs() <= 1.0, "{d}: {n}");
         }
     }
 
