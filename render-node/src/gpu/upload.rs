@@ -54,12 +54,16 @@ impl UploadBuffer {
         data: &[T],
     ) {
         let placeholder = [T::zeroed()];
-        let data = if data.is_empty() { &placeholder[..] } else { data };
+        let data = if data.is_empty() {
+            &placeholder[..]
+        } else {
+            data
+        };
         let bytes: &[u8] = bytemuck::cast_slice(data);
         // write_buffer needs a multiple of 4 bytes; Pod structs of f32/u32
         // always are, but pad defensively.
         let padded;
-        let bytes = if bytes.len() % 4 == 0 {
+        let bytes = if bytes.len().is_multiple_of(4) {
             bytes
         } else {
             padded = [bytes, &[0u8; 3][..4 - bytes.len() % 4]].concat();

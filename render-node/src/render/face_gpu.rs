@@ -11,9 +11,9 @@ use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
 use super::RenderSetupError;
 use super::frame::{DEFAULT_IPD, FrameScene};
+use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
-use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
 use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
@@ -195,11 +195,7 @@ impl FacePipeline {
             self.eyes = (0..eyes.len())
                 .map(|_| {
                     Ok(EyeResources {
-                        frame: UploadBuffer::new(
-                            device,
-                            "face frame",
-                            wgpu::BufferUsages::UNIFORM,
-                        ),
+                        frame: UploadBuffer::new(device, "face frame", wgpu::BufferUsages::UNIFORM),
                         bind: None,
                         target: OffscreenTarget::new(device, face.width, face.height)?,
                         readback: ColourReadback::new(device, face.width, face.height),

@@ -156,7 +156,11 @@ pub fn stable_far(far: f32) -> f32 {
         return far;
     }
     let rounded = 2f32.powi(far.log2().ceil() as i32);
-    if rounded >= far { rounded } else { 2.0 * rounded }
+    if rounded >= far {
+        rounded
+    } else {
+        2.0 * rounded
+    }
 }
 
 #[cfg(test)]

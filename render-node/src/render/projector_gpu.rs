@@ -11,9 +11,9 @@ use showcase_proto::{FrameState, ObjectKind, Projector, Showcase};
 
 use super::RenderSetupError;
 use super::frame::{FrameScene, Lobe};
+use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{FrameKey, Pass, PassList, bounding_sphere};
 use super::projector::COS_FLOOR;
-use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use crate::gpu::irradiance_map::{
     EyeGpu, FrameUniform, IrradianceBindings, IrradianceMapPass, LightSampleGpu, state,
 };

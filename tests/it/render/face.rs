@@ -261,7 +261,10 @@ fn kept_face_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
     let (first, drawn) = render(&f0)?;
     ensure!(drawn == 8, "first frame drew {drawn} layers");
     let (again, drawn) = render(&f0)?;
-    ensure!(drawn == 0 && again == first, "same frame drew {drawn} layers");
+    ensure!(
+        drawn == 0 && again == first,
+        "same frame drew {drawn} layers"
+    );
     let mut f1 = f0.clone();
     f1.heads[1].position.x += 0.03;
     let (moved, drawn) = render(&f1)?;

@@ -9,10 +9,12 @@ use anyhow::{Result, ensure};
 use glam::Vec3;
 use showcase_proto::{FrameState, Pose, Showcase};
 use showcase_render::node::renderer::Renderer;
-use showcase_render::render::bench::{bench_frame, bench_light, bench_projector, variant_scene};
 use showcase_render::render::FrameScene;
+use showcase_render::render::bench::{bench_frame, bench_light, bench_projector, variant_scene};
 use showcase_render::render::passes::{Pass, PassList};
-use showcase_render::render::projector_gpu::{GpuIrradianceMap, ProjectorPipeline, ProjectorRenderer};
+use showcase_render::render::projector_gpu::{
+    GpuIrradianceMap, ProjectorPipeline, ProjectorRenderer,
+};
 
 use super::gpu_or_skip;
 use super::scenes::{bench, plate_scene, point};
@@ -214,14 +216,20 @@ fn kept_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
     let (first, drawn) = render(&f0)?;
     ensure!(drawn == 10, "first frame drew {drawn} layers");
     let (again, drawn) = render(&f0)?;
-    ensure!(drawn == 0 && again == first, "same frame drew {drawn} layers");
+    ensure!(
+        drawn == 0 && again == first,
+        "same frame drew {drawn} layers"
+    );
     // Observer 1 moves: only its two eyes' layers are drawn, and the
     // output is that of a pipeline that drew everything.
     let mut f1 = f0.clone();
     f1.heads[1].position.x += 0.03;
     let (moved, drawn) = render(&f1)?;
     ensure!(drawn == 2, "a moved head drew {drawn} layers");
-    ensure!(moved != first && moved == fresh(&f1)?, "kept layers changed the output");
+    ensure!(
+        moved != first && moved == fresh(&f1)?,
+        "kept layers changed the output"
+    );
     // The light moves: its six faces are drawn.
     let mut f2 = f1.clone();
     f2.lights = vec![bench_light(0.7)];

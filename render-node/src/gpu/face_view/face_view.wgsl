@@ -75,33 +75,12 @@ fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
     return out;
 }
 
-// The cube face (0..6 as in shadow_views::cube_views) whose view holds
-// direction d: the major axis and its sign.
-fn cube_face(d: vec3<f32>) -> u32 {
-    let a = abs(d);
-    if (a.x >= a.y && a.x >= a.z) {
-        return select(1u, 0u, d.x > 0.0);
-    }
-    if (a.y >= a.z) {
-        return select(3u, 2u, d.y > 0.0);
-    }
-    return select(5u, 4u, d.z > 0.0);
-}
-
 // As in irradiance_map.wgsl.
-fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
-    let res = frame.counts.z;
-    // Six views are a cube (shadow_views::cube_views: +x, -x, +y, -y, +z,
-    // -z around one origin): only the face of the major axis can hold p,
-    // so test that one instead of searching them all.
-    var lo = first;
-    var hi = first + count;
+fn visible(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32) -> bool {
     if (count == 6u) {
-        let f = first + cube_face(p - views[first].origin.xyz);
-        lo = f;
-        hi = f + 1u;
+        return visible_in_cube(p, n, origin, first);
     }
-    for (var i = lo; i < hi; i++) {
+    for (var i = first; i < first + count; i++) {
         let v = views[i];
         let c = v.clip_from_world * vec4<f32>(p, 1.0);
         if (c.w <= 0.0) {
@@ -111,18 +90,57 @@ fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
         if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
             continue;
         }
-        let fres = f32(res);
-        let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
-        let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
-        let stored = textureLoad(maps, vec2<u32>(tx, ty), i, 0).r;
-        let to = p - v.origin.xyz;
-        let dist = length(to);
-        let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
-        let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
-        let bias = dist * v.origin.w * (1.5 + 2.0 * tan_t) + 1e-4;
-        return dist <= stored + bias;
+        return nearest_or_nearer(n, p - v.origin.xyz, ndc, i, v.origin.w);
     }
     return true;
+}
+
+// `visible` for six views that are a cube around `origin`
+// (shadow_views::cube_views: +x, -x, +y, -y, +z, -z): only the face of
+// the major axis can hold p, and its projection is an axis permutation,
+// so no view needs to be read (shadow_views::cube_coords mirrors this).
+fn visible_in_cube(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32) -> bool {
+    let d = p - origin;
+    let a = abs(d);
+    var face = 5u;
+    // (right, up, forward) of d in the face's view (look_to_rh axes).
+    var c = vec3<f32>(d.x, d.y, -d.z);
+    if (a.x >= a.y && a.x >= a.z) {
+        face = select(1u, 0u, d.x > 0.0);
+        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
+    } else if (a.y >= a.z) {
+        face = select(3u, 2u, d.y > 0.0);
+        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
+    } else if (d.z > 0.0) {
+        face = 4u;
+        c = vec3<f32>(-d.x, d.y, d.z);
+    }
+    if (c.z <= 0.0) {
+        return true;
+    }
+    let ndc = c.xy / c.z;
+    if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+        return true;
+    }
+    return nearest_or_nearer(n, d, ndc, first + face, 2.0 / f32(frame.counts.z));
+}
+
+// Compare the distance along `to` (from a view's origin to the point, of
+// surface normal n) with the distance stored in layer `layer` at `ndc`;
+// `texel` is the view's texel angle (radians) at its centre.
+fn nearest_or_nearer(n: vec3<f32>, to: vec3<f32>, ndc: vec2<f32>, layer: u32, texel: f32) -> bool {
+    let res = frame.counts.z;
+    let fres = f32(res);
+    let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
+    let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
+    let stored = textureLoad(maps, vec2<u32>(tx, ty), layer, 0).r;
+    let dist = length(to);
+    // Slope-scaled bias: a texel spans dist * angle, stretched by the
+    // receiver's tilt to the view.
+    let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
+    let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
+    let bias = dist * texel * (1.5 + 2.0 * tan_t) + 1e-4;
+    return dist <= stored + bias;
 }
 
 // As in irradiance_map.wgsl.
@@ -159,7 +177,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
         if (!(cos_t > 0.0)) {
             continue;
         }
-        if ((frame.counts.w & 1u) != 0u && !visible(p, n, s.views.x, s.views.y)) {
+        if ((frame.counts.w & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
             continue;
         }
         e += intensity_towards(s, -dir) * (cos_t / r2);
@@ -184,7 +202,7 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
     let n = facing(in);
     for (var e = 0u; e < frame.counts.y; e++) {
         let eye = eyes[e];
-        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.views.x, eye.views.y)) {
+        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
             return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
         }
     }
