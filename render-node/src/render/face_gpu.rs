@@ -17,7 +17,7 @@ use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
 use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
-use crate::gpu::shadow_views::fitted_views;
+use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
 use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVertex};
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
@@ -114,7 +114,7 @@ impl FacePipeline {
             eyes.first().copied().unwrap_or(DVec3::ZERO),
         ));
         let shadows = passes.runs(Pass::LightShadowViews);
-        let (mut views, lights) = light_inputs(frame, shadows, 1e-3, far, self.shadow_res);
+        let (mut views, lights) = light_inputs(frame, shadows, SHADOW_NEAR, far, self.shadow_res);
         let light_layers = 0..views.len() as u32;
         let occluding = passes.runs(Pass::EyeShadowViews);
         let virtual_sphere = if occluding {
@@ -130,7 +130,7 @@ impl FacePipeline {
                     e.as_vec3(),
                     c.as_vec3(),
                     (r * 1.001 + 1e-6) as f32,
-                    1e-3,
+                    SHADOW_NEAR,
                     far,
                     self.shadow_res,
                 ));
@@ -216,6 +216,7 @@ impl FacePipeline {
                     self.shadow_res,
                     u32::from(shadows) | (u32::from(occluding) << 1),
                 ],
+                shadow: [SHADOW_NEAR, far, 0.0, 0.0],
             };
             res.frame.write(device, queue, &[uniform]);
             let generations = [

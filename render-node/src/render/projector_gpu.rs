@@ -18,7 +18,8 @@ use crate::gpu::irradiance_map::{
     EyeGpu, FrameUniform, IrradianceBindings, IrradianceMapPass, LightSampleGpu, state,
 };
 use crate::gpu::shadow_views::{
-    ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views, fitted_views,
+    SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views,
+    fitted_views,
 };
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
@@ -249,7 +250,7 @@ impl ProjectorPipeline {
         self.scene.update(device, queue, &frame.showcase)?;
         let centre = projector.device.center();
         let far = stable_far(shadow_far(frame, self.scene.all(), centre));
-        let near = 1e-3f32;
+        let near = SHADOW_NEAR;
 
         let shadows = passes.runs(Pass::LightShadowViews);
         let (mut views, lights) = light_inputs(frame, shadows, near, far, self.shadow_res);
@@ -313,6 +314,7 @@ impl ProjectorPipeline {
                 self.shadow_res,
                 u32::from(shadows) | (u32::from(occlusion) << 1),
             ],
+            shadow: [near, far, 0.0, 0.0],
         };
         self.frame_uniform.write(device, queue, &[uniform]);
         if maps_changed {

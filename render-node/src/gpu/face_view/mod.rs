@@ -20,6 +20,8 @@ pub struct FaceFrameUniform {
     /// light samples, other eyes, shadow map size, flags (1 shadows, 2
     /// occluding occlusion shadows).
     pub counts: [u32; 4],
+    /// near and far plane of the shadow views (depth back to distance).
+    pub shadow: [f32; 4],
 }
 
 /// The buffers and maps the pass reads (see [`FaceViewPass::bind_group`]).
@@ -96,7 +98,7 @@ impl FaceViewPass {
                 entry(
                     3,
                     wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        sample_type: wgpu::TextureSampleType::Depth,
                         view_dimension: wgpu::TextureViewDimension::D2Array,
                         multisampled: false,
                     },

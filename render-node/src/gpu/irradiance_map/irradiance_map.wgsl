@@ -16,6 +16,8 @@ struct Frame {
     response: vec4<f32>,
     // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion).
     counts: vec4<u32>,
+    // near and far plane of the shadow views.
+    shadow: vec4<f32>,
 }
 
 struct LightSample {
@@ -48,7 +50,7 @@ struct ShadowView {
 @group(0) @binding(1) var<storage, read> lights: array<LightSample>;
 @group(0) @binding(2) var<storage, read> eyes: array<Eye>;
 @group(0) @binding(3) var<storage, read> views: array<ShadowView>;
-@group(0) @binding(4) var maps: texture_2d_array<f32>;
+@group(0) @binding(4) var maps: texture_depth_2d_array;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -130,6 +132,23 @@ fn visible_in_cube(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32) ->
     return nearest_or_nearer(n, d, ndc, first + face, 2.0 / f32(frame.counts.z));
 }
 
+// The distance from a view's origin to the surface whose depth `z` a
+// layer holds at texel (tx, ty): the forward distance from the depth
+// (glam perspective_rh, depth 0 to 1, near and far of frame.shadow),
+// stretched along the ray through the texel's centre. `texel` is the
+// view's texel angle at its centre (2 tan(half fov) / res). A cleared
+// texel (z = 1) gives at least the far plane.
+fn shadow_distance(z: f32, tx: u32, ty: u32, texel: f32) -> f32 {
+    let near = frame.shadow.x;
+    let far = frame.shadow.y;
+    // 1 - z is exact for z >= 0.5, where the depth's precision matters.
+    let forward = near / ((1.0 - z) + z * (near / far));
+    let fres = f32(frame.counts.z);
+    let tan_half = 0.5 * texel * fres;
+    let c = vec2<f32>((f32(tx) + 0.5) / fres * 2.0 - 1.0, 1.0 - (f32(ty) + 0.5) / fres * 2.0);
+    return forward * sqrt(1.0 + dot(c, c) * tan_half * tan_half);
+}
+
 // Compare the distance along `to` (from a view's origin to the point, of
 // surface normal n) with the distance stored in layer `layer` at `ndc`;
 // `texel` is the view's texel angle (radians) at its centre.
@@ -138,7 +157,7 @@ fn nearest_or_nearer(n: vec3<f32>, to: vec3<f32>, ndc: vec2<f32>, layer: u32, te
     let fres = f32(res);
     let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
     let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
-    let stored = textureLoad(maps, vec2<u32>(tx, ty), layer, 0).r;
+    let stored = shadow_distance(textureLoad(maps, vec2<u32>(tx, ty), layer, 0), tx, ty, texel);
     let dist = length(to);
     // Slope-scaled bias: a texel spans dist * angle, stretched by the
     // receiver's tilt to the view.

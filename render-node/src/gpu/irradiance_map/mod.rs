@@ -23,6 +23,8 @@ pub struct FrameUniform {
     pub response: [f32; 4],
     /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion).
     pub counts: [u32; 4],
+    /// near and far plane of the shadow views (depth back to distance).
+    pub shadow: [f32; 4],
 }
 
 /// Mirrors WGSL `struct LightSample` in `irradiance_map.wgsl`.
@@ -123,7 +125,7 @@ impl IrradianceMapPass {
                     binding: 4,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        sample_type: wgpu::TextureSampleType::Depth,
                         view_dimension: wgpu::TextureViewDimension::D2Array,
                         multisampled: false,
                     },

@@ -1,7 +1,10 @@
-//! Shadow views pass: distance maps from light samples (cube faces) and
-//! eyes (one view fitted around the occluders) into layers of one R32Float
-//! array texture, which the irradiance-map pass compares against. CPU
-//! reference: visibility rays (`crate::render::projector`).
+//! Shadow views pass: depth maps from light samples (cube faces) and
+//! eyes (one view fitted around the occluders) into layers of one depth
+//! array texture, which the irradiance-map and face passes turn back into
+//! distances from the view's origin and compare against. Depth only (no
+//! fragment shader, no colour target): the cheapest fill a rasteriser has,
+//! which matters on a CPU one. CPU reference: visibility rays
+//! (`crate::render::projector`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
@@ -9,11 +12,9 @@ use glam::{Mat4, Vec3};
 use super::GpuError;
 use super::target::DEPTH_FORMAT;
 
-/// Format of the distance maps.
-pub const DISTANCE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
-
-/// Distance stored where no surface was drawn.
-pub const FAR_DISTANCE: f32 = 1.0e30;
+/// Near plane of every shadow view (metres). The sampling passes need it
+/// (with the frame's far plane) to turn depth back into distance.
+pub const SHADOW_NEAR: f32 = 1e-3;
 
 /// Mirrors WGSL `struct ShadowView` in `shadow_views.wgsl` (and in
 /// `irradiance_map.wgsl`).
@@ -151,7 +152,6 @@ pub struct ShadowMaps {
     texture: wgpu::Texture,
     array_view: wgpu::TextureView,
     layer_views: Vec<wgpu::TextureView>,
-    depth_view: wgpu::TextureView,
     contents: Vec<Option<LayerContent>>,
 }
 
@@ -174,7 +174,7 @@ impl ShadowMaps {
             });
         }
         let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow distance maps"),
+            label: Some("shadow depth maps"),
             size: wgpu::Extent3d {
                 width: res,
                 height: res,
@@ -183,7 +183,7 @@ impl ShadowMaps {
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: DISTANCE_FORMAT,
+            format: DEPTH_FORMAT,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
@@ -203,27 +203,12 @@ impl ShadowMaps {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
-        let depth = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow depth"),
-            size: wgpu::Extent3d {
-                width: res,
-                height: res,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        });
         Ok(Self {
             res,
             layers,
             texture,
             array_view,
             layer_views,
-            depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
             contents: vec![None; layers as usize],
         })
     }
@@ -285,7 +270,7 @@ impl ShadowViewsPass {
             label: Some("shadow views"),
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                visibility: wgpu::ShaderStages::VERTEX,
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Storage { read_only: true },
                     has_dynamic_offset: false,
@@ -322,16 +307,8 @@ impl ShadowViewsPass {
                 bias: wgpu::DepthBiasState::default(),
             }),
             multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: DISTANCE_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
+            // Depth only.
+            fragment: None,
             multiview_mask: None,
             cache: None,
         });
@@ -351,7 +328,7 @@ impl ShadowViewsPass {
     }
 
     /// Record one render pass per layer of each draw whose content
-    /// changed: clear to [`FAR_DISTANCE`], draw the geometry with that
+    /// changed: clear the depth to 1 (the far plane), draw the geometry with that
     /// layer's view (`views[layer]`, as uploaded into the buffer of
     /// `bind_group`). A layer that already holds the same view and
     /// geometry is skipped. Returns the number of layers drawn.
@@ -380,25 +357,12 @@ impl ShadowViewsPass {
                 drawn += 1;
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("shadow view"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: target,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: f64::from(FAR_DISTANCE),
-                                g: 0.0,
-                                b: 0.0,
-                                a: 1.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
+                    color_attachments: &[],
                     depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &maps.depth_view,
+                        view: target,
                         depth_ops: Some(wgpu::Operations {
                             load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Discard,
+                            store: wgpu::StoreOp::Store,
                         }),
                         stencil_ops: None,
                     }),
