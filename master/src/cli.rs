@@ -190,6 +190,15 @@ pub struct BenchArgs {
     /// Cluster only: frame rates to run, in Hz (default: 60,120).
     #[arg(long, value_delimiter = ',')]
     pub hz: Vec<f32>,
+    /// Render only: output sizes `WxH` (default: 640x480,1024x768,1920x1080).
+    #[arg(long, value_delimiter = ',')]
+    pub sizes: Vec<String>,
+    /// Render only: shadow map texels per side (default: the renderer's).
+    #[arg(long)]
+    pub shadow_res: Option<u32>,
+    /// Render only: skip the CPU references (no accuracy figures; fast at large sizes).
+    #[arg(long)]
+    pub no_accuracy: bool,
 }
 
 /// Subcommands of `sim`.
@@ -443,6 +452,21 @@ pub fn run(cli: Cli) -> Result<()> {
                 if let Some(f) = args.frames {
                     opts.frames = f as usize;
                 }
+                if !args.sizes.is_empty() {
+                    opts.sizes = args
+                        .sizes
+                        .iter()
+                        .map(|s| parse_size(s))
+                        .collect::<Result<_>>()?;
+                }
+                if let Some(r) = args.shadow_res {
+                    anyhow::ensure!(
+                        (1..=16384).contains(&r),
+                        "--shadow-res {r}: must be 1 to 16384 texels"
+                    );
+                    opts.shadow_res = r;
+                }
+                opts.accuracy = !args.no_accuracy;
                 let records = bench_render(&ctx, &scene, &opts)?;
                 emit_bench(&args, &records)
             }

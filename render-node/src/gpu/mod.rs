@@ -15,6 +15,7 @@ pub mod flat_lambert;
 pub mod irradiance_map;
 pub mod shadow_views;
 pub mod target;
+pub mod upload;
 
 pub use flat_lambert::{FlatLambertBatch, FlatLambertPass};
 pub use target::OffscreenTarget;

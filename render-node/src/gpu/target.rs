@@ -200,6 +200,116 @@ fn read_texture(
     Ok(out)
 }
 
+/// A mappable buffer that an [`OffscreenTarget`]'s colour is copied into
+/// inside the frame's own command buffer, kept across frames, so that a
+/// frame's readback costs one copy and one map (no allocation, no extra
+/// submission).
+#[derive(Debug)]
+pub struct ColourReadback {
+    width: u32,
+    height: u32,
+    padded: u32,
+    buffer: wgpu::Buffer,
+}
+
+impl ColourReadback {
+    /// A readback buffer for `width x height` colour targets.
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        let padded = padded_bytes_per_row(width, 16);
+        Self {
+            width,
+            height,
+            padded,
+            buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("colour readback"),
+                size: u64::from(padded) * u64::from(height.max(1)),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// True when `target` has this buffer's size.
+    pub fn fits(&self, target: &OffscreenTarget) -> bool {
+        (self.width, self.height) == (target.width(), target.height())
+    }
+
+    /// Record the copy of `target`'s colour (which must [`Self::fits`]).
+    pub fn encode_copy(&self, encoder: &mut wgpu::CommandEncoder, target: &OffscreenTarget) {
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: target.colour(),
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            target.colour().size(),
+        );
+    }
+}
+
+/// Map `readbacks` (their copies submitted), wait once, and return each
+/// one's pixels, row-major from the top-left, non-finite values as 0.
+pub fn read_colours(
+    device: &wgpu::Device,
+    readbacks: &[&ColourReadback],
+) -> Result<Vec<Vec<[f32; 4]>>, GpuError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    for (i, r) in readbacks.iter().enumerate() {
+        let tx = tx.clone();
+        r.buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver lives until after the poll below.
+            let _ = tx.send((i, result));
+        });
+    }
+    drop(tx);
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    let mut failed = None;
+    for (_, result) in rx.iter() {
+        if let Err(e) = result {
+            failed = Some(GpuError::Map(e.to_string()));
+        }
+    }
+    let mut out = Vec::with_capacity(readbacks.len());
+    for r in readbacks {
+        if failed.is_none() {
+            let mut pixels = Vec::with_capacity(r.width as usize * r.height as usize);
+            match r.buffer.get_mapped_range(..) {
+                Ok(view) => {
+                    let row = r.width as usize * 16;
+                    for y in 0..r.height as usize {
+                        let start = y * r.padded as usize;
+                        pixels.extend(view[start..start + row].chunks_exact(16).map(|px| {
+                            std::array::from_fn(|c| {
+                                let v = f32_at(px, 4 * c);
+                                if v.is_finite() { v } else { 0.0 }
+                            })
+                        }));
+                    }
+                }
+                Err(e) => failed = Some(GpuError::Map(e.to_string())),
+            }
+            out.push(pixels);
+        }
+    }
+    for r in readbacks {
+        // Unmapping a buffer whose map failed is harmless.
+        r.buffer.unmap();
+    }
+    match failed {
+        Some(e) => Err(e),
+        None => Ok(out),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::padded_bytes_per_row;

@@ -4,6 +4,7 @@
 //! two observers) in its variants, timed per frame and per pass, with the
 //! GPU-versus-CPU and end-to-end consistency errors of each variant.
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use glam::{DVec3, Quat, Vec3};
@@ -39,7 +40,8 @@ pub struct Record {
     pub scene_variant: String,
     /// Passes the pass list ran in the timed frames (after the first).
     pub passes_run: Vec<String>,
-    /// Median frame time (pass list, shadow views, irradiance map, GPU idle; no readback).
+    /// Median frame time (pass list, shadow views, irradiance map or face
+    /// views, GPU idle; no readback), frames submitted whole.
     pub median_ms: f64,
     /// 99th percentile frame time.
     pub p99_ms: f64,
@@ -55,8 +57,58 @@ pub struct Record {
     pub outliers_off_edges: Option<usize>,
     /// Clipped fraction of the first frame.
     pub clipped_fraction: f64,
-    /// Time of each pass group, submitted separately (one frame).
-    pub pass_ms: Vec<(String, f64)>,
+    /// Median wall time of each step of a drawn frame, each submitted and
+    /// waited for separately (a second run of as many frames): `setup`
+    /// (CPU work, uploads), the passes, and `readback` (copy to mappable
+    /// buffers, map, convert). Empty when every frame was reused.
+    pub pass_ms: BTreeMap<String, f64>,
+    /// Median of the per-frame sums of `pass_ms`'s steps: a drawn frame
+    /// read back, as a node renders it (0 when every frame was reused).
+    pub median_with_readback_ms: f64,
+    /// Median shadow map layers drawn per drawn frame (a layer whose
+    /// light or eye and geometry did not change is kept).
+    pub shadow_layers_drawn: f64,
+    /// Shadow map texels per side.
+    pub shadow_res: u32,
+}
+
+/// Per-step times of drawn frames, for [`Record::pass_ms`].
+#[derive(Debug, Default)]
+struct StepTimes {
+    steps: BTreeMap<String, Vec<f64>>,
+    totals: Vec<f64>,
+    layers: Vec<f64>,
+}
+
+impl StepTimes {
+    fn add(&mut self, times: &[(&'static str, f64)], readback_ms: f64, layers: u32) {
+        for (step, ms) in times {
+            self.steps.entry((*step).to_string()).or_default().push(*ms);
+        }
+        self.steps
+            .entry("readback".into())
+            .or_default()
+            .push(readback_ms);
+        self.totals
+            .push(times.iter().map(|(_, ms)| ms).sum::<f64>() + readback_ms);
+        self.layers.push(f64::from(layers));
+    }
+
+    /// (pass_ms, median_with_readback_ms, shadow_layers_drawn)
+    fn medians(self) -> (BTreeMap<String, f64>, f64, f64) {
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            percentile(&v, 0.5)
+        };
+        (
+            self.steps
+                .into_iter()
+                .map(|(k, v)| (k, median(v)))
+                .collect(),
+            median(self.totals),
+            median(self.layers),
+        )
+    }
 }
 
 /// The benchmark scenes' variants.
@@ -325,8 +377,8 @@ pub fn bench_render(
     scene: &Showcase,
     options: &BenchOptions,
 ) -> Result<Vec<Record>, RenderSetupError> {
-    let pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
-    let face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
+    let mut pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
+    let mut face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
     for &(width, height) in &options.sizes {
         for variant in VARIANTS {
@@ -337,29 +389,40 @@ pub fn bench_render(
             let first = FrameScene::resolve(&s, &bench_frame(&s, variant, 0))?;
             let passes = PassList::for_projector(&first);
             let gpu = pipeline.render(ctx, &first, &projector, &passes)?;
-            let (_, pass_times) = pipeline.draw(ctx, &first, &projector, &passes, true)?;
             let mut last_key = Some(FrameKey::projector(
                 0,
                 &bench_frame(&s, variant, 0),
                 &passes,
             ));
             let mut times = Vec::with_capacity(options.frames);
+            let mut steps = StepTimes::default();
             let mut passes_run = Vec::new();
-            for n in 1..=options.frames as u64 {
+            let frames = options.frames as u64;
+            for n in 1..=2 * frames {
                 let state = bench_frame(&s, variant, n);
+                let timed = n > frames;
                 let start = Instant::now();
                 let frame = FrameScene::resolve(&s, &state)?;
                 let passes = PassList::for_projector(&frame);
                 let key = FrameKey::projector(0, &state, &passes);
                 if last_key != Some(key) {
-                    let _ = pipeline.draw(ctx, &frame, &projector, &passes, false)?;
+                    let pass_times = pipeline.draw(ctx, &frame, &projector, &passes, timed)?;
                     wait_idle(&ctx.device)?;
+                    if timed {
+                        let read_start = Instant::now();
+                        let _ = pipeline.read(ctx)?;
+                        let readback = read_start.elapsed().as_secs_f64() * 1e3;
+                        steps.add(&pass_times, readback, pipeline.last_layers_drawn());
+                    }
                     passes_run = passes.passes.iter().map(|p| p.name().to_string()).collect();
                 }
                 last_key = Some(key);
-                times.push(start.elapsed().as_secs_f64() * 1e3);
+                if !timed {
+                    times.push(start.elapsed().as_secs_f64() * 1e3);
+                }
             }
             times.sort_by(f64::total_cmp);
+            let (pass_ms, median_with_readback_ms, shadow_layers_drawn) = steps.medians();
             let (mut consistency, mut gpu_cpu, mut off_edges, mut outliers) =
                 (None, None, None, None);
             if options.accuracy {
@@ -396,16 +459,16 @@ pub fn bench_render(
                 gpu_cpu_rel_rmse_off_edges: off_edges,
                 outliers_off_edges: outliers,
                 clipped_fraction: gpu.clipped_fraction,
-                pass_ms: pass_times
-                    .iter()
-                    .map(|(p, ms)| (p.name().to_string(), *ms))
-                    .collect(),
+                pass_ms,
+                median_with_readback_ms,
+                shadow_layers_drawn,
+                shadow_res: options.shadow_res,
             });
         }
         for variant in VARIANTS {
             records.push(bench_face_variant(
                 ctx,
-                &face_pipeline,
+                &mut face_pipeline,
                 scene,
                 variant,
                 width,
@@ -420,7 +483,7 @@ pub fn bench_render(
 /// One face-role record: both eyes of observer 0 at `width x height` each.
 fn bench_face_variant(
     ctx: &GpuContext,
-    pipeline: &FacePipeline,
+    pipeline: &mut FacePipeline,
     scene: &Showcase,
     variant: &str,
     width: u32,
@@ -441,9 +504,12 @@ fn bench_face_variant(
     let images = pipeline.render(ctx, &first, &face, &eyes, &others0, &passes)?;
     let mut last_key = Some(FrameKey::face(0, 0, &state0));
     let mut times = Vec::with_capacity(options.frames);
+    let mut steps = StepTimes::default();
     let mut passes_run = Vec::new();
-    for n in 1..=options.frames as u64 {
+    let frames = options.frames as u64;
+    for n in 1..=2 * frames {
         let state = bench_frame(&s, variant, n);
+        let timed = n > frames;
         let start = Instant::now();
         let frame = FrameScene::resolve(&s, &state)?;
         let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len());
@@ -451,14 +517,31 @@ fn bench_face_variant(
         let key = FrameKey::face(0, 0, &state);
         if last_key != Some(key) {
             let others = other_eyes(&frame, 0);
-            let _ = pipeline.draw(ctx, &frame, &face, &eyes_of(&state), &others, &passes)?;
+            let pass_times = pipeline.draw(
+                ctx,
+                &frame,
+                &face,
+                &eyes_of(&state),
+                &others,
+                &passes,
+                timed,
+            )?;
             wait_idle(&ctx.device)?;
+            if timed {
+                let read_start = Instant::now();
+                let _ = pipeline.read(ctx)?;
+                let readback = read_start.elapsed().as_secs_f64() * 1e3;
+                steps.add(&pass_times, readback, pipeline.last_layers_drawn());
+            }
             passes_run = passes.passes.iter().map(|p| p.name().to_string()).collect();
         }
         last_key = Some(key);
-        times.push(start.elapsed().as_secs_f64() * 1e3);
+        if !timed {
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
     }
     times.sort_by(f64::total_cmp);
+    let (pass_ms, median_with_readback_ms, shadow_layers_drawn) = steps.medians();
     let mut gpu_cpu = None;
     if options.accuracy {
         let occluders = Occluders::new(&first)?;
@@ -488,6 +571,9 @@ fn bench_face_variant(
         gpu_cpu_rel_rmse_off_edges: None,
         outliers_off_edges: None,
         clipped_fraction: 0.0,
-        pass_ms: Vec::new(),
+        pass_ms,
+        median_with_readback_ms,
+        shadow_layers_drawn,
+        shadow_res: options.shadow_res,
     })
 }

@@ -4,68 +4,124 @@
 //! [`super::face::face_image_cpu`].
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use glam::DVec3;
 use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
 use super::RenderSetupError;
 use super::frame::{DEFAULT_IPD, FrameScene};
+use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
-use super::projector_gpu::{ObjectRange, light_inputs, shadow_far, world_vertices_by_object};
-use crate::gpu::face_view::{FaceFrameUniform, FaceInputs, FaceViewPass};
+use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
+use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
-use crate::gpu::shadow_views::fitted_views;
+use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
 use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVertex};
-use crate::gpu::{GpuContext, OffscreenTarget};
+use crate::gpu::target::{ColourReadback, read_colours};
+use crate::gpu::upload::UploadBuffer;
+use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::mirror_view::FaceView;
 use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
-use wgpu::util::DeviceExt;
 
 /// Near and far clip distances of face views (metres along the screen normal).
 pub const FACE_NEAR: f64 = 0.01;
 /// See [`FACE_NEAR`].
 pub const FACE_FAR: f64 = 20.0;
 
-/// The compiled face pipeline.
+/// The compiled face pipeline and the GPU state it keeps across frames
+/// (create once per device and face): the scene's vertices (uploaded when
+/// they change), the shadow maps (a layer whose light or eye did not move
+/// is not drawn again), per-frame uploads, bind groups, one target and
+/// readback buffer per eye.
 #[derive(Debug)]
 pub struct FacePipeline {
     shadow: ShadowViewsPass,
     face: FaceViewPass,
     shadow_res: u32,
+    scene: SceneBuffers,
+    lights: UploadBuffer,
+    views: UploadBuffer,
+    albedos: UploadBuffer,
+    other_eyes: UploadBuffer,
+    maps: Option<ShadowMaps>,
+    shadow_bind: Option<(u64, wgpu::BindGroup)>,
+    eyes: Vec<EyeResources>,
+    /// How many of `eyes` the last frame drew.
+    drawn: usize,
+    last_layers_drawn: u32,
+}
+
+/// One eye's uniform, bind group, target and readback buffer.
+#[derive(Debug)]
+struct EyeResources {
+    frame: UploadBuffer,
+    /// The bind group and the buffer generations it names.
+    bind: Option<([u64; 5], wgpu::BindGroup)>,
+    target: OffscreenTarget,
+    readback: ColourReadback,
 }
 
 impl FacePipeline {
     /// Compile the passes; shadow maps get `shadow_res` texels per side.
     pub fn new(device: &wgpu::Device, shadow_res: u32) -> Self {
+        let storage = |label| UploadBuffer::new(device, label, wgpu::BufferUsages::STORAGE);
         Self {
             shadow: ShadowViewsPass::new(device),
             face: FaceViewPass::new(device),
             shadow_res: shadow_res.max(1),
+            scene: SceneBuffers::new(device),
+            lights: storage("face lights"),
+            views: storage("face shadow views"),
+            albedos: storage("face albedos"),
+            other_eyes: storage("face other eyes"),
+            maps: None,
+            shadow_bind: None,
+            eyes: Vec::new(),
+            drawn: 0,
+            last_layers_drawn: 0,
         }
+    }
+
+    /// Shadow map layers the last [`Self::draw`] drew (the others held
+    /// the same view and geometry already).
+    pub fn last_layers_drawn(&self) -> u32 {
+        self.last_layers_drawn
     }
 
     /// Draw the views of `eyes` through `face` (the light shadow views
     /// and the `other_eyes`' views once, shared) and submit; one target
-    /// per eye.
+    /// per eye. With `timed`, each step is submitted and waited for
+    /// separately and its wall time returned.
+    #[allow(clippy::too_many_arguments)]
     pub fn draw(
-        &self,
+        &mut self,
         ctx: &GpuContext,
         frame: &FrameScene,
         face: &CrtFace,
         eyes: &[DVec3],
         other_eyes: &[DVec3],
         passes: &PassList,
-    ) -> Result<Vec<OffscreenTarget>, RenderSetupError> {
-        let device = &ctx.device;
-        let (all, ranges) = world_vertices_by_object(&frame.showcase, None)?;
-        let far = shadow_far(frame, &all, eyes.first().copied().unwrap_or(DVec3::ZERO));
+        timed: bool,
+    ) -> Result<PassTimes, RenderSetupError> {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        let start = Instant::now();
+        self.scene.update(device, queue, &frame.showcase)?;
+        let far = stable_far(shadow_far(
+            frame,
+            self.scene.all(),
+            eyes.first().copied().unwrap_or(DVec3::ZERO),
+        ));
         let shadows = passes.runs(Pass::LightShadowViews);
-        let (mut views, lights) = light_inputs(frame, shadows, 1e-3, far, self.shadow_res);
+        let (mut views, lights) = light_inputs(frame, shadows, SHADOW_NEAR, far, self.shadow_res);
         let light_layers = 0..views.len() as u32;
         let occluding = passes.runs(Pass::EyeShadowViews);
-        let virtual_points = all_ranges_points(frame, &all, &ranges);
-        let virtual_sphere = bounding_sphere(virtual_points.into_iter());
+        let virtual_sphere = if occluding {
+            bounding_sphere(virtual_points(frame, self.scene.all(), self.scene.ranges()))
+        } else {
+            None
+        };
         let mut others = Vec::with_capacity(other_eyes.len());
         for e in other_eyes {
             let first = views.len() as u32;
@@ -74,7 +130,7 @@ impl FacePipeline {
                     e.as_vec3(),
                     c.as_vec3(),
                     (r * 1.001 + 1e-6) as f32,
-                    1e-3,
+                    SHADOW_NEAR,
                     far,
                     self.shadow_res,
                 ));
@@ -85,116 +141,194 @@ impl FacePipeline {
             });
         }
         let eye_layers = light_layers.end..views.len() as u32;
-        let maps = ShadowMaps::new(device, self.shadow_res, views.len() as u32)?;
-        let views_buffer = self.shadow.upload_views(device, &views);
-        let placeholder = [WorldVertex {
-            position: [0.0; 3],
-            normal: [0.0; 3],
-        }];
-        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("face vertices"),
-            contents: bytemuck::cast_slice(if all.is_empty() {
-                &placeholder[..]
-            } else {
-                &all
-            }),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
         let mut phantoms = Vec::new();
         let mut virtuals = Vec::new();
-        let mut virtual_vertices = Vec::new();
-        for (oi, r) in ranges {
-            let o = &frame.showcase.objects[oi];
-            let albedo = o.material.albedo.extend(0.0).to_array();
+        let mut albedo = Vec::new();
+        let mut phantom_albedo = Vec::new();
+        for (oi, r) in self.scene.ranges() {
+            let o = &frame.showcase.objects[*oi];
+            let a = o.material.albedo.extend(0.0).to_array();
             match o.kind {
-                ObjectKind::Real => phantoms.push((r, albedo)),
+                ObjectKind::Real => {
+                    phantoms.push(r.clone());
+                    phantom_albedo.push(a);
+                }
                 ObjectKind::Virtual => {
-                    virtual_vertices.extend_from_slice(&all[r.start as usize..r.end as usize]);
-                    virtuals.push((r, albedo));
+                    virtuals.push(r.clone());
+                    albedo.push(a);
                 }
             }
         }
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let virtual_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("face virtual vertices"),
-            contents: bytemuck::cast_slice(if virtual_vertices.is_empty() {
-                &placeholder[..]
-            } else {
-                &virtual_vertices
-            }),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let mut draws = Vec::new();
-        if shadows {
-            draws.push(ShadowDraw {
-                vertices: &vertices,
-                vertex_count: all.len() as u32,
-                layers: light_layers,
-            });
+        // Instances: virtual objects first, then phantoms.
+        albedo.extend(phantom_albedo);
+
+        let maps_changed =
+            ensure_maps(&mut self.maps, device, self.shadow_res, views.len() as u32)?;
+        if maps_changed {
+            self.eyes.iter_mut().for_each(|e| e.bind = None);
         }
-        if occluding {
-            draws.push(ShadowDraw {
-                vertices: &virtual_buffer,
-                vertex_count: virtual_vertices.len() as u32,
-                layers: eye_layers,
-            });
+        self.views.write(device, queue, &views);
+        self.lights.write(device, queue, &lights);
+        self.albedos.write(device, queue, &albedo);
+        self.other_eyes.write(device, queue, &others);
+        let views_generation = self.views.generation();
+        if self
+            .shadow_bind
+            .as_ref()
+            .is_none_or(|(g, _)| *g != views_generation)
+        {
+            self.shadow_bind = Some((
+                views_generation,
+                self.shadow.bind_group(device, self.views.buffer()),
+            ));
         }
-        self.shadow
-            .encode(device, &mut encoder, &maps, &views_buffer, &draws);
-        let mut targets = Vec::with_capacity(eyes.len());
-        for &eye in eyes {
+        let Some(maps) = self.maps.as_mut() else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
+        // Per-eye uniforms, bind groups and targets.
+        if self.eyes.len() < eyes.len()
+            || self
+                .eyes
+                .iter()
+                .any(|e| (e.target.width(), e.target.height()) != (face.width, face.height))
+        {
+            self.eyes = (0..eyes.len())
+                .map(|_| {
+                    Ok(EyeResources {
+                        frame: UploadBuffer::new(device, "face frame", wgpu::BufferUsages::UNIFORM),
+                        bind: None,
+                        target: OffscreenTarget::new(device, face.width, face.height)?,
+                        readback: ColourReadback::new(device, face.width, face.height),
+                    })
+                })
+                .collect::<Result<_, RenderSetupError>>()?;
+        }
+        for (&eye, res) in eyes.iter().zip(self.eyes.iter_mut()) {
             let view =
                 FaceView::new(face, eye, FACE_NEAR, FACE_FAR).ok_or(RenderSetupError::NonFinite)?;
-            let target = OffscreenTarget::new(device, face.width, face.height)?;
-            let inputs = FaceInputs {
-                frame: FaceFrameUniform {
-                    clip_from_world: view.clip_from_world.as_mat4().to_cols_array_2d(),
-                    eye: eye.as_vec3().extend(0.0).to_array(),
-                    ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-                    counts: [
-                        lights.len() as u32,
-                        others.len() as u32,
-                        self.shadow_res,
-                        u32::from(shadows) | (u32::from(occluding) << 1),
-                    ],
-                },
-                lights: &lights,
-                views: &views_buffer,
-                maps: &maps,
-                vertices: &vertices,
-                phantoms: &phantoms,
-                other_eyes: &others,
-                virtuals: &virtuals,
+            let uniform = FaceFrameUniform {
+                clip_from_world: view.clip_from_world.as_mat4().to_cols_array_2d(),
+                eye: eye.as_vec3().extend(0.0).to_array(),
+                ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
+                counts: [
+                    lights.len() as u32,
+                    others.len() as u32,
+                    self.shadow_res,
+                    u32::from(shadows) | (u32::from(occluding) << 1),
+                ],
+                shadow: [SHADOW_NEAR, far, 0.0, 0.0],
             };
-            self.face.encode(device, &mut encoder, &target, &inputs);
-            targets.push(target);
+            res.frame.write(device, queue, &[uniform]);
+            let generations = [
+                res.frame.generation(),
+                self.lights.generation(),
+                views_generation,
+                self.albedos.generation(),
+                self.other_eyes.generation(),
+            ];
+            if res.bind.as_ref().is_none_or(|(g, _)| *g != generations) {
+                let bind = self.face.bind_group(
+                    device,
+                    &FaceBindings {
+                        frame: res.frame.buffer(),
+                        lights: self.lights.buffer(),
+                        views: self.views.buffer(),
+                        maps,
+                        albedos: self.albedos.buffer(),
+                        other_eyes: self.other_eyes.buffer(),
+                    },
+                );
+                res.bind = Some((generations, bind));
+            }
         }
-        ctx.queue.submit([encoder.finish()]);
-        Ok(targets)
+        let Some((_, shadow_bind)) = &self.shadow_bind else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
+
+        let mut times = Vec::new();
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut since = start;
+        let mut flush = |encoder: &mut wgpu::CommandEncoder,
+                         step: &'static str|
+         -> Result<(), RenderSetupError> {
+            if timed {
+                let done =
+                    std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
+                queue.submit([done.finish()]);
+                wait_idle(device)?;
+                times.push((step, since.elapsed().as_secs_f64() * 1e3));
+                since = Instant::now();
+            }
+            Ok(())
+        };
+        flush(&mut encoder, "setup")?;
+        let mut layers_drawn = 0;
+        if shadows {
+            let (vertices, vertex_count) = self.scene.buffer(VertexSet::All);
+            layers_drawn += self.shadow.encode(
+                &mut encoder,
+                maps,
+                shadow_bind,
+                &views,
+                &[ShadowDraw {
+                    vertices,
+                    vertex_count,
+                    layers: light_layers,
+                    geometry: self.scene.geometry(VertexSet::All),
+                }],
+            );
+            flush(&mut encoder, Pass::LightShadowViews.name())?;
+        }
+        if occluding {
+            let (vertices, vertex_count) = self.scene.buffer(VertexSet::Virtual);
+            layers_drawn += self.shadow.encode(
+                &mut encoder,
+                maps,
+                shadow_bind,
+                &views,
+                &[ShadowDraw {
+                    vertices,
+                    vertex_count,
+                    layers: eye_layers,
+                    geometry: self.scene.geometry(VertexSet::Virtual),
+                }],
+            );
+            flush(&mut encoder, Pass::EyeShadowViews.name())?;
+        }
+        let (vertices, _) = self.scene.buffer(VertexSet::All);
+        let draws = FaceDraws {
+            vertices,
+            phantoms: &phantoms,
+            virtuals: &virtuals,
+        };
+        for res in self.eyes.iter().take(eyes.len()) {
+            if let Some((_, bind)) = &res.bind {
+                self.face.encode(&mut encoder, &res.target, bind, &draws);
+            }
+        }
+        flush(&mut encoder, Pass::FaceView.name())?;
+        queue.submit([encoder.finish()]);
+        self.drawn = eyes.len();
+        self.last_layers_drawn = layers_drawn;
+        Ok(times)
     }
 
-    /// Read drawn targets back: linear RGBA per eye, alpha 1 where a
-    /// virtual object is drawn; non-finite values become 0.
-    pub fn read(
-        &self,
-        ctx: &GpuContext,
-        targets: &[OffscreenTarget],
-    ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
-        let device = &ctx.device;
-        targets
-            .iter()
-            .map(|t| {
-                Ok(t.read_rgba_f32(device, &ctx.queue)?
-                    .into_iter()
-                    .map(|p| p.map(|c| if c.is_finite() { c } else { 0.0 }))
-                    .collect())
-            })
-            .collect()
+    /// Read the last frame's targets back: linear RGBA per eye, alpha 1
+    /// where a virtual object is drawn; non-finite values become 0.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+        let drawn = &self.eyes[..self.drawn.min(self.eyes.len())];
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for e in drawn {
+            e.readback.encode_copy(&mut encoder, &e.target);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let readbacks: Vec<&ColourReadback> = drawn.iter().map(|e| &e.readback).collect();
+        Ok(read_colours(&ctx.device, &readbacks)?)
     }
 
     /// [`Self::draw`] then [`Self::read`].
     pub fn render(
-        &self,
+        &mut self,
         ctx: &GpuContext,
         frame: &FrameScene,
         face: &CrtFace,
@@ -202,8 +336,8 @@ impl FacePipeline {
         other_eyes: &[DVec3],
         passes: &PassList,
     ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
-        let targets = self.draw(ctx, frame, face, eyes, other_eyes, passes)?;
-        self.read(ctx, &targets)
+        self.draw(ctx, frame, face, eyes, other_eyes, passes, false)?;
+        self.read(ctx)
     }
 }
 
@@ -219,17 +353,16 @@ pub fn other_eyes(frame: &FrameScene, observer: usize) -> Vec<DVec3> {
 }
 
 /// World points of the virtual objects' vertices.
-fn all_ranges_points(
-    frame: &FrameScene,
-    all: &[WorldVertex],
-    ranges: &[ObjectRange],
-) -> Vec<DVec3> {
+fn virtual_points<'a>(
+    frame: &'a FrameScene,
+    all: &'a [WorldVertex],
+    ranges: &'a [ObjectRange],
+) -> impl Iterator<Item = DVec3> + 'a {
     ranges
         .iter()
         .filter(|(oi, _)| frame.showcase.objects[*oi].kind == ObjectKind::Virtual)
         .flat_map(|(_, r)| all[r.start as usize..r.end as usize].iter())
         .map(|v| glam::Vec3::from_array(v.position).as_dvec3())
-        .collect()
 }
 
 /// The [`Renderer`] of a face node: both eyes of one observer through one

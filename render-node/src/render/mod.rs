@@ -16,6 +16,7 @@ pub mod consistency;
 pub mod face;
 pub mod face_gpu;
 pub mod frame;
+pub mod gpu_scene;
 pub mod passes;
 pub mod projector;
 pub mod projector_gpu;
@@ -57,6 +58,9 @@ pub enum RenderSetupError {
         /// The requested index.
         index: usize,
     },
+    /// A frame was read back before one was drawn.
+    #[error("no frame has been drawn yet")]
+    NothingDrawn,
     /// A GPU operation failed.
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),

@@ -11,18 +11,21 @@ use showcase_proto::{FrameState, ObjectKind, Projector, Showcase};
 
 use super::RenderSetupError;
 use super::frame::{FrameScene, Lobe};
+use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{FrameKey, Pass, PassList, bounding_sphere};
 use super::projector::COS_FLOOR;
 use crate::gpu::irradiance_map::{
-    EyeGpu, FrameUniform, IrradianceInputs, IrradianceMapPass, LightSampleGpu, state,
+    EyeGpu, FrameUniform, IrradianceBindings, IrradianceMapPass, LightSampleGpu, state,
 };
 use crate::gpu::shadow_views::{
-    ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views, fitted_views,
+    SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views,
+    fitted_views,
 };
+use crate::gpu::target::{ColourReadback, read_colours};
+use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::light::world_matrix;
 use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
-use wgpu::util::DeviceExt;
 
 /// Default size of each shadow distance map (texels per side).
 pub const DEFAULT_SHADOW_RES: u32 = 1024;
@@ -147,12 +150,28 @@ pub fn shadow_far(frame: &FrameScene, points: &[WorldVertex], from: DVec3) -> f3
     (4.0 * far_base + 1.0) as f32
 }
 
-/// The compiled projector pipeline; create once per device.
+/// The compiled projector pipeline and the GPU state it keeps across
+/// frames (create once per device and projector): the scene's vertices
+/// (uploaded when they change), the shadow maps (a layer whose light or
+/// eye did not move is not drawn again), the per-frame uploads, bind
+/// groups, targets and readback buffers.
 #[derive(Debug)]
 pub struct ProjectorPipeline {
     shadow: ShadowViewsPass,
     irradiance: IrradianceMapPass,
     shadow_res: u32,
+    scene: SceneBuffers,
+    frame_uniform: UploadBuffer,
+    lights: UploadBuffer,
+    eyes: UploadBuffer,
+    views: UploadBuffer,
+    maps: Option<ShadowMaps>,
+    /// The shadow bind group and the views buffer generation it names.
+    shadow_bind: Option<(u64, wgpu::BindGroup)>,
+    /// The irradiance bind group and the buffer generations it names.
+    irradiance_bind: Option<([u64; 4], wgpu::BindGroup)>,
+    targets: Option<ProjectorTargets>,
+    last_layers_drawn: u32,
 }
 
 /// A projector frame read back from the GPU.
@@ -170,74 +189,85 @@ pub struct GpuIrradianceMap {
     pub clipped_fraction: f64,
 }
 
-/// The targets a frame was drawn into, before readback.
+/// The targets a frame is drawn into and their readback buffers.
 #[derive(Debug)]
-pub struct ProjectorTargets {
+struct ProjectorTargets {
     irradiance: OffscreenTarget,
     value: OffscreenTarget,
+    readback: [ColourReadback; 2],
 }
 
-/// Wall time of each pass group (submitted and waited for separately).
-pub type PassTimes = Vec<(Pass, f64)>;
-
-fn vertex_buffer(device: &wgpu::Device, vertices: &[WorldVertex]) -> wgpu::Buffer {
-    let placeholder = [WorldVertex {
-        position: [0.0; 3],
-        normal: [0.0; 3],
-    }];
-    let data = if vertices.is_empty() {
-        &placeholder[..]
-    } else {
-        vertices
-    };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("world vertices"),
-        contents: bytemuck::cast_slice(data),
-        usage: wgpu::BufferUsages::VERTEX,
-    })
-}
+/// Wall time of each step of a frame in milliseconds (each submitted and
+/// waited for separately): `setup` (CPU work and uploads), then the passes
+/// by [`Pass::name`].
+pub type PassTimes = Vec<(&'static str, f64)>;
 
 impl ProjectorPipeline {
     /// Compile the passes; shadow maps get `shadow_res` texels per side.
     pub fn new(device: &wgpu::Device, shadow_res: u32) -> Self {
+        let storage = |label| UploadBuffer::new(device, label, wgpu::BufferUsages::STORAGE);
         Self {
             shadow: ShadowViewsPass::new(device),
             irradiance: IrradianceMapPass::new(device),
             shadow_res: shadow_res.max(1),
+            scene: SceneBuffers::new(device),
+            frame_uniform: UploadBuffer::new(
+                device,
+                "irradiance frame",
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            lights: storage("light samples"),
+            eyes: storage("eyes"),
+            views: storage("shadow views"),
+            maps: None,
+            shadow_bind: None,
+            irradiance_bind: None,
+            targets: None,
+            last_layers_drawn: 0,
         }
     }
 
+    /// Shadow map layers the last [`Self::draw`] drew (the others held
+    /// the same view and geometry already).
+    pub fn last_layers_drawn(&self) -> u32 {
+        self.last_layers_drawn
+    }
+
     /// Draw `projector`'s frame with the passes of `passes` (a pass not in
-    /// the list is replaced by "everything visible"), submit, and return
-    /// the targets. With `timed`, each pass group is submitted and waited
-    /// for separately and its wall time returned.
+    /// the list is replaced by "everything visible") and submit. With
+    /// `timed`, each step is submitted and waited for separately and its
+    /// wall time returned.
     pub fn draw(
-        &self,
+        &mut self,
         ctx: &GpuContext,
         frame: &FrameScene,
         projector: &Projector,
         passes: &PassList,
         timed: bool,
-    ) -> Result<(ProjectorTargets, PassTimes), RenderSetupError> {
-        let device = &ctx.device;
+    ) -> Result<PassTimes, RenderSetupError> {
+        let (device, queue) = (&ctx.device, &ctx.queue);
         let start = Instant::now();
-        let all = world_vertices(&frame.showcase, None)?;
-        let real = world_vertices(&frame.showcase, Some(ObjectKind::Real))?;
-        let virt = world_vertices(&frame.showcase, Some(ObjectKind::Virtual))?;
-        let points = |v: &[WorldVertex]| {
-            v.iter()
-                .map(|w| Vec3::from_array(w.position).as_dvec3())
-                .collect::<Vec<_>>()
-        };
+        self.scene.update(device, queue, &frame.showcase)?;
         let centre = projector.device.center();
-        let far = shadow_far(frame, &all, centre);
-        let near = 1e-3f32;
+        let far = stable_far(shadow_far(frame, self.scene.all(), centre));
+        let near = SHADOW_NEAR;
 
         let shadows = passes.runs(Pass::LightShadowViews);
         let (mut views, lights) = light_inputs(frame, shadows, near, far, self.shadow_res);
         let light_layers = 0..views.len() as u32;
         let occlusion = passes.runs(Pass::EyeShadowViews);
-        let virtual_sphere = bounding_sphere(points(&virt).into_iter());
+        let virtual_sphere = if occlusion {
+            let (all, ranges) = (self.scene.all(), self.scene.ranges());
+            bounding_sphere(
+                ranges
+                    .iter()
+                    .filter(|(oi, _)| frame.showcase.objects[*oi].kind == ObjectKind::Virtual)
+                    .flat_map(|(_, r)| all[r.start as usize..r.end as usize].iter())
+                    .map(|w| Vec3::from_array(w.position).as_dvec3()),
+            )
+        } else {
+            None
+        };
         let mut eyes = Vec::with_capacity(frame.eyes.len());
         for e in &frame.eyes {
             let first = views.len() as u32;
@@ -258,117 +288,175 @@ impl ProjectorPipeline {
         }
         let eye_layers = light_layers.end..views.len() as u32;
 
-        let maps = ShadowMaps::new(device, self.shadow_res, views.len() as u32)?;
-        let views_buffer = self.shadow.upload_views(device, &views);
-        let all_buffer = vertex_buffer(device, &all);
-        let real_buffer = vertex_buffer(device, &real);
-        let virt_buffer = vertex_buffer(device, &virt);
-        let (w, h) = (projector.device.width, projector.device.height);
-        let targets = ProjectorTargets {
-            irradiance: OffscreenTarget::new(device, w, h)?,
-            value: OffscreenTarget::new(device, w, h)?,
+        let maps_changed =
+            ensure_maps(&mut self.maps, device, self.shadow_res, views.len() as u32)?;
+        self.views.write(device, queue, &views);
+        self.lights.write(device, queue, &lights);
+        self.eyes.write(device, queue, &eyes);
+        let response = &projector.response;
+        let uniform = FrameUniform {
+            clip_from_world: projector
+                .device
+                .clip_from_world()
+                .as_mat4()
+                .to_cols_array_2d(),
+            projector: centre.as_vec3().extend(0.0).to_array(),
+            ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
+            response: [
+                response.gamma,
+                response.eta,
+                response.black_level,
+                COS_FLOOR as f32,
+            ],
+            counts: [
+                lights.len() as u32,
+                eyes.len() as u32,
+                self.shadow_res,
+                u32::from(shadows) | (u32::from(occlusion) << 1),
+            ],
+            shadow: [near, far, 0.0, 0.0],
         };
+        self.frame_uniform.write(device, queue, &[uniform]);
+        if maps_changed {
+            self.irradiance_bind = None;
+        }
+        let Some(maps) = self.maps.as_mut() else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
+        let views_generation = self.views.generation();
+        if self
+            .shadow_bind
+            .as_ref()
+            .is_none_or(|(g, _)| *g != views_generation)
+        {
+            self.shadow_bind = Some((
+                views_generation,
+                self.shadow.bind_group(device, self.views.buffer()),
+            ));
+        }
+        let generations = [
+            self.frame_uniform.generation(),
+            self.lights.generation(),
+            self.eyes.generation(),
+            views_generation,
+        ];
+        if self
+            .irradiance_bind
+            .as_ref()
+            .is_none_or(|(g, _)| *g != generations)
+        {
+            let bind = self.irradiance.bind_group(
+                device,
+                &IrradianceBindings {
+                    frame: self.frame_uniform.buffer(),
+                    lights: self.lights.buffer(),
+                    eyes: self.eyes.buffer(),
+                    views: self.views.buffer(),
+                    maps,
+                },
+            );
+            self.irradiance_bind = Some((generations, bind));
+        }
+        let (w, h) = (projector.device.width, projector.device.height);
+        if self
+            .targets
+            .as_ref()
+            .is_none_or(|t| (t.value.width(), t.value.height()) != (w, h))
+        {
+            self.targets = Some(ProjectorTargets {
+                irradiance: OffscreenTarget::new(device, w, h)?,
+                value: OffscreenTarget::new(device, w, h)?,
+                readback: [
+                    ColourReadback::new(device, w, h),
+                    ColourReadback::new(device, w, h),
+                ],
+            });
+        }
+        let (Some(targets), Some((_, shadow_bind)), Some((_, irradiance_bind))) =
+            (&self.targets, &self.shadow_bind, &self.irradiance_bind)
+        else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
+
         let mut times = Vec::new();
         let mut encoder = device.create_command_encoder(&Default::default());
+        let mut since = start;
         let mut flush = |encoder: &mut wgpu::CommandEncoder,
-                         pass: Pass,
-                         since: &mut Instant|
+                         step: &'static str|
          -> Result<(), RenderSetupError> {
             if timed {
                 let done =
                     std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
-                ctx.queue.submit([done.finish()]);
+                queue.submit([done.finish()]);
                 wait_idle(device)?;
-                times.push((pass, since.elapsed().as_secs_f64() * 1e3));
-                *since = Instant::now();
+                times.push((step, since.elapsed().as_secs_f64() * 1e3));
+                since = Instant::now();
             }
             Ok(())
         };
-        let mut since = start;
+        flush(&mut encoder, "setup")?;
+        let mut layers_drawn = 0;
         if shadows {
-            self.shadow.encode(
-                device,
+            let (vertices, vertex_count) = self.scene.buffer(VertexSet::All);
+            layers_drawn += self.shadow.encode(
                 &mut encoder,
-                &maps,
-                &views_buffer,
+                maps,
+                shadow_bind,
+                &views,
                 &[ShadowDraw {
-                    vertices: &all_buffer,
-                    vertex_count: all.len() as u32,
+                    vertices,
+                    vertex_count,
                     layers: light_layers,
+                    geometry: self.scene.geometry(VertexSet::All),
                 }],
             );
-            flush(&mut encoder, Pass::LightShadowViews, &mut since)?;
+            flush(&mut encoder, Pass::LightShadowViews.name())?;
         }
         if occlusion {
-            self.shadow.encode(
-                device,
+            let (vertices, vertex_count) = self.scene.buffer(VertexSet::Virtual);
+            layers_drawn += self.shadow.encode(
                 &mut encoder,
-                &maps,
-                &views_buffer,
+                maps,
+                shadow_bind,
+                &views,
                 &[ShadowDraw {
-                    vertices: &virt_buffer,
-                    vertex_count: virt.len() as u32,
+                    vertices,
+                    vertex_count,
                     layers: eye_layers,
+                    geometry: self.scene.geometry(VertexSet::Virtual),
                 }],
             );
-            flush(&mut encoder, Pass::EyeShadowViews, &mut since)?;
+            flush(&mut encoder, Pass::EyeShadowViews.name())?;
         }
-        let response = &projector.response;
-        let inputs = IrradianceInputs {
-            frame: FrameUniform {
-                clip_from_world: projector
-                    .device
-                    .clip_from_world()
-                    .as_mat4()
-                    .to_cols_array_2d(),
-                projector: centre.as_vec3().extend(0.0).to_array(),
-                ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-                response: [
-                    response.gamma,
-                    response.eta,
-                    response.black_level,
-                    COS_FLOOR as f32,
-                ],
-                counts: [
-                    lights.len() as u32,
-                    eyes.len() as u32,
-                    self.shadow_res,
-                    u32::from(shadows) | (u32::from(occlusion) << 1),
-                ],
-            },
-            lights: &lights,
-            eyes: &eyes,
-            views: &views_buffer,
-            maps: &maps,
-            vertices: &real_buffer,
-            vertex_count: real.len() as u32,
-        };
+        let (vertices, vertex_count) = self.scene.buffer(VertexSet::Real);
         self.irradiance.encode(
-            device,
             &mut encoder,
             &targets.irradiance,
             &targets.value,
-            &inputs,
+            irradiance_bind,
+            vertices,
+            vertex_count,
         )?;
-        flush(&mut encoder, Pass::IrradianceMap, &mut since)?;
-        ctx.queue.submit([encoder.finish()]);
-        Ok((targets, times))
+        flush(&mut encoder, Pass::IrradianceMap.name())?;
+        queue.submit([encoder.finish()]);
+        self.last_layers_drawn = layers_drawn;
+        Ok(times)
     }
 
-    /// Read a drawn frame back (waits for the GPU). Non-finite values
-    /// become 0.
-    pub fn read(
-        &self,
-        ctx: &GpuContext,
-        targets: &ProjectorTargets,
-    ) -> Result<GpuIrradianceMap, RenderSetupError> {
-        let clean = |v: Vec<[f32; 4]>| -> Vec<[f32; 4]> {
-            v.into_iter()
-                .map(|p| p.map(|c| if c.is_finite() { c } else { 0.0 }))
-                .collect()
-        };
-        let irradiance = clean(targets.irradiance.read_rgba_f32(&ctx.device, &ctx.queue)?);
-        let value = clean(targets.value.read_rgba_f32(&ctx.device, &ctx.queue)?);
+    /// Read the last drawn frame back (waits for the GPU). Non-finite
+    /// values become 0.
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderSetupError> {
+        let targets = self
+            .targets
+            .as_ref()
+            .ok_or(RenderSetupError::NothingDrawn)?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
+        targets.readback[1].encode_copy(&mut encoder, &targets.value);
+        ctx.queue.submit([encoder.finish()]);
+        let mut read = read_colours(&ctx.device, &[&targets.readback[0], &targets.readback[1]])?;
+        let value = read.pop().unwrap_or_default();
+        let irradiance = read.pop().unwrap_or_default();
         let counted = irradiance
             .iter()
             .filter(|p| p[3] == state::UNCLIPPED || p[3] == state::CLIPPED)
@@ -389,14 +477,14 @@ impl ProjectorPipeline {
 
     /// [`Self::draw`] then [`Self::read`].
     pub fn render(
-        &self,
+        &mut self,
         ctx: &GpuContext,
         frame: &FrameScene,
         projector: &Projector,
         passes: &PassList,
     ) -> Result<GpuIrradianceMap, RenderSetupError> {
-        let (targets, _) = self.draw(ctx, frame, projector, passes, false)?;
-        self.read(ctx, &targets)
+        self.draw(ctx, frame, projector, passes, false)?;
+        self.read(ctx)
     }
 }
 

@@ -215,12 +215,60 @@ fn occluding_occlusion_passes_are_skipped_with_one_observer() -> Result<()> {
     ensure!(!passes.runs(Pass::EyeShadowViews), "{passes:?}");
     let face = bench_face(96, 72);
     let eyes = [frame.eyes[0], frame.eyes[1]];
-    let pipeline = FacePipeline::new(&ctx.device, 256);
+    let mut pipeline = FacePipeline::new(&ctx.device, 256);
     let skipped = pipeline.render(&ctx, &frame, &face, &eyes, &others, &passes)?;
     let full = pipeline.render(&ctx, &frame, &face, &eyes, &others, &PassList::full_face())?;
     ensure!(
         skipped == full,
         "skipping the other observers' views changed the output"
     );
+    Ok(())
+}
+
+#[test]
+fn kept_face_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("kept_face_shadow_layers_give_the_output_of_a_fresh_pipeline")?
+    else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let face = bench_face(96, 72);
+    let passes = PassList::full_face();
+    let views = |state: &showcase_proto::FrameState| -> Result<_> {
+        let frame = FrameScene::resolve(&scene, state)?;
+        let others = other_eyes(&frame, 0);
+        Ok((frame.eyes[0], frame.eyes[1], others, frame))
+    };
+    let fresh = |state: &showcase_proto::FrameState| -> Result<Vec<Vec<[f32; 4]>>> {
+        let (l, r, others, frame) = views(state)?;
+        Ok(FacePipeline::new(&ctx.device, 256).render(
+            &ctx,
+            &frame,
+            &face,
+            &[l, r],
+            &others,
+            &passes,
+        )?)
+    };
+    let mut kept = FacePipeline::new(&ctx.device, 256);
+    let mut render = |state: &showcase_proto::FrameState| -> Result<_> {
+        let (l, r, others, frame) = views(state)?;
+        let images = kept.render(&ctx, &frame, &face, &[l, r], &others, &passes)?;
+        Ok((images, kept.last_layers_drawn()))
+    };
+    // A point light's six cube faces and the other observer's two eyes.
+    let f0 = bench_frame(&scene, "full", 0);
+    let (first, drawn) = render(&f0)?;
+    ensure!(drawn == 8, "first frame drew {drawn} layers");
+    let (again, drawn) = render(&f0)?;
+    ensure!(
+        drawn == 0 && again == first,
+        "same frame drew {drawn} layers"
+    );
+    let mut f1 = f0.clone();
+    f1.heads[1].position.x += 0.03;
+    let (moved, drawn) = render(&f1)?;
+    ensure!(drawn == 2, "the other head's move drew {drawn} layers");
+    ensure!(moved == fresh(&f1)?, "kept light layers changed the output");
     Ok(())
 }

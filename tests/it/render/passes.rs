@@ -1,6 +1,7 @@
 //! The pass list (DESIGN section 7): each skip is shown to happen (the
 //! pass is not in the frame's report) and to leave the output identical
-//! (bit for bit) to the full pipeline's.
+//! (bit for bit) to the full pipeline's; shadow map layers kept from an
+//! earlier frame likewise.
 
 use std::sync::Arc;
 
@@ -8,9 +9,12 @@ use anyhow::{Result, ensure};
 use glam::Vec3;
 use showcase_proto::{FrameState, Pose, Showcase};
 use showcase_render::node::renderer::Renderer;
+use showcase_render::render::FrameScene;
 use showcase_render::render::bench::{bench_frame, bench_light, bench_projector, variant_scene};
-use showcase_render::render::passes::Pass;
-use showcase_render::render::projector_gpu::ProjectorRenderer;
+use showcase_render::render::passes::{Pass, PassList};
+use showcase_render::render::projector_gpu::{
+    GpuIrradianceMap, ProjectorPipeline, ProjectorRenderer,
+};
 
 use super::gpu_or_skip;
 use super::scenes::{bench, plate_scene, point};
@@ -186,5 +190,51 @@ fn unchanged_frames_are_reused_and_changed_ones_are_not() -> Result<()> {
         r.render(&g1, &plain)? == base && r.report().reused,
         "head move redrew a scene without virtual objects"
     );
+    Ok(())
+}
+
+#[test]
+fn kept_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("kept_shadow_layers_give_the_output_of_a_fresh_pipeline")? else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let projector = bench_projector(160, 120);
+    let passes = PassList::full();
+    let fresh = |state: &FrameState| -> Result<GpuIrradianceMap> {
+        let frame = FrameScene::resolve(&scene, state)?;
+        Ok(ProjectorPipeline::new(&ctx.device, 256).render(&ctx, &frame, &projector, &passes)?)
+    };
+    let mut kept = ProjectorPipeline::new(&ctx.device, 256);
+    let mut render = |state: &FrameState| -> Result<(GpuIrradianceMap, u32)> {
+        let frame = FrameScene::resolve(&scene, state)?;
+        let map = kept.render(&ctx, &frame, &projector, &passes)?;
+        Ok((map, kept.last_layers_drawn()))
+    };
+    // One point light (six cube faces) and four eyes (one fitted view each).
+    let f0 = bench_frame(&scene, "full", 0);
+    let (first, drawn) = render(&f0)?;
+    ensure!(drawn == 10, "first frame drew {drawn} layers");
+    let (again, drawn) = render(&f0)?;
+    ensure!(
+        drawn == 0 && again == first,
+        "same frame drew {drawn} layers"
+    );
+    // Observer 1 moves: only its two eyes' layers are drawn, and the
+    // output is that of a pipeline that drew everything.
+    let mut f1 = f0.clone();
+    f1.heads[1].position.x += 0.03;
+    let (moved, drawn) = render(&f1)?;
+    ensure!(drawn == 2, "a moved head drew {drawn} layers");
+    ensure!(
+        moved != first && moved == fresh(&f1)?,
+        "kept layers changed the output"
+    );
+    // The light moves: its six faces are drawn.
+    let mut f2 = f1.clone();
+    f2.lights = vec![bench_light(0.7)];
+    let (lit, drawn) = render(&f2)?;
+    ensure!(drawn == 6, "a moved light drew {drawn} layers");
+    ensure!(lit == fresh(&f2)?, "kept eye layers changed the output");
     Ok(())
 }

@@ -190,7 +190,7 @@ fn gpu_irradiance_map_matches_the_cpu_reference() -> Result<()> {
     let Some(ctx) = gpu_or_skip("gpu_irradiance_map_matches_the_cpu_reference")? else {
         return Ok(());
     };
-    let pipeline = ProjectorPipeline::new(&ctx.device, 1024);
+    let mut pipeline = ProjectorPipeline::new(&ctx.device, 1024);
     for (name, lights) in [("point", None), ("spot+area", Some(spot_and_area()))] {
         let (frame, _) = bench_frame_scene(lights)?;
         let occ = Occluders::new(&frame)?;

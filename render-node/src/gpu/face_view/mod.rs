@@ -3,9 +3,7 @@
 //! shadow views. CPU reference: `crate::render::face::face_image_cpu`.
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
-use super::irradiance_map::{EyeGpu, LightSampleGpu};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -22,27 +20,37 @@ pub struct FaceFrameUniform {
     /// light samples, other eyes, shadow map size, flags (1 shadows, 2
     /// occluding occlusion shadows).
     pub counts: [u32; 4],
+    /// near and far plane of the shadow views (depth back to distance).
+    pub shadow: [f32; 4],
 }
 
-/// What the pass draws.
+/// The buffers and maps the pass reads (see [`FaceViewPass::bind_group`]).
 #[derive(Debug)]
-pub struct FaceInputs<'a> {
-    /// The frame uniform.
-    pub frame: FaceFrameUniform,
-    /// Light samples.
-    pub lights: &'a [LightSampleGpu],
+pub struct FaceBindings<'a> {
+    /// This eye's [`FaceFrameUniform`].
+    pub frame: &'a wgpu::Buffer,
+    /// [`super::irradiance_map::LightSampleGpu`]s (at least one element, may be a placeholder).
+    pub lights: &'a wgpu::Buffer,
     /// The shadow views buffer.
     pub views: &'a wgpu::Buffer,
     /// The distance maps.
     pub maps: &'a ShadowMaps,
+    /// Linear RGB albedo per draw instance: the virtual objects, then the
+    /// phantoms (`[f32; 4]` each, at least one).
+    pub albedos: &'a wgpu::Buffer,
+    /// The other observers' eyes as [`super::irradiance_map::EyeGpu`]s (at least one element).
+    pub other_eyes: &'a wgpu::Buffer,
+}
+
+/// What the pass draws: ranges of one world-space vertex buffer.
+#[derive(Debug)]
+pub struct FaceDraws<'a> {
     /// World vertices of every object.
     pub vertices: &'a wgpu::Buffer,
-    /// Vertex range and albedo of each phantom.
-    pub phantoms: &'a [(std::ops::Range<u32>, [f32; 4])],
-    /// The other observers' eyes (may be empty).
-    pub other_eyes: &'a [EyeGpu],
-    /// Vertex range and albedo of each virtual object.
-    pub virtuals: &'a [(std::ops::Range<u32>, [f32; 4])],
+    /// Vertex range of each phantom (instances after the virtual objects).
+    pub phantoms: &'a [std::ops::Range<u32>],
+    /// Vertex range of each virtual object (instances from 0).
+    pub virtuals: &'a [std::ops::Range<u32>],
 }
 
 /// The compiled face pipelines (phantom depth, virtual shading).
@@ -90,7 +98,7 @@ impl FaceViewPass {
                 entry(
                     3,
                     wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        sample_type: wgpu::TextureSampleType::Depth,
                         view_dimension: wgpu::TextureViewDimension::D2Array,
                         multisampled: false,
                     },
@@ -150,95 +158,48 @@ impl FaceViewPass {
         }
     }
 
+    /// The bind group of `bindings` (create once per set of buffers).
+    pub fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        bindings: &FaceBindings<'_>,
+    ) -> wgpu::BindGroup {
+        let buffers = [
+            bindings.frame,
+            bindings.lights,
+            bindings.views,
+            bindings.albedos,
+            bindings.other_eyes,
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry<'_>> = [0u32, 1, 2, 4, 5]
+            .into_iter()
+            .zip(buffers)
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 3,
+            resource: wgpu::BindingResource::TextureView(bindings.maps.array_view()),
+        });
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("face view"),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+
     /// Record the pass into `target`: clear to 0 and depth 1, draw the
     /// phantoms (black with depth, or lit inside other observers'
     /// occlusion shadows), then the virtual objects shaded.
     pub fn encode(
         &self,
-        device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         target: &OffscreenTarget,
-        inputs: &FaceInputs<'_>,
+        bind_group: &wgpu::BindGroup,
+        draws: &FaceDraws<'_>,
     ) {
-        let buffer = |label, bytes: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage,
-            })
-        };
-        let frame = buffer(
-            "face frame",
-            bytemuck::bytes_of(&inputs.frame),
-            wgpu::BufferUsages::UNIFORM,
-        );
-        let placeholder_light = [LightSampleGpu::zeroed()];
-        let lights = if inputs.lights.is_empty() {
-            &placeholder_light[..]
-        } else {
-            inputs.lights
-        };
-        let lights = buffer(
-            "face lights",
-            bytemuck::cast_slice(lights),
-            wgpu::BufferUsages::STORAGE,
-        );
-        // Instances: virtual objects first, then phantoms.
-        let mut albedo: Vec<[f32; 4]> = inputs
-            .virtuals
-            .iter()
-            .chain(inputs.phantoms)
-            .map(|(_, a)| *a)
-            .collect();
-        if albedo.is_empty() {
-            albedo.push([0.0; 4]);
-        }
-        let albedos = buffer(
-            "face albedos",
-            bytemuck::cast_slice(&albedo),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let placeholder_eye = [EyeGpu::zeroed()];
-        let eyes = if inputs.other_eyes.is_empty() {
-            &placeholder_eye[..]
-        } else {
-            inputs.other_eyes
-        };
-        let eyes = buffer(
-            "face other eyes",
-            bytemuck::cast_slice(eyes),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("face view"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: lights.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: inputs.views.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(inputs.maps.array_view()),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: albedos.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: eyes.as_entire_binding(),
-                },
-            ],
-        });
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("face view"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -254,7 +215,7 @@ impl FaceViewPass {
                 view: target.depth_view(),
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+                    store: wgpu::StoreOp::Discard,
                 }),
                 stencil_ops: None,
             }),
@@ -262,18 +223,18 @@ impl FaceViewPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_vertex_buffer(0, inputs.vertices.slice(..));
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.set_vertex_buffer(0, draws.vertices.slice(..));
         pass.set_pipeline(&self.phantom);
-        let first_phantom = inputs.virtuals.len() as u32;
-        for (i, (r, _)) in inputs.phantoms.iter().enumerate() {
+        let first_phantom = draws.virtuals.len() as u32;
+        for (i, r) in draws.phantoms.iter().enumerate() {
             if !r.is_empty() {
                 let instance = first_phantom + i as u32;
                 pass.draw(r.clone(), instance..instance + 1);
             }
         }
         pass.set_pipeline(&self.shaded);
-        for (i, (r, _)) in inputs.virtuals.iter().enumerate() {
+        for (i, r) in draws.virtuals.iter().enumerate() {
             if !r.is_empty() {
                 pass.draw(r.clone(), i as u32..i as u32 + 1);
             }

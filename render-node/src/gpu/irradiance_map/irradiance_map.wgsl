@@ -16,6 +16,8 @@ struct Frame {
     response: vec4<f32>,
     // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion).
     counts: vec4<u32>,
+    // near and far plane of the shadow views.
+    shadow: vec4<f32>,
 }
 
 struct LightSample {
@@ -48,7 +50,7 @@ struct ShadowView {
 @group(0) @binding(1) var<storage, read> lights: array<LightSample>;
 @group(0) @binding(2) var<storage, read> eyes: array<Eye>;
 @group(0) @binding(3) var<storage, read> views: array<ShadowView>;
-@group(0) @binding(4) var maps: texture_2d_array<f32>;
+@group(0) @binding(4) var maps: texture_depth_2d_array;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -77,11 +79,14 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-// True when the views `first .. first + count` see nothing nearer to their
-// origin than `p` (surface normal `n`) along the line to `p`. A point no
-// view covers is visible (eye views cover only the virtual objects).
-fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
-    let res = frame.counts.z;
+// True when the views `first .. first + count` (all from `origin`) see
+// nothing nearer to their origin than `p` (surface normal `n`) along the
+// line to `p`. A point no view covers is visible (eye views cover only
+// the virtual objects).
+fn visible(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32) -> bool {
+    if (count == 6u) {
+        return visible_in_cube(p, n, origin, first);
+    }
     for (var i = first; i < first + count; i++) {
         let v = views[i];
         let c = v.clip_from_world * vec4<f32>(p, 1.0);
@@ -92,20 +97,74 @@ fn visible(p: vec3<f32>, n: vec3<f32>, first: u32, count: u32) -> bool {
         if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
             continue;
         }
-        let fres = f32(res);
-        let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
-        let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
-        let stored = textureLoad(maps, vec2<u32>(tx, ty), i, 0).r;
-        let to = p - v.origin.xyz;
-        let dist = length(to);
-        // Slope-scaled bias: a texel spans dist * angle, stretched by the
-        // receiver's tilt to the view.
-        let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
-        let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
-        let bias = dist * v.origin.w * (1.5 + 2.0 * tan_t) + 1e-4;
-        return dist <= stored + bias;
+        return nearest_or_nearer(n, p - v.origin.xyz, ndc, i, v.origin.w);
     }
     return true;
+}
+
+// `visible` for six views that are a cube around `origin`
+// (shadow_views::cube_views: +x, -x, +y, -y, +z, -z): only the face of
+// the major axis can hold p, and its projection is an axis permutation,
+// so no view needs to be read (shadow_views::cube_coords mirrors this).
+fn visible_in_cube(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32) -> bool {
+    let d = p - origin;
+    let a = abs(d);
+    var face = 5u;
+    // (right, up, forward) of d in the face's view (look_to_rh axes).
+    var c = vec3<f32>(d.x, d.y, -d.z);
+    if (a.x >= a.y && a.x >= a.z) {
+        face = select(1u, 0u, d.x > 0.0);
+        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
+    } else if (a.y >= a.z) {
+        face = select(3u, 2u, d.y > 0.0);
+        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
+    } else if (d.z > 0.0) {
+        face = 4u;
+        c = vec3<f32>(-d.x, d.y, d.z);
+    }
+    if (c.z <= 0.0) {
+        return true;
+    }
+    let ndc = c.xy / c.z;
+    if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+        return true;
+    }
+    return nearest_or_nearer(n, d, ndc, first + face, 2.0 / f32(frame.counts.z));
+}
+
+// The distance from a view's origin to the surface whose depth `z` a
+// layer holds at texel (tx, ty): the forward distance from the depth
+// (glam perspective_rh, depth 0 to 1, near and far of frame.shadow),
+// stretched along the ray through the texel's centre. `texel` is the
+// view's texel angle at its centre (2 tan(half fov) / res). A cleared
+// texel (z = 1) gives at least the far plane.
+fn shadow_distance(z: f32, tx: u32, ty: u32, texel: f32) -> f32 {
+    let near = frame.shadow.x;
+    let far = frame.shadow.y;
+    // 1 - z is exact for z >= 0.5, where the depth's precision matters.
+    let forward = near / ((1.0 - z) + z * (near / far));
+    let fres = f32(frame.counts.z);
+    let tan_half = 0.5 * texel * fres;
+    let c = vec2<f32>((f32(tx) + 0.5) / fres * 2.0 - 1.0, 1.0 - (f32(ty) + 0.5) / fres * 2.0);
+    return forward * sqrt(1.0 + dot(c, c) * tan_half * tan_half);
+}
+
+// Compare the distance along `to` (from a view's origin to the point, of
+// surface normal n) with the distance stored in layer `layer` at `ndc`;
+// `texel` is the view's texel angle (radians) at its centre.
+fn nearest_or_nearer(n: vec3<f32>, to: vec3<f32>, ndc: vec2<f32>, layer: u32, texel: f32) -> bool {
+    let res = frame.counts.z;
+    let fres = f32(res);
+    let tx = min(u32((ndc.x * 0.5 + 0.5) * fres), res - 1u);
+    let ty = min(u32((0.5 - ndc.y * 0.5) * fres), res - 1u);
+    let stored = shadow_distance(textureLoad(maps, vec2<u32>(tx, ty), layer, 0), tx, ty, texel);
+    let dist = length(to);
+    // Slope-scaled bias: a texel spans dist * angle, stretched by the
+    // receiver's tilt to the view.
+    let cos_t = clamp(abs(dot(n, to)) / max(dist, 1e-20), 0.05, 1.0);
+    let tan_t = sqrt(1.0 - cos_t * cos_t) / cos_t;
+    let bias = dist * texel * (1.5 + 2.0 * tan_t) + 1e-4;
+    return dist <= stored + bias;
 }
 
 fn intensity_towards(s: LightSample, dir: vec3<f32>) -> vec3<f32> {
@@ -148,7 +207,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     if ((flags & 2u) != 0u) {
         for (var e = 0u; e < frame.counts.y; e++) {
             let eye = eyes[e];
-            if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.views.x, eye.views.y)) {
+            if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
                 occluded = true;
                 break;
             }
@@ -169,7 +228,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             if (!(cos_t > 0.0)) {
                 continue;
             }
-            if ((flags & 1u) != 0u && !visible(p, n, s.views.x, s.views.y)) {
+            if ((flags & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
                 continue;
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);

@@ -4,7 +4,6 @@
 //! `crate::render::projector::irradiance_map_cpu` (units and rules there).
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
@@ -24,6 +23,8 @@ pub struct FrameUniform {
     pub response: [f32; 4],
     /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion).
     pub counts: [u32; 4],
+    /// near and far plane of the shadow views (depth back to distance).
+    pub shadow: [f32; 4],
 }
 
 /// Mirrors WGSL `struct LightSample` in `irradiance_map.wgsl`.
@@ -71,23 +72,20 @@ pub struct IrradianceMapPass {
     layout: wgpu::BindGroupLayout,
 }
 
-/// Everything the pass reads, uploaded.
+/// The buffers and maps the pass reads, uploaded (see
+/// [`IrradianceMapPass::bind_group`]).
 #[derive(Debug)]
-pub struct IrradianceInputs<'a> {
-    /// The frame uniform.
-    pub frame: FrameUniform,
-    /// Light samples (may be empty).
-    pub lights: &'a [LightSampleGpu],
-    /// Eyes (may be empty).
-    pub eyes: &'a [EyeGpu],
-    /// The shadow views buffer (from `ShadowViewsPass::upload_views`).
+pub struct IrradianceBindings<'a> {
+    /// The [`FrameUniform`].
+    pub frame: &'a wgpu::Buffer,
+    /// [`LightSampleGpu`]s (at least one element, may be a placeholder).
+    pub lights: &'a wgpu::Buffer,
+    /// [`EyeGpu`]s (at least one element, may be a placeholder).
+    pub eyes: &'a wgpu::Buffer,
+    /// The shadow views buffer.
     pub views: &'a wgpu::Buffer,
     /// The distance maps.
     pub maps: &'a ShadowMaps,
-    /// Real phantoms, world space.
-    pub vertices: &'a wgpu::Buffer,
-    /// Their vertex count.
-    pub vertex_count: u32,
 }
 
 fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -101,24 +99,6 @@ fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
         },
         count: None,
     }
-}
-
-fn storage_buffer<T: Pod + Zeroable>(
-    device: &wgpu::Device,
-    label: &str,
-    data: &[T],
-) -> wgpu::Buffer {
-    let placeholder = [T::zeroed()];
-    let data = if data.is_empty() {
-        &placeholder[..]
-    } else {
-        data
-    };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytemuck::cast_slice(data),
-        usage: wgpu::BufferUsages::STORAGE,
-    })
 }
 
 impl IrradianceMapPass {
@@ -145,7 +125,7 @@ impl IrradianceMapPass {
                     binding: 4,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        sample_type: wgpu::TextureSampleType::Depth,
                         view_dimension: wgpu::TextureViewDimension::D2Array,
                         multisampled: false,
                     },
@@ -198,16 +178,53 @@ impl IrradianceMapPass {
         Self { pipeline, layout }
     }
 
-    /// Record the pass: clear both targets to 0 and depth to 1, draw the
-    /// phantoms. `irradiance` receives `L` and the state code, `value` the
-    /// device values; both must have the projector's size.
-    pub fn encode(
+    /// The bind group of `bindings` (create once per set of buffers).
+    pub fn bind_group(
         &self,
         device: &wgpu::Device,
+        bindings: &IrradianceBindings<'_>,
+    ) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("irradiance map"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: bindings.frame.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: bindings.lights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: bindings.eyes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: bindings.views.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(bindings.maps.array_view()),
+                },
+            ],
+        })
+    }
+
+    /// Record the pass: clear both targets to 0 and depth to 1, draw the
+    /// real phantoms (`vertex_count` of `vertices`, world space) with the
+    /// inputs of `bind_group`. `irradiance` receives `L` and the state
+    /// code, `value` the device values; both must have the projector's
+    /// size.
+    pub fn encode(
+        &self,
         encoder: &mut wgpu::CommandEncoder,
         irradiance: &OffscreenTarget,
         value: &OffscreenTarget,
-        inputs: &IrradianceInputs<'_>,
+        bind_group: &wgpu::BindGroup,
+        vertices: &wgpu::Buffer,
+        vertex_count: u32,
     ) -> Result<(), GpuError> {
         if (irradiance.width(), irradiance.height()) != (value.width(), value.height()) {
             return Err(GpuError::SizeMismatch {
@@ -217,39 +234,6 @@ impl IrradianceMapPass {
                 height: irradiance.height(),
             });
         }
-        let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("irradiance frame"),
-            contents: bytemuck::bytes_of(&inputs.frame),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let lights = storage_buffer(device, "light samples", inputs.lights);
-        let eyes = storage_buffer(device, "eyes", inputs.eyes);
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("irradiance map"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: lights.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: eyes.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: inputs.views.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: wgpu::BindingResource::TextureView(inputs.maps.array_view()),
-                },
-            ],
-        });
         let attachment = |view| {
             Some(wgpu::RenderPassColorAttachment {
                 view,
@@ -271,7 +255,7 @@ impl IrradianceMapPass {
                 view: irradiance.depth_view(),
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+                    store: wgpu::StoreOp::Discard,
                 }),
                 stencil_ops: None,
             }),
@@ -279,11 +263,11 @@ impl IrradianceMapPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        if inputs.vertex_count > 0 {
+        if vertex_count > 0 {
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.set_vertex_buffer(0, inputs.vertices.slice(..));
-            pass.draw(0..inputs.vertex_count, 0..1);
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.draw(0..vertex_count, 0..1);
         }
         Ok(())
     }

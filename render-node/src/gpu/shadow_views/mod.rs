@@ -1,20 +1,20 @@
-//! Shadow views pass: distance maps from light samples (cube faces) and
-//! eyes (one view fitted around the occluders) into layers of one R32Float
-//! array texture, which the irradiance-map pass compares against. CPU
-//! reference: visibility rays (`crate::render::projector`).
+//! Shadow views pass: depth maps from light samples (cube faces) and
+//! eyes (one view fitted around the occluders) into layers of one depth
+//! array texture, which the irradiance-map and face passes turn back into
+//! distances from the view's origin and compare against. Depth only (no
+//! fragment shader, no colour target): the cheapest fill a rasteriser has,
+//! which matters on a CPU one. CPU reference: visibility rays
+//! (`crate::render::projector`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::target::DEPTH_FORMAT;
 
-/// Format of the distance maps.
-pub const DISTANCE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
-
-/// Distance stored where no surface was drawn.
-pub const FAR_DISTANCE: f32 = 1.0e30;
+/// Near plane of every shadow view (metres). The sampling passes need it
+/// (with the frame's far plane) to turn depth back into distance.
+pub const SHADOW_NEAR: f32 = 1e-3;
 
 /// Mirrors WGSL `struct ShadowView` in `shadow_views.wgsl` (and in
 /// `irradiance_map.wgsl`).
@@ -86,6 +86,32 @@ pub fn cube_views(origin: Vec3, near: f32, far: f32, res: u32) -> Vec<ShadowView
         .collect()
 }
 
+/// The face of [`cube_views`] (0 to 5) whose view holds direction `d`
+/// from the origin, and `d`'s (right, up, forward) components in that
+/// face's view: the major axis picks the face, and the view's axes are a
+/// signed permutation of `d`. Mirrors WGSL `visible_in_cube` of the
+/// passes that sample the maps (which so need not read the views).
+pub fn cube_coords(d: Vec3) -> (usize, Vec3) {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if d.x > 0.0 {
+            (0, Vec3::new(d.z, d.y, d.x))
+        } else {
+            (1, Vec3::new(-d.z, d.y, -d.x))
+        }
+    } else if a.y >= a.z {
+        if d.y > 0.0 {
+            (2, Vec3::new(d.x, d.z, d.y))
+        } else {
+            (3, Vec3::new(-d.x, d.z, -d.y))
+        }
+    } else if d.z > 0.0 {
+        (4, Vec3::new(-d.x, d.y, d.z))
+    } else {
+        (5, Vec3::new(d.x, d.y, -d.z))
+    }
+}
+
 /// Views from `origin` covering the sphere `(centre, radius)`: one view
 /// fitted around it, or the cube when `origin` is (nearly) inside it.
 pub fn fitted_views(
@@ -112,7 +138,13 @@ pub fn fitted_views(
     vec![v]
 }
 
-/// The distance maps: one `res x res` layer per view.
+/// What a layer of [`ShadowMaps`] holds: the view it was drawn with and
+/// the identity of the geometry drawn (see [`ShadowDraw::geometry`]).
+type LayerContent = (ShadowView, u64);
+
+/// The distance maps: one `res x res` layer per view. They remember what
+/// each layer was drawn with, so that a layer whose view and geometry did
+/// not change is not drawn again (a light or eye that did not move).
 #[derive(Debug)]
 pub struct ShadowMaps {
     res: u32,
@@ -120,7 +152,7 @@ pub struct ShadowMaps {
     texture: wgpu::Texture,
     array_view: wgpu::TextureView,
     layer_views: Vec<wgpu::TextureView>,
-    depth_view: wgpu::TextureView,
+    contents: Vec<Option<LayerContent>>,
 }
 
 impl ShadowMaps {
@@ -142,7 +174,7 @@ impl ShadowMaps {
             });
         }
         let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow distance maps"),
+            label: Some("shadow depth maps"),
             size: wgpu::Extent3d {
                 width: res,
                 height: res,
@@ -151,7 +183,7 @@ impl ShadowMaps {
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: DISTANCE_FORMAT,
+            format: DEPTH_FORMAT,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
@@ -171,28 +203,19 @@ impl ShadowMaps {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
-        let depth = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow depth"),
-            size: wgpu::Extent3d {
-                width: res,
-                height: res,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        });
         Ok(Self {
             res,
             layers,
             texture,
             array_view,
             layer_views,
-            depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
+            contents: vec![None; layers as usize],
         })
+    }
+
+    /// Forget what the layers hold, so that the next draw redraws them all.
+    pub fn invalidate(&mut self) {
+        self.contents.iter_mut().for_each(|c| *c = None);
     }
 
     /// Size of a layer in texels.
@@ -232,6 +255,11 @@ pub struct ShadowDraw<'a> {
     pub vertex_count: u32,
     /// Layers (= view indices) to draw into.
     pub layers: std::ops::Range<u32>,
+    /// Identity of the vertex data: the same value promises the same
+    /// vertices, so that a layer already drawn with the same view and
+    /// geometry is kept instead of drawn again. Callers must change it
+    /// whenever the buffer's contents change.
+    pub geometry: u64,
 }
 
 impl ShadowViewsPass {
@@ -242,7 +270,7 @@ impl ShadowViewsPass {
             label: Some("shadow views"),
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                visibility: wgpu::ShaderStages::VERTEX,
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Storage { read_only: true },
                     has_dynamic_offset: false,
@@ -279,81 +307,62 @@ impl ShadowViewsPass {
                 bias: wgpu::DepthBiasState::default(),
             }),
             multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: DISTANCE_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
+            // Depth only.
+            fragment: None,
             multiview_mask: None,
             cache: None,
         });
         Self { pipeline, layout }
     }
 
-    /// Upload `views` as the storage buffer both passes read.
-    pub fn upload_views(&self, device: &wgpu::Device, views: &[ShadowView]) -> wgpu::Buffer {
-        let placeholder = [ShadowView::zeroed()];
-        let data = if views.is_empty() {
-            &placeholder[..]
-        } else {
-            views
-        };
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("shadow views"),
-            contents: bytemuck::cast_slice(data),
-            usage: wgpu::BufferUsages::STORAGE,
-        })
-    }
-
-    /// Record one render pass per layer of each draw: clear to
-    /// [`FAR_DISTANCE`], draw the geometry with that layer's view.
-    pub fn encode(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        maps: &ShadowMaps,
-        views: &wgpu::Buffer,
-        draws: &[ShadowDraw<'_>],
-    ) {
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+    /// The bind group of the views buffer (create once per buffer).
+    pub fn bind_group(&self, device: &wgpu::Device, views: &wgpu::Buffer) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shadow views"),
             layout: &self.layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: views.as_entire_binding(),
             }],
-        });
+        })
+    }
+
+    /// Record one render pass per layer of each draw whose content
+    /// changed: clear the depth to 1 (the far plane), draw the geometry with that
+    /// layer's view (`views[layer]`, as uploaded into the buffer of
+    /// `bind_group`). A layer that already holds the same view and
+    /// geometry is skipped. Returns the number of layers drawn.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &mut ShadowMaps,
+        bind_group: &wgpu::BindGroup,
+        views: &[ShadowView],
+        draws: &[ShadowDraw<'_>],
+    ) -> u32 {
+        let mut drawn = 0;
         for draw in draws {
             for layer in draw.layers.clone() {
-                let Some(target) = maps.layer_views.get(layer as usize) else {
+                let (Some(target), Some(view)) = (
+                    maps.layer_views.get(layer as usize),
+                    views.get(layer as usize),
+                ) else {
                     continue;
                 };
+                let content = Some((*view, draw.geometry));
+                if maps.contents[layer as usize] == content {
+                    continue;
+                }
+                maps.contents[layer as usize] = content;
+                drawn += 1;
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("shadow view"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: target,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: f64::from(FAR_DISTANCE),
-                                g: 0.0,
-                                b: 0.0,
-                                a: 1.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
+                    color_attachments: &[],
                     depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &maps.depth_view,
+                        view: target,
                         depth_ops: Some(wgpu::Operations {
                             load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Discard,
+                            store: wgpu::StoreOp::Store,
                         }),
                         stencil_ops: None,
                     }),
@@ -365,11 +374,12 @@ impl ShadowViewsPass {
                     continue;
                 }
                 pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_bind_group(0, bind_group, &[]);
                 pass.set_vertex_buffer(0, draw.vertices.slice(..));
                 pass.draw(0..draw.vertex_count, layer..layer + 1);
             }
         }
+        drawn
     }
 }
 
@@ -401,6 +411,35 @@ mod tests {
                 })
                 .count();
             assert_eq!(inside, 1, "{d}");
+        }
+    }
+
+    #[test]
+    fn cube_coords_are_the_projection_of_the_major_axis_face() {
+        use rand::{Rng, SeedableRng};
+        let o = Vec3::new(0.3, -0.1, 0.2);
+        let views = cube_views(o, 1e-3, 10.0, 256);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..2000 {
+            let d = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if d.length() < 1e-3 {
+                continue;
+            }
+            let (face, c) = cube_coords(d);
+            let n = ndc(&views[face], o + d).expect("in front of its face");
+            assert!(
+                n.x.abs() <= 1.0 + 1e-6 && n.y.abs() <= 1.0 + 1e-6,
+                "{d}: {n}"
+            );
+            let analytic = c.truncate() / c.z;
+            assert!(
+                (analytic - n.truncate()).abs().max_element() < 1e-5,
+                "{d}: face {face} analytic {analytic} matrix {n}"
+            );
         }
     }
 
