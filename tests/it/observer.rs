@@ -168,3 +168,57 @@ fn a_node_renders_its_named_output() -> anyhow::Result<()> {
     assert!(e.contains("camera-0"), "{e}");
     Ok(())
 }
+
+/// The GPU projector pass blends overlapping projectors as the CPU
+/// reference does: on the demo cabinet (two overlapping projectors) each
+/// projector's map matches the reference within the projector tests'
+/// GPU-vs-CPU tolerance, and the shares are really applied (the map with
+/// blending off differs by far more).
+#[test]
+fn gpu_blends_overlapping_projectors_like_the_cpu_reference() -> anyhow::Result<()> {
+    use crate::render::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};
+    use showcase_render::render::compare::compare_maps;
+    use showcase_render::render::passes::PassList;
+    use showcase_render::render::projector_gpu::ProjectorPipeline;
+
+    let Some(ctx) = crate::gpu::gpu_or_skip("gpu_blends_overlapping_projectors")? else {
+        return Ok(());
+    };
+    let scene = cabinet();
+    let frame = FrameScene::from_parts(scene.clone(), &[])?;
+    let occluders = Occluders::new(&frame)?;
+    for projector in &scene.projectors {
+        let mut pipeline = ProjectorPipeline::new(&ctx.device, 1024);
+        let gpu = pipeline.render(&ctx, &frame, projector, &PassList::full())?;
+        let cpu = irradiance_map_cpu(&frame, &occluders, projector, ProjectorOptions::default())?;
+        let c = compare_maps(&gpu, &cpu)?;
+        eprintln!("{}: {c:?}", projector.name);
+        anyhow::ensure!(
+            c.rel_rmse_off_edges <= GPU_CPU_REL_RMSE,
+            "{}: rel RMSE off edges {}",
+            projector.name,
+            c.rel_rmse_off_edges
+        );
+        anyhow::ensure!(
+            (c.outliers_off_edges as f64) <= OFF_EDGE_OUTLIERS * c.pixels as f64,
+            "{}: {c:?}",
+            projector.name
+        );
+        let unblended = irradiance_map_cpu(
+            &frame,
+            &occluders,
+            projector,
+            ProjectorOptions {
+                blend: false,
+                ..ProjectorOptions::default()
+            },
+        )?;
+        let u = compare_maps(&gpu, &unblended)?;
+        anyhow::ensure!(
+            u.rel_rmse_off_edges > 0.1,
+            "{}: the GPU map also matches the unblended map ({u:?})",
+            projector.name
+        );
+    }
+    Ok(())
+}

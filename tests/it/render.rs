@@ -10,7 +10,7 @@ mod bench;
 mod face;
 mod golden;
 mod passes;
-mod projector;
+pub(crate) mod projector;
 pub(crate) mod scenes;
 
 use anyhow::{Context, Result, bail};

@@ -171,7 +171,101 @@ pub struct ProjectorPipeline {
     /// The irradiance bind group and the buffer generations it names.
     irradiance_bind: Option<([u64; 4], wgpu::BindGroup)>,
     targets: Option<ProjectorTargets>,
+    /// The blend weights in use and what they were computed from.
+    blend: Option<BlendTexture>,
     last_layers_drawn: u32,
+}
+
+/// What a projector's blend weights depend on: the projectors, which one
+/// this is, and the real objects (meshes and transforms).
+#[derive(Clone, Debug, PartialEq)]
+struct BlendKey {
+    projector: Option<usize>,
+    projectors: Vec<showcase_proto::PinholeDevice>,
+    real: Vec<(showcase_proto::MeshId, showcase_proto::Transform)>,
+}
+
+/// A projector's blend weights on the GPU ([`super::blend`]).
+#[derive(Debug)]
+struct BlendTexture {
+    key: BlendKey,
+    _texture: wgpu::Texture,
+    view: wgpu::TextureView,
+}
+
+impl BlendTexture {
+    /// The weights of `projector` in `frame` (all 1 when it overlaps no
+    /// other projector or is not one of the scene's).
+    fn new(
+        ctx: &GpuContext,
+        frame: &FrameScene,
+        projector: &Projector,
+        key: BlendKey,
+    ) -> Result<Self, RenderSetupError> {
+        let (w, h) = (projector.device.width, projector.device.height);
+        let weights: Vec<f32> = match key.projector {
+            Some(i) if key.projectors.len() > 1 => {
+                let real = frame.geometry(&crate::light::ObjectFilter::Real)?;
+                super::blend::Blend::new(&frame.showcase.projectors)?
+                    .weight_image(i, &real)?
+                    .data
+            }
+            _ => vec![1.0; (w as usize) * (h as usize)],
+        };
+        let size = wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        };
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("projector blend"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&weights),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * w),
+                rows_per_image: Some(h),
+            },
+            size,
+        );
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        Ok(Self {
+            key,
+            _texture: texture,
+            view,
+        })
+    }
+}
+
+fn blend_key(frame: &FrameScene, projector: &Projector) -> BlendKey {
+    let projectors = &frame.showcase.projectors;
+    BlendKey {
+        projector: projectors
+            .iter()
+            .position(|p| p.name == projector.name && p.device == projector.device),
+        projectors: projectors.iter().map(|p| p.device.clone()).collect(),
+        real: frame
+            .showcase
+            .objects
+            .iter()
+            .filter(|o| o.kind == ObjectKind::Real)
+            .map(|o| (o.mesh, o.transform))
+            .collect(),
+    }
 }
 
 /// A projector frame read back from the GPU.
@@ -223,6 +317,7 @@ impl ProjectorPipeline {
             shadow_bind: None,
             irradiance_bind: None,
             targets: None,
+            blend: None,
             last_layers_drawn: 0,
         }
     }
@@ -320,6 +415,15 @@ impl ProjectorPipeline {
         if maps_changed {
             self.irradiance_bind = None;
         }
+        let key = blend_key(frame, projector);
+        let (w, h) = (projector.device.width, projector.device.height);
+        if self.blend.as_ref().is_none_or(|b| b.key != key) {
+            self.blend = Some(BlendTexture::new(ctx, frame, projector, key)?);
+            self.irradiance_bind = None;
+        }
+        let Some(blend) = self.blend.as_ref() else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
         let Some(maps) = self.maps.as_mut() else {
             return Err(RenderSetupError::NothingDrawn);
         };
@@ -353,11 +457,11 @@ impl ProjectorPipeline {
                     eyes: self.eyes.buffer(),
                     views: self.views.buffer(),
                     maps,
+                    blend: &blend.view,
                 },
             );
             self.irradiance_bind = Some((generations, bind));
         }
-        let (w, h) = (projector.device.width, projector.device.height);
         if self
             .targets
             .as_ref()

@@ -19,10 +19,10 @@ use super::scenes::{bench, plate_scene, point};
 /// GPU-vs-CPU tolerance: relative RMSE of `L` over the unclipped surface
 /// pixels that are not within `EDGE_RADIUS_PX` (2) of a silhouette or
 /// shadow edge of the reference.
-pub(super) const GPU_CPU_REL_RMSE: f64 = 0.01;
+pub(crate) const GPU_CPU_REL_RMSE: f64 = 0.01;
 /// Outliers (> 1 % off) allowed away from shadow and silhouette edges, as
 /// a fraction of compared pixels.
-pub(super) const OFF_EDGE_OUTLIERS: f64 = 1e-3;
+pub(crate) const OFF_EDGE_OUTLIERS: f64 = 1e-3;
 /// Outliers allowed in all (edge pixels included): a hard shadow edge of
 /// a shadow map and of a ray differ by up to a texel, so some edge pixels
 /// are fully off.

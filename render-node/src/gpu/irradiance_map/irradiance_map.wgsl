@@ -51,6 +51,9 @@ struct ShadowView {
 @group(0) @binding(2) var<storage, read> eyes: array<Eye>;
 @group(0) @binding(3) var<storage, read> views: array<ShadowView>;
 @group(0) @binding(4) var maps: texture_depth_2d_array;
+// Per projector pixel: its share of the target where other projectors
+// overlap (render::blend; 1 without overlap).
+@group(0) @binding(5) var blend: texture_2d<f32>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -233,7 +236,8 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);
         }
-        l = e * (r2 / cos_p);
+        let share = textureLoad(blend, vec2<u32>(in.clip.xy), 0).r;
+        l = e * (share * r2 / cos_p);
     }
     // Device compensation: v = ((L - black) / eta)^(1 / gamma), clamped.
     let gamma = frame.response.x;

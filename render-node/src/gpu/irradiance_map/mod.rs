@@ -86,6 +86,8 @@ pub struct IrradianceBindings<'a> {
     pub views: &'a wgpu::Buffer,
     /// The distance maps.
     pub maps: &'a ShadowMaps,
+    /// The projector's blend weights (`R32Float`, projector-sized).
+    pub blend: &'a wgpu::TextureView,
 }
 
 fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -127,6 +129,16 @@ impl IrradianceMapPass {
                     ty: wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Depth,
                         view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
                         multisampled: false,
                     },
                     count: None,
@@ -207,6 +219,10 @@ impl IrradianceMapPass {
                 wgpu::BindGroupEntry {
                     binding: 4,
                     resource: wgpu::BindingResource::TextureView(bindings.maps.array_view()),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(bindings.blend),
                 },
             ],
         })
