@@ -33,6 +33,9 @@ use rayon::prelude::*;
 use showcase_proto::{CrtFace, ObjectKind, PinholeDevice, Projector};
 use std::f64::consts::PI;
 
+/// Rays per eye pixel along each axis.
+pub const SUBSAMPLES: u32 = 2;
+
 /// One projector's output for a frame: the pixel values it shows.
 #[derive(Clone, Copy, Debug)]
 pub struct ProjectedLight<'a> {
@@ -130,15 +133,36 @@ pub fn observer_view(
                 let Some(ray) = eye_rays.pixel_ray(x, y) else {
                     return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false);
                 };
-                let (real, reachable) =
-                    real_radiance(frame, &occluders.real_only, projectors, &ray);
-                let reflected = mirror
-                    .and_then(|m| reflected_radiance(&m, &ray))
-                    .unwrap_or(DVec3::ZERO);
-                let (target, key) = match target_radiance(frame, occluders, &ray) {
-                    Some((t, key)) => (t.as_vec3(), key),
-                    None => (Vec3::NAN, None),
+                // The pixel's own surface (its centre ray) decides what it
+                // shows and its edge key; its radiance is the mean over
+                // SUBSAMPLES x SUBSAMPLES rays across the pixel, as a
+                // camera pixel integrates its footprint (point samples of
+                // two pixel grids alias).
+                let (centre_target, key) = match target_radiance(frame, occluders, &ray) {
+                    Some((t, key)) => (Some(t), key),
+                    None => (None, None),
                 };
+                let (_, reachable) = real_radiance(frame, &occluders.real_only, projectors, &ray);
+                let (mut real, mut reflected, mut target) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+                let n = SUBSAMPLES * SUBSAMPLES;
+                for k in 0..n {
+                    let offset = DVec2::new(
+                        ((k % SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+                        ((k / SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+                    );
+                    let Some(sub) = eye_rays.ray_through(DVec2::new(x as f64, y as f64) + offset)
+                    else {
+                        continue;
+                    };
+                    real += real_radiance(frame, &occluders.real_only, projectors, &sub).0;
+                    reflected += mirror
+                        .and_then(|m| reflected_radiance(&m, &sub))
+                        .unwrap_or(DVec3::ZERO);
+                    target += target_radiance(frame, occluders, &sub).map_or(DVec3::ZERO, |t| t.0);
+                }
+                let scale = 1.0 / n as f64;
+                let (real, reflected) = (real * scale, reflected * scale);
+                let target = centre_target.map_or(Vec3::NAN, |_| (target * scale).as_vec3());
                 (
                     [real.as_vec3(), reflected.as_vec3(), target],
                     key,

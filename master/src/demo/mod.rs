@@ -324,7 +324,7 @@ fn rendering_stage(
     );
     let observers = truth.observers.len();
     let mut all_de = Vec::new();
-    let mut per_observer: Vec<(Vec<f64>, f64)> = vec![(Vec::new(), 0.0); observers];
+    let mut per_observer: Vec<(Vec<f64>, f64, f64)> = vec![(Vec::new(), 0.0, 1.0); observers];
     let mut render_s = Vec::new();
     let pb = progress("rendering", Some(states.len() as u64));
     for state in &states {
@@ -377,6 +377,7 @@ fn rendering_stage(
                 .0
                 .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
             per_observer[o].1 = per_observer[o].1.max(r.rel_rmse);
+            per_observer[o].2 = per_observer[o].2.min(r.reachable_fraction);
         }
         for (observer, [left, right]) in &outputs.faces {
             let face = calibrated
@@ -415,11 +416,12 @@ fn rendering_stage(
             per_observer
                 .iter()
                 .enumerate()
-                .map(|(o, (de, rel))| serde_json::json!({
+                .map(|(o, (de, rel, reach))| serde_json::json!({
                     "observer": truth.observers[o].name,
                     "delta_e2000_median": views::quantile(de, 0.5),
                     "delta_e2000_p95": views::quantile(de, 0.95),
                     "consistency_rel_rmse": rel,
+                "projector_reach_fraction": reach,
                 }))
                 .collect::<Vec<_>>()
         ),
@@ -428,7 +430,7 @@ fn rendering_stage(
     render_s.sort_by(f64::total_cmp);
     Ok(StageOutcome {
         detail: format!(
-            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE off edges {worst:.3}; images in {}/frames",
+            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {worst:.3} (off edges, where a projector reaches); images in {}/frames",
             calibrated.projectors.len(),
             calibrated.faces.len(),
             backend.describe(),

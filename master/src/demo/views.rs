@@ -249,8 +249,11 @@ pub(super) struct ObserverResult {
     /// CIEDE2000 per covered pixel, at `exposure` (row-major, NaN elsewhere).
     pub delta_e: Vec<f64>,
     /// Relative RMSE of composite against target over covered pixels off
-    /// the edges.
+    /// the edges whose real surface some projector reaches.
     pub rel_rmse: f64,
+    /// Covered pixels whose real surface some projector reaches, over
+    /// covered pixels.
+    pub reachable_fraction: f64,
 }
 
 /// Simulate `observer`'s view of `outputs` in the true scene `truth` (at
@@ -318,9 +321,18 @@ pub(super) fn observe(
             .data
             .iter()
             .zip(&view.edge.data)
-            .map(|(c, e)| *c && !e)
+            .zip(&view.reachable.data)
+            .map(|((c, e), r)| *c && !e && *r)
             .collect(),
     };
+    let covered = view.covered.data.iter().filter(|c| **c).count();
+    let reachable = view
+        .covered
+        .data
+        .iter()
+        .zip(&view.reachable.data)
+        .filter(|(c, r)| **c && **r)
+        .count();
     let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
         .with_context(|| format!("observer {observer} at frame {}", state.frame))?;
     Ok(ObserverResult {
@@ -328,6 +340,7 @@ pub(super) fn observe(
         exposure,
         delta_e,
         rel_rmse,
+        reachable_fraction: reachable as f64 / covered.max(1) as f64,
     })
 }
 
