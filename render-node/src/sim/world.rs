@@ -8,7 +8,8 @@
 //! true albedo of [`Material::albedo_at`]. Radiance leaving the pixel's
 //! point splits into
 //! - `emitted`: the emission `Ke` of the surface when its front faces the
-//!   camera;
+//!   camera and the world's emitters are on (with them off, a lamp is an
+//!   ordinary reflector: it neither glows nor lights anything);
 //! - `direct`: `rho / pi * E_direct`, the projector's point light evaluated
 //!   exactly (it is a delta light) plus emitters by next-event estimation
 //!   (uniform area sampling of emitter triangles, weighted by area times
@@ -153,6 +154,10 @@ pub struct SimWorld {
     emitters: Vec<Emitter>,
     /// Cumulative selection weights of `emitters`, ending at 1.
     emitter_cdf: Vec<f64>,
+    /// Whether emitting surfaces glow at all: with the scene's lights off
+    /// an emitter is an ordinary reflector, seen and lighting nothing of
+    /// its own.
+    emitters_on: bool,
 }
 
 impl SimWorld {
@@ -199,6 +204,7 @@ impl SimWorld {
             materials,
             emitters: list,
             emitter_cdf,
+            emitters_on: emitters,
         })
     }
 
@@ -299,7 +305,7 @@ impl SimWorld {
             return [DVec3::ZERO; 3];
         };
         let material = &self.materials[hit.object as usize];
-        let emitted = if hit.front_face {
+        let emitted = if hit.front_face && self.emitters_on {
             finite(material.emission.as_dvec3().max(DVec3::ZERO))
         } else {
             DVec3::ZERO
