@@ -148,16 +148,28 @@ pub fn indirect_irradiance(
         if hit.geometric_normal == DVec3::ZERO {
             return Found::Nothing;
         }
-        // Seen by the camera: the pixel it projects to sees the same
-        // object at the same depth (within the footprint times the slope at
-        // phi_max): use the measured exitance there.
+        let hf = if hit.geometric_normal.dot(dir) <= 0.0 {
+            hit.geometric_normal
+        } else {
+            -hit.geometric_normal
+        };
+        // Seen by the camera: the side the ray hits faces the camera, and
+        // the pixel it projects to sees the same object at the same depth
+        // (within the footprint times the slope at phi_max) with a normal
+        // within 45 degrees (so the unlit side of a box next to its lit
+        // front, or its hidden back, never borrows the front's exitance):
+        // use the measured exitance there.
         let z = d.to_device(hit.point).z;
+        let faces_camera = hf.dot(camera.center() - hit.point) > 0.0;
         let same = |q: usize| {
-            seen[q].is_some_and(|(o, zq, _, _)| {
-                o == hit.object && (zq - z).abs() <= z * (4.0 / f + 1e-3)
+            seen[q].is_some_and(|(o, zq, _, nq)| {
+                o == hit.object
+                    && (zq - z).abs() <= z * (4.0 / f + 1e-3)
+                    && nq.dot(hf) > std::f64::consts::FRAC_1_SQRT_2
             })
         };
-        if let Some((qx, qy)) = camera.pixel_of(hit.point)
+        if faces_camera
+            && let Some((qx, qy)) = camera.pixel_of(hit.point)
             && same((qy * w + qx) as usize)
         {
             // Bilinear over the neighbouring pixels that see the same
@@ -186,11 +198,6 @@ pub fn indirect_irradiance(
                 return Found::Seen(b / wsum);
             }
         }
-        let hf = if hit.geometric_normal.dot(dir) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
         let hs = if hit.shading_normal.dot(hf) >= 0.0 {
             hit.shading_normal
         } else {
