@@ -15,7 +15,7 @@
 //!   (uniform area sampling of emitter triangles, weighted by area times
 //!   peak radiance);
 //! - `indirect`: everything scattered at least once more, by cosine-weighted
-//!   path continuation with next-event estimation at every vertex and
+//!   path continuation (the first bounce stratified over the pixel's paths) with next-event estimation at every vertex and
 //!   Russian roulette after the third bounce. Emission found by a
 //!   continuation ray is not added (next-event estimation already counts
 //!   it), so the estimator is unbiased.
@@ -317,9 +317,23 @@ impl SimWorld {
         let mut emitter_direct = DVec3::ZERO;
         let mut indirect = DVec3::ZERO;
         if rho != DVec3::ZERO {
-            for _ in 0..spp {
+            // The first bounce, which carries most of the indirect light,
+            // is stratified: an n x n jittered grid over the cosine
+            // hemisphere's unit square (n = floor(sqrt(spp))), the paths
+            // past n^2 unstratified.
+            let n = (spp as f64).sqrt().floor().max(1.0) as u32;
+            for s in 0..spp {
                 emitter_direct += self.sample_emitters(hit.point, &frame, rng);
-                indirect += self.trace_path(hit.point, frame, rho, projector, rng);
+                let (j1, j2): (f64, f64) = (rng.random(), rng.random());
+                let first = if s < n * n {
+                    (
+                        (f64::from(s % n) + j1) / f64::from(n),
+                        (f64::from(s / n) + j2) / f64::from(n),
+                    )
+                } else {
+                    (j1, j2)
+                };
+                indirect += self.trace_path(hit.point, frame, rho, projector, first, rng);
             }
         }
         direct += emitter_direct / spp as f64;
@@ -331,19 +345,26 @@ impl SimWorld {
     }
 
     /// One continuation path from a surface point: the radiance it brings
-    /// back, already multiplied by the first point's albedo `beta`.
+    /// back, already multiplied by the first point's albedo `beta`. `first`
+    /// is the point of the unit square that picks the first direction.
     fn trace_path(
         &self,
         start: DVec3,
         start_frame: SurfaceFrame,
         mut beta: DVec3,
         projector: Option<&ProjectorLight>,
+        first: (f64, f64),
         rng: &mut ChaCha8Rng,
     ) -> DVec3 {
         let mut sum = DVec3::ZERO;
         let (mut point, mut frame) = (start, start_frame);
         for depth in 1..=MAX_DEPTH {
-            let dir = cosine_sample(frame.shading, rng);
+            let u = if depth == 1 {
+                first
+            } else {
+                (rng.random(), rng.random())
+            };
+            let dir = cosine_direction(frame.shading, u);
             if !(dir.dot(frame.facing) > 0.0) {
                 break;
             }
@@ -443,9 +464,9 @@ impl SurfaceFrame {
     }
 }
 
-/// A cosine-weighted direction around unit `n`.
-fn cosine_sample(n: DVec3, rng: &mut ChaCha8Rng) -> DVec3 {
-    let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+/// The cosine-weighted direction around unit `n` that the point
+/// `(u1, u2)` of the unit square maps to.
+fn cosine_direction(n: DVec3, (u1, u2): (f64, f64)) -> DVec3 {
     let r = u1.sqrt();
     let phi = std::f64::consts::TAU * u2;
     let (t, b) = n.any_orthonormal_pair();
