@@ -75,7 +75,10 @@ fn closed_emitting_box_conserves_energy() {
     assert!(img.total().data.iter().all(|v| *v == Vec3::ZERO));
     let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
     assert_eq!(world.emitter_count(), 12);
-    let img = world.render(&DeviceRays::new(&camera).unwrap(), None, 256, 3);
+    // 1024 paths: the next-event estimate in a closed box is heavy-tailed
+    // (1/r^2 near the edges); at 256 paths one render's mean still
+    // scatters by about 1.8%, too close to the 2% tolerance.
+    let img = world.render(&DeviceRays::new(&camera).unwrap(), None, 1024, 3);
     let total = img.total();
     let mean = total.data.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / total.data.len() as f64;
     let expect = le.as_dvec3() / (1.0 - rho as f64);
