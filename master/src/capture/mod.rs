@@ -20,15 +20,17 @@ pub use bench::{Record, bench_reflectance, write_report};
 pub use files::{read_reflectance_map, write_reflectance_map};
 pub use pipeline::{
     CaptureConfig, CaptureOutcome, EtaMode, Method, adjust_camera_gain, calibrate_projector,
-    capture_radiance, capture_reflectance,
+    calibrate_reference, capture_map, capture_radiance, capture_reflectance,
 };
 
 use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
 use showcase_proto::{PinholeDevice, Showcase};
-use showcase_render::sim::{SimConfig, SimShowcase, render_view, write_pfm};
+use showcase_render::reflectance::CorrectionParams;
+use showcase_render::sim::{Projector, SimConfig, SimShowcase, render_view, write_pfm};
 use std::path::Path;
+use std::time::Instant;
 
 /// Load a scene for the sim: an `.obj` file directly (as real objects),
 /// anything else through the scene-file loader.
@@ -81,7 +83,7 @@ pub fn sim_render_command(
     Ok(())
 }
 
-/// What `run_capture` did.
+/// What `run_capture_with` did.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaptureSummary {
     /// Scene name.
@@ -90,25 +92,119 @@ pub struct CaptureSummary {
     pub method: String,
     /// Frames averaged per radiance map.
     pub frames: u32,
+    /// Camera image `[width, height]` the capture used.
+    pub camera_size: [u32; 2],
+    /// Paths per pixel of the sim's light transport.
+    pub samples_per_pixel: u32,
     /// Estimated projector intensity (W/sr).
     pub eta: f64,
     /// Estimated black level (W/sr).
     pub black_level: f64,
+    /// `|eta - true eta| / true eta` (the sim knows the truth).
+    pub eta_rel_error: f64,
     /// Fraction of object pixels with a valid reflectance.
     pub coverage: f64,
     /// Relative RMSE against the sim's true albedo over valid pixels.
     pub rel_rmse: f64,
+    /// Wall-clock seconds of the whole job, by phase.
+    pub seconds: CaptureSeconds,
     /// Files written (relative to the output folder).
     pub files: Vec<String>,
 }
 
+/// Wall-clock seconds of a capture job, by phase.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct CaptureSeconds {
+    /// Building the sims and setting the camera gain.
+    pub setup: f64,
+    /// Fitting eta and the black level on the reference target (its sim's
+    /// light transport included).
+    pub calibration: f64,
+    /// The sim's light transport for the capture's projector images (what
+    /// the physical world does for free).
+    pub light_transport: f64,
+    /// Frames, extraction and the interreflection correction.
+    pub capture: f64,
+    /// Ground-truth comparison and writing the files.
+    pub output: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// Settings of a capture job ([`run_capture_with`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CaptureOptions {
+    /// Camera image `(width, height)`: the scene's camera is resampled to
+    /// it (same pose and field of view, intrinsics scaled); `None` keeps
+    /// the scene's camera.
+    pub camera_size: Option<(u32, u32)>,
+    /// Paths per camera pixel of the sim's light transport (the world's
+    /// accuracy, not the capture's).
+    pub samples_per_pixel: u32,
+    /// Frames averaged per radiance map (K).
+    pub frames: u32,
+    /// Extraction method.
+    pub method: Method,
+    /// Fit eta and the black level on the reference target (`true`) or
+    /// take the sim's true values.
+    pub estimate_eta: bool,
+    /// Gather rays per pixel of the interreflection correction.
+    pub gather_samples: u32,
+    /// Paths per pixel of the reference target's sim.
+    pub reference_samples: u32,
+}
+
+impl Default for CaptureOptions {
+    /// The `capture` command's settings: the scene's camera, 256 paths per
+    /// pixel, 16 frames, eta estimated, interreflection corrected.
+    fn default() -> Self {
+        Self {
+            camera_size: None,
+            samples_per_pixel: 256,
+            frames: 16,
+            method: Method::Corrected,
+            estimate_eta: true,
+            gather_samples: CorrectionParams::default().gather_samples,
+            reference_samples: CaptureConfig::default().reference_samples,
+        }
+    }
+}
+
+impl CaptureOptions {
+    /// The demo's preset: the whole cabinet captured (eta estimated,
+    /// interreflection corrected, 16 frames) with a 160 x 120 camera, 128
+    /// paths per pixel and 128 gather rays: about 10 s on a shared 2-core
+    /// machine for `deploy/scenes/showcase.toml`, where the default
+    /// settings (640 x 480, 256 paths) take minutes.
+    pub fn demo() -> Self {
+        Self {
+            camera_size: Some((160, 120)),
+            samples_per_pixel: 128,
+            gather_samples: 128,
+            ..Self::default()
+        }
+    }
+}
+
 /// `showcase-master capture --scene FILE --sim --out DIR`: capture the
-/// reflectance of `scene`'s real objects in the simulated showcase (16
-/// frames, eta estimated on the reference target, interreflection
-/// corrected), write the map `reflectance.{pfm,weight.pfm,json}` and
-/// `summary.json` into `out`. A scene without devices gets the default rig
-/// in front of its bounds.
+/// reflectance of `scene`'s real objects in the simulated showcase with
+/// [`CaptureOptions::default`]; see [`run_capture_with`].
 pub fn run_capture(scene: &Showcase, out: &Path) -> anyhow::Result<CaptureSummary> {
+    run_capture_with(scene, out, &CaptureOptions::default())
+}
+
+/// Capture the reflectance of `scene`'s real objects in the simulated
+/// showcase (projector 0, camera 0) with `opts`, write the map
+/// `reflectance.{pfm,weight.pfm,json}` and `summary.json` into `out`, and
+/// return the summary. A scene without devices gets the default rig in
+/// front of its bounds.
+pub fn run_capture_with(
+    scene: &Showcase,
+    out: &Path,
+    opts: &CaptureOptions,
+) -> anyhow::Result<CaptureSummary> {
+    let t0 = Instant::now();
+    let mut seconds = CaptureSeconds::default();
     let mut scene = scene.clone();
     if scene.cameras.is_empty() || scene.projectors.is_empty() {
         let geometry = showcase_render::light::SceneGeometry::build(
@@ -130,16 +226,55 @@ pub fn run_capture(scene: &Showcase, out: &Path) -> anyhow::Result<CaptureSummar
             true,
         );
     }
+    if let Some((w, h)) = opts.camera_size {
+        let camera = &mut scene.cameras[0];
+        camera.device = resize_device(&camera.device, w, h)?;
+    }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let config = CaptureConfig::default();
+    let config = CaptureConfig {
+        frames: opts.frames.max(1),
+        method: opts.method,
+        correction: CorrectionParams {
+            gather_samples: opts.gather_samples.max(1),
+            ..CorrectionParams::default()
+        },
+        reference_samples: opts.reference_samples.max(1),
+        ..CaptureConfig::default()
+    };
     let sim_config = SimConfig {
-        samples_per_pixel: 256,
+        samples_per_pixel: opts.samples_per_pixel.max(1),
         ..SimConfig::default()
     };
     let probe = SimShowcase::new(&scene, sim_config.clone())?;
     adjust_camera_gain(&mut scene, &probe)?;
     let sim = SimShowcase::new(&scene, sim_config)?;
-    let outcome = capture_reflectance(&scene, &sim, &config)?;
+    let response = &scene.projectors[0].response;
+    let (eta_true, black_true) = (response.eta as f64, response.black_level as f64);
+    let mut t = Instant::now();
+    let lap = |t: &mut Instant| {
+        let s = t.elapsed().as_secs_f64();
+        *t = Instant::now();
+        s
+    };
+    seconds.setup = t0.elapsed().as_secs_f64();
+    let (eta, black_level) = if opts.estimate_eta {
+        let fit = calibrate_reference(&scene, config.frames, config.reference_samples)?;
+        (fit.eta, fit.black_level)
+    } else {
+        (eta_true, black_true)
+    };
+    seconds.calibration = lap(&mut t);
+    warm_transport(&scene, &sim, &config)?;
+    seconds.light_transport = lap(&mut t);
+    let outcome = capture_map(
+        &scene,
+        &mut sim.projector(0)?,
+        &mut sim.camera(0)?,
+        eta,
+        black_level,
+        &config,
+    )?;
+    seconds.capture = lap(&mut t);
     let (truth, objects) = sim.ground_truth(0)?;
     let rel_rmse = showcase_render::light::metrics::relative_rmse(
         &outcome.reflectance,
@@ -150,22 +285,79 @@ pub fn run_capture(scene: &Showcase, out: &Path) -> anyhow::Result<CaptureSummar
     let visible = objects.data.iter().filter(|o| o.is_some()).count().max(1);
     let coverage = outcome.valid.data.iter().filter(|v| **v).count() as f64 / visible as f64;
     let mut files = write_reflectance_map(out, "reflectance", &outcome.map)?;
-    let summary = CaptureSummary {
+    files.push("summary.json".into());
+    let eta_rel_error = (eta - eta_true).abs() / eta_true;
+    let d = &scene.cameras[0].device;
+    let mut summary = CaptureSummary {
         scene: scene.name.clone(),
         method: config.method.name().into(),
         frames: config.frames,
+        camera_size: [d.width, d.height],
+        samples_per_pixel: opts.samples_per_pixel.max(1),
         eta: outcome.eta,
         black_level: outcome.black_level,
+        eta_rel_error: if eta_rel_error.is_finite() {
+            eta_rel_error
+        } else {
+            -1.0
+        },
         coverage,
         rel_rmse: if rel_rmse.is_finite() { rel_rmse } else { -1.0 },
-        files: {
-            files.push("summary.json".into());
-            files
-        },
+        seconds,
+        files,
     };
+    summary.seconds.output = lap(&mut t);
+    summary.seconds.total = t0.elapsed().as_secs_f64();
     std::fs::write(
         out.join("summary.json"),
         serde_json::to_string_pretty(&summary)?,
     )?;
     Ok(summary)
+}
+
+/// The same device seen at `width x height` pixels: pose, field of view
+/// and distortion kept, intrinsics scaled.
+pub fn resize_device(
+    device: &PinholeDevice,
+    width: u32,
+    height: u32,
+) -> anyhow::Result<PinholeDevice> {
+    anyhow::ensure!(
+        width > 0 && height > 0 && device.width > 0 && device.height > 0,
+        "cannot resize a {}x{} camera to {width}x{height}",
+        device.width,
+        device.height
+    );
+    let sx = width as f64 / device.width as f64;
+    let sy = height as f64 / device.height as f64;
+    let mut d = device.clone();
+    d.k = glam::DMat3::from_diagonal(DVec3::new(sx, sy, 1.0)) * device.k;
+    d.width = width;
+    d.height = height;
+    Ok(d)
+}
+
+/// Run the sim's light transport for the projector images a capture by
+/// `config.method` will show (so the capture's own time is measured
+/// apart): the white image for the naive and corrected methods; piecewise
+/// capture computes its pieces as it goes.
+fn warm_transport(
+    scene: &Showcase,
+    sim: &SimShowcase,
+    config: &CaptureConfig,
+) -> anyhow::Result<()> {
+    if config.method == Method::Piecewise {
+        return Ok(());
+    }
+    let mut projector = sim.projector(0)?;
+    let d = &scene.projectors[0].device;
+    projector.show(&showcase_render::light::Image::new(
+        d.width,
+        d.height,
+        glam::Vec3::ONE,
+    ))?;
+    for p in 0..scene.projectors.len() {
+        sim.transport(0, p)?;
+    }
+    Ok(())
 }

@@ -298,7 +298,6 @@ pub fn capture_map<P: Projector, C: Camera>(
                     &WholeCapture {
                         i_rad: &i_rad,
                         i_int: &intensity.intensity,
-                        rho: &rho,
                         valid: &valid,
                     },
                     &config.correction,

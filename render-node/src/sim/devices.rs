@@ -20,6 +20,10 @@
 //!
 //! Light transport is path traced once per shown projector image and
 //! camera, and cached; captures then only apply the wheel and the camera.
+//! A projector image whose brightest pixel emits a fraction `f` of the
+//! projector's full-white intensity is traced with `ceil(f * spp)` paths
+//! per pixel (at least 1): a projector showing black adds only its black
+//! level, whose noise is small even with one path.
 
 use super::world::{ProjectorLight, SimWorld, TransportImage, pixel_seed};
 use super::{Camera, Frame, Projector, SimError};
@@ -35,7 +39,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 /// Settings of a simulated showcase.
 #[derive(Clone, Debug)]
 pub struct SimConfig {
-    /// Paths per camera pixel for the light transport.
+    /// Paths per camera pixel for the light transport of a projector
+    /// showing full white (dimmer images get proportionally fewer, see the
+    /// module docs).
     pub samples_per_pixel: u32,
     /// Seed of every random choice (transport and camera noise).
     pub seed: u64,
@@ -198,6 +204,24 @@ impl Shared {
             Some(img) => img.map(|v| projector_intensity(&proj.response, *v)),
             None => Image::new(w, h, projector_intensity(&proj.response, Vec3::ZERO)),
         };
+        // A projector that shows only a fraction of its full-white light
+        // (black, or a dim image) adds little, so its noise stays small
+        // with proportionally fewer paths.
+        let peak = |img: &RgbImage| {
+            img.data
+                .iter()
+                .map(|v| v.max_element() as f64)
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max)
+        };
+        let full = projector_intensity(&proj.response, Vec3::ONE).max_element() as f64;
+        let fraction = if full > 0.0 {
+            (peak(&intensity) / full).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let samples = ((self.config.samples_per_pixel as f64 * fraction).ceil() as u32)
+            .clamp(1, self.config.samples_per_pixel.max(1));
         let light = ProjectorLight::new(rays, intensity)?;
         let seed = pixel_seed(
             self.config.seed,
@@ -206,7 +230,7 @@ impl Shared {
         let t = Arc::new(self.world.render(
             &DeviceRays::new(&cam.device)?,
             Some(&light),
-            self.config.samples_per_pixel,
+            samples,
             seed,
         ));
         state.cache.insert((camera, projector, version), t.clone());

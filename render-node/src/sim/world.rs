@@ -8,13 +8,14 @@
 //! true albedo of [`Material::albedo_at`]. Radiance leaving the pixel's
 //! point splits into
 //! - `emitted`: the emission `Ke` of the surface when its front faces the
-//!   camera;
+//!   camera and the world's emitters are on (with them off, a lamp is an
+//!   ordinary reflector: it neither glows nor lights anything);
 //! - `direct`: `rho / pi * E_direct`, the projector's point light evaluated
 //!   exactly (it is a delta light) plus emitters by next-event estimation
 //!   (uniform area sampling of emitter triangles, weighted by area times
 //!   peak radiance);
 //! - `indirect`: everything scattered at least once more, by cosine-weighted
-//!   path continuation with next-event estimation at every vertex and
+//!   path continuation (the first bounce stratified over the pixel's paths) with next-event estimation at every vertex and
 //!   Russian roulette after the third bounce. Emission found by a
 //!   continuation ray is not added (next-event estimation already counts
 //!   it), so the estimator is unbiased.
@@ -153,6 +154,10 @@ pub struct SimWorld {
     emitters: Vec<Emitter>,
     /// Cumulative selection weights of `emitters`, ending at 1.
     emitter_cdf: Vec<f64>,
+    /// Whether emitting surfaces glow at all: with the scene's lights off
+    /// an emitter is an ordinary reflector, seen and lighting nothing of
+    /// its own.
+    emitters_on: bool,
 }
 
 impl SimWorld {
@@ -199,6 +204,7 @@ impl SimWorld {
             materials,
             emitters: list,
             emitter_cdf,
+            emitters_on: emitters,
         })
     }
 
@@ -299,7 +305,7 @@ impl SimWorld {
             return [DVec3::ZERO; 3];
         };
         let material = &self.materials[hit.object as usize];
-        let emitted = if hit.front_face {
+        let emitted = if hit.front_face && self.emitters_on {
             finite(material.emission.as_dvec3().max(DVec3::ZERO))
         } else {
             DVec3::ZERO
@@ -311,9 +317,23 @@ impl SimWorld {
         let mut emitter_direct = DVec3::ZERO;
         let mut indirect = DVec3::ZERO;
         if rho != DVec3::ZERO {
-            for _ in 0..spp {
+            // The first bounce, which carries most of the indirect light,
+            // is stratified: an n x n jittered grid over the cosine
+            // hemisphere's unit square (n = floor(sqrt(spp))), the paths
+            // past n^2 unstratified.
+            let n = (spp as f64).sqrt().floor().max(1.0) as u32;
+            for s in 0..spp {
                 emitter_direct += self.sample_emitters(hit.point, &frame, rng);
-                indirect += self.trace_path(hit.point, frame, rho, projector, rng);
+                let (j1, j2): (f64, f64) = (rng.random(), rng.random());
+                let first = if s < n * n {
+                    (
+                        (f64::from(s % n) + j1) / f64::from(n),
+                        (f64::from(s / n) + j2) / f64::from(n),
+                    )
+                } else {
+                    (j1, j2)
+                };
+                indirect += self.trace_path(hit.point, frame, rho, projector, first, rng);
             }
         }
         direct += emitter_direct / spp as f64;
@@ -325,19 +345,26 @@ impl SimWorld {
     }
 
     /// One continuation path from a surface point: the radiance it brings
-    /// back, already multiplied by the first point's albedo `beta`.
+    /// back, already multiplied by the first point's albedo `beta`. `first`
+    /// is the point of the unit square that picks the first direction.
     fn trace_path(
         &self,
         start: DVec3,
         start_frame: SurfaceFrame,
         mut beta: DVec3,
         projector: Option<&ProjectorLight>,
+        first: (f64, f64),
         rng: &mut ChaCha8Rng,
     ) -> DVec3 {
         let mut sum = DVec3::ZERO;
         let (mut point, mut frame) = (start, start_frame);
         for depth in 1..=MAX_DEPTH {
-            let dir = cosine_sample(frame.shading, rng);
+            let u = if depth == 1 {
+                first
+            } else {
+                (rng.random(), rng.random())
+            };
+            let dir = cosine_direction(frame.shading, u);
             if !(dir.dot(frame.facing) > 0.0) {
                 break;
             }
@@ -437,9 +464,9 @@ impl SurfaceFrame {
     }
 }
 
-/// A cosine-weighted direction around unit `n`.
-fn cosine_sample(n: DVec3, rng: &mut ChaCha8Rng) -> DVec3 {
-    let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+/// The cosine-weighted direction around unit `n` that the point
+/// `(u1, u2)` of the unit square maps to.
+fn cosine_direction(n: DVec3, (u1, u2): (f64, f64)) -> DVec3 {
     let r = u1.sqrt();
     let phi = std::f64::consts::TAU * u2;
     let (t, b) = n.any_orthonormal_pair();
