@@ -172,14 +172,14 @@ impl Default for CaptureOptions {
 
 impl CaptureOptions {
     /// The demo's preset: the whole cabinet captured (eta estimated,
-    /// interreflection corrected, 16 frames) with a 160 x 120 camera, 128
-    /// paths per pixel and 128 gather rays: about 10 s on a shared 2-core
-    /// machine for `deploy/scenes/showcase.toml`, where the default
-    /// settings (640 x 480, 256 paths) take minutes.
+    /// interreflection corrected, 16 frames) with a 160 x 120 camera, 256
+    /// paths per pixel and 128 gather rays: seconds on a 2-core machine
+    /// for `deploy/scenes/showcase.toml`, where the default settings
+    /// (640 x 480) take minutes.
     pub fn demo() -> Self {
         Self {
             camera_size: Some((160, 120)),
-            samples_per_pixel: 128,
+            samples_per_pixel: 256,
             gather_samples: 128,
             ..Self::default()
         }
