@@ -385,7 +385,7 @@ fn rendering_stage(
             nodes.push((format!("{} (pixel values)", p.name), file));
         }
         let mut rows = Vec::new();
-        for o in 0..observers {
+        for (o, seen) in per_observer.iter_mut().enumerate() {
             let r = views::observe(&truth, state, &outputs, o)?;
             let name = &truth.observers[o].name;
             let mut images = Vec::new();
@@ -415,11 +415,10 @@ fn rendering_stage(
                 images,
             });
             all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            per_observer[o]
-                .0
+            seen.0
                 .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            per_observer[o].1 = per_observer[o].1.max(r.rel_rmse);
-            per_observer[o].2 = per_observer[o].2.min(r.reachable_fraction);
+            seen.1 = seen.1.max(r.rel_rmse);
+            seen.2 = seen.2.min(r.reachable_fraction);
         }
         for (observer, [left, right]) in &outputs.faces {
             let face = calibrated

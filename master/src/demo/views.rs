@@ -64,7 +64,7 @@ pub(super) use showcase_render::node::observer_in_front as face_observer;
 /// What renders the outputs.
 pub(super) enum Backend {
     /// The nodes' wgpu renderers.
-    Gpu(GpuContext),
+    Gpu(Box<GpuContext>),
     /// The CPU references, because no adapter opened (the reason).
     Cpu(String),
 }
@@ -72,7 +72,7 @@ pub(super) enum Backend {
 impl Backend {
     pub(super) fn open() -> Self {
         match GpuContext::new_headless() {
-            Ok(ctx) => Self::Gpu(ctx),
+            Ok(ctx) => Self::Gpu(Box::new(ctx)),
             Err(e) => Self::Cpu(e.to_string()),
         }
     }

@@ -29,8 +29,8 @@ pub fn observer_in_front(scene: &Showcase, face: usize) -> Option<usize> {
 
 enum Inner {
     None,
-    Projector(ProjectorRenderer),
-    Face(FaceRenderer),
+    Projector(Box<ProjectorRenderer>),
+    Face(Box<FaceRenderer>),
 }
 
 /// Renders the output called `output` in role `role` of whatever scene the
@@ -102,11 +102,11 @@ impl Renderer for OutputRenderer {
                             scene.projectors.iter().map(|p| &p.name).collect::<Vec<_>>()
                         ))
                     })?;
-                Inner::Projector(ProjectorRenderer::new(
+                Inner::Projector(Box::new(ProjectorRenderer::new(
                     self.context(),
                     index,
                     self.shadow_res,
-                ))
+                )))
             }
             _ => {
                 let index = scene
@@ -126,12 +126,12 @@ impl Renderer for OutputRenderer {
                         self.output
                     ))
                 })?;
-                Inner::Face(FaceRenderer::new(
+                Inner::Face(Box::new(FaceRenderer::new(
                     self.context(),
                     index,
                     observer,
                     self.shadow_res,
-                ))
+                )))
             }
         };
         self.inner = inner;
