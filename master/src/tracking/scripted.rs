@@ -47,20 +47,7 @@ fn body_block(id: u32, quality: f64, position: DVec3, rotation: DMat3) -> String
 /// (quality -1) for half a second every 10 s, as happens in practice.
 pub fn walk_datagram(frame: u64, t: f64) -> String {
     let centre = DVec3::new(0.0, 0.15, 0.0);
-    let a = std::f64::consts::FRAC_PI_2 + 0.4 * (0.35 * t).sin();
-    let alice = DVec3::new(
-        1.0 * a.cos(),
-        0.45 + 0.02 * (TAU * 0.9 * t).sin(),
-        1.0 * a.sin(),
-    );
-    let b = 0.4 * (0.3 * t + 0.5).sin();
-    let bob = DVec3::new(
-        1.2 * b.cos(),
-        0.40 + 0.02 * (TAU * 1.1 * t).sin(),
-        1.2 * b.sin(),
-    );
-    let l = 0.6 * t;
-    let light = DVec3::new(0.25 * l.cos(), 0.5, 0.25 * l.sin());
+    let [alice, bob, light] = walk_positions(t);
     let bob_tracked = (t % 10.0) < 9.5;
     let blocks = [
         body_block(FIRST_HEAD_BODY, 1.0, alice, look_rotation(alice, centre)),
@@ -76,6 +63,26 @@ pub fn walk_datagram(frame: u64, t: f64) -> String {
         "fr {frame}\r\nts {t:.6}\r\n6dcal 3\r\n6d 3 {}\r\n",
         blocks.join("")
     )
+}
+
+/// Where the walk puts the first observer's head, the second's and the
+/// light at `t` seconds (metres; see [`walk_datagram`]).
+pub fn walk_positions(t: f64) -> [DVec3; 3] {
+    let a = std::f64::consts::FRAC_PI_2 + 0.4 * (0.35 * t).sin();
+    let alice = DVec3::new(
+        1.0 * a.cos(),
+        0.45 + 0.02 * (TAU * 0.9 * t).sin(),
+        1.0 * a.sin(),
+    );
+    let b = 0.4 * (0.3 * t + 0.5).sin();
+    let bob = DVec3::new(
+        1.2 * b.cos(),
+        0.40 + 0.02 * (TAU * 1.1 * t).sin(),
+        1.2 * b.sin(),
+    );
+    let l = 0.6 * t;
+    let light = DVec3::new(0.25 * l.cos(), 0.5, 0.25 * l.sin());
+    [alice, bob, light]
 }
 
 #[cfg(test)]

@@ -195,7 +195,7 @@ pub fn initial_frame(scene: &Showcase, frame: u64, time_s: f64, version: u64) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracking::scripted::{look_rotation, walk_datagram};
+    use crate::tracking::scripted::{look_rotation, walk_datagram, walk_positions};
     use glam::Vec3;
     use showcase_proto::config::{BodyMapping, TrackingSource};
     use showcase_proto::{LightSource, Observer};
@@ -251,8 +251,7 @@ mod tests {
         }
         tr.apply(2.0, &s, &mut frame);
         let t: f64 = 119.0 / 60.0;
-        let a = 0.15 * t;
-        let expect = Vec3::new(a.cos() as f32, 0.0, a.sin() as f32);
+        let expect = walk_positions(t)[0].as_vec3();
         let h = frame.heads[0];
         assert!((h.position.x - expect.x).abs() < 1e-5 && (h.position.z - expect.z).abs() < 1e-5);
         // The head looks along its local -z at the cabinet.
@@ -277,8 +276,8 @@ mod tests {
         let mut f = initial_frame(&s, 0, 0.0, 1);
         tr.apply(9.6, &s, &mut f);
         let held = f.heads[1].position;
-        let b = -0.11 * 9.49 + 2.0f64;
-        assert!((held.x as f64 - 1.2 * b.cos()).abs() < 1e-5, "{held}");
+        let expect = walk_positions(9.49)[1];
+        assert!((held.x as f64 - expect.x).abs() < 1e-5, "{held}");
         // A teleport by 2 m in 10 ms is rejected; the pose stays.
         let far = DVec3::new(3.0, 0.4, 0.0);
         let rot = look_rotation(far, DVec3::ZERO).to_cols_array();
