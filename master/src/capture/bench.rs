@@ -85,7 +85,7 @@ impl Default for BenchOptions {
             noise: true,
             methods: vec![Method::Naive, Method::Piecewise, Method::Corrected],
             gather_samples: 1024,
-            piece_tiles: 4,
+            piece_tiles: CaptureConfig::default().piece_tiles,
             piece_dilate_px: 1,
         }
     }
