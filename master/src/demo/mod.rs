@@ -245,13 +245,20 @@ fn radiosity_stage(out: &Path) -> Result<StageOutcome> {
     );
     Ok(StageOutcome {
         detail: format!(
-            "figure 3: {} patches, {} elements, {} shots to {:.3} unshot; B3-B0 deviation {:?}; projector clipped fractions {:?}; solution and irradiance maps in {} ; through the simulated projectors and the sim's interreflection, B against B0: rel RMSE {:.3} with the paper's B1, {:.3} with a one-bounce B1)",
+            "figure 3: {} patches, {} elements, {} shots to {:.3} unshot; B3-B0 deviation per channel {}; projector clipped fractions {}; solution and irradiance maps in {}; through the simulated projectors and the sim's interreflection, B against B0: rel RMSE {:.3} with the paper's B1, {:.3} with a one-bounce B1",
             s.patches,
             s.elements,
             s.shots,
             s.unshot_fraction,
-            s.b3_b0_deviation_rgb,
-            s.clipped_fractions,
+            s.b3_b0_deviation_rgb.map_or("n/a".to_string(), |d| format!(
+                "{:.3}/{:.3}/{:.3}",
+                d[0], d[1], d[2]
+            )),
+            s.clipped_fractions
+                .iter()
+                .map(|c| format!("{c:.3}"))
+                .collect::<Vec<_>>()
+                .join(", "),
             dir.display(),
             paper.unwrap_or(f64::NAN),
             one_bounce.unwrap_or(f64::NAN),
