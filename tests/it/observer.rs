@@ -135,11 +135,7 @@ fn a_node_renders_its_named_output() -> anyhow::Result<()> {
     let Some(ctx) = crate::gpu::gpu_or_skip("a_node_renders_its_named_output")? else {
         return Ok(());
     };
-    let share = || showcase_render::gpu::GpuContext {
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        adapter_info: ctx.adapter_info.clone(),
-    };
+    let share = || ctx.clone();
     let frame = showcase_master::tracking::initial_frame(&scene, 3, 0.05, 7);
     let mut node = OutputRenderer::new(share(), "projector-1", Role::Projector, 128)?;
     node.set_scene(7, scene.clone())?;

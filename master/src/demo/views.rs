@@ -85,14 +85,6 @@ impl Backend {
     }
 }
 
-fn share(ctx: &GpuContext) -> GpuContext {
-    GpuContext {
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        adapter_info: ctx.adapter_info.clone(),
-    }
-}
-
 /// The render nodes' outputs for one frame.
 pub(super) struct Outputs {
     /// Per projector: pixel values in `0..=1`.
@@ -131,7 +123,7 @@ impl NodeRenderers {
             Backend::Gpu(ctx) => {
                 let mut projectors = Vec::new();
                 for i in 0..scene.projectors.len() {
-                    let mut r = ProjectorRenderer::new(share(ctx), i, SHADOW_RES);
+                    let mut r = ProjectorRenderer::new((**ctx).clone(), i, SHADOW_RES);
                     r.set_scene(VERSION, scene.clone())?;
                     projectors.push(r);
                 }
@@ -140,7 +132,7 @@ impl NodeRenderers {
                     let Some(observer) = face_observer(&scene, f) else {
                         continue;
                     };
-                    let mut r = FaceRenderer::new(share(ctx), f, observer, SHADOW_RES);
+                    let mut r = FaceRenderer::new((**ctx).clone(), f, observer, SHADOW_RES);
                     r.set_scene(VERSION, scene.clone())?;
                     faces.push((observer, r));
                 }

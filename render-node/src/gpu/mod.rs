@@ -74,8 +74,9 @@ pub enum GpuError {
     Scene(#[from] SceneError),
 }
 
-/// An open wgpu device with its queue, and what the adapter is.
-#[derive(Debug)]
+/// An open wgpu device with its queue, and what the adapter is. Cloning
+/// shares the device (wgpu handles are reference-counted).
+#[derive(Clone, Debug)]
 pub struct GpuContext {
     /// The logical device.
     pub device: wgpu::Device,

@@ -77,14 +77,6 @@ impl OutputRenderer {
             inner: Inner::None,
         })
     }
-
-    fn context(&self) -> GpuContext {
-        GpuContext {
-            device: self.ctx.device.clone(),
-            queue: self.ctx.queue.clone(),
-            adapter_info: self.ctx.adapter_info.clone(),
-        }
-    }
 }
 
 impl Renderer for OutputRenderer {
@@ -103,7 +95,7 @@ impl Renderer for OutputRenderer {
                         ))
                     })?;
                 Inner::Projector(Box::new(ProjectorRenderer::new(
-                    self.context(),
+                    self.ctx.clone(),
                     index,
                     self.shadow_res,
                 )))
@@ -127,7 +119,7 @@ impl Renderer for OutputRenderer {
                     ))
                 })?;
                 Inner::Face(Box::new(FaceRenderer::new(
-                    self.context(),
+                    self.ctx.clone(),
                     index,
                     observer,
                     self.shadow_res,
