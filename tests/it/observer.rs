@@ -10,20 +10,34 @@ use showcase_render::light::{Image, metrics::relative_rmse};
 use showcase_render::observer_view::{ObserverView, ProjectedLight, observer_view};
 use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 
+/// The demo cabinet with its projectors at `1 / projector_divisor` of
+/// their width and height and its faces at `1 / face_divisor`.
+fn cabinet_at(projector_divisor: u32, face_divisor: u32) -> Showcase {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
+    let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
+    for p in &mut s.projectors {
+        let d = &p.device;
+        p.device = showcase_master::capture::resize_device(
+            d,
+            d.width / projector_divisor,
+            d.height / projector_divisor,
+        )
+        .unwrap();
+    }
+    for f in &mut s.faces {
+        f.width /= face_divisor;
+        f.height /= face_divisor;
+    }
+    s
+}
+
 /// The demo cabinet's real objects and lamp (virtual objects removed, so
 /// that what the eye sees of the real room is the whole target), with its
 /// projectors at a quarter of their pixels.
 fn real_cabinet() -> Showcase {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
-    let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
+    let mut s = cabinet_at(2, 1);
     s.objects.retain(|o| o.kind == ObjectKind::Real);
-    for p in &mut s.projectors {
-        let d = &mut p.device;
-        d.k = glam::DMat3::from_diagonal(DVec3::new(0.5, 0.5, 1.0)) * d.k;
-        d.width /= 2;
-        d.height /= 2;
-    }
     s
 }
 
@@ -99,22 +113,10 @@ fn blended_projectors_deliver_the_target_once() {
     assert!(e > 0.3, "unblended projectors pass ({e})");
 }
 
-/// The demo cabinet, whole, with its devices at a quarter of their pixels.
+/// The demo cabinet, whole, with its projectors at a sixteenth of their
+/// pixels and its faces at a sixty-fourth.
 fn cabinet() -> Showcase {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
-    let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
-    for p in &mut s.projectors {
-        let d = &mut p.device;
-        d.k = glam::DMat3::from_diagonal(DVec3::new(0.25, 0.25, 1.0)) * d.k;
-        d.width /= 4;
-        d.height /= 4;
-    }
-    for f in &mut s.faces {
-        f.width /= 8;
-        f.height /= 8;
-    }
-    s
+    cabinet_at(4, 8)
 }
 
 /// A node's renderer finds its output by name in each snapshot and draws

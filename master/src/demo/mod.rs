@@ -349,8 +349,8 @@ fn rendering_stage(
     use showcase_proto::config::TrackingSource;
 
     let frames = rendered_frames(args.frames);
-    let truth = views::at_demo_resolution(truth);
-    let calibrated = std::sync::Arc::new(views::at_demo_resolution(calibrated));
+    let truth = views::at_demo_resolution(truth)?;
+    let calibrated = std::sync::Arc::new(views::at_demo_resolution(calibrated)?);
     // The frame states the cluster sent: the same scripted walk, replayed.
     let tracker =
         crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;

@@ -37,7 +37,7 @@ pub(super) const SHADOW_RES: u32 = 512;
 
 /// `scene` with its projectors and cameras scaled by `PROJECTOR_SCALE` (the
 /// same view, fewer pixels) and its faces at `FACE_SIZE`.
-pub(super) fn at_demo_resolution(scene: &Showcase) -> Showcase {
+pub(super) fn at_demo_resolution(scene: &Showcase) -> Result<Showcase> {
     let mut s = scene.clone();
     let devices = s
         .projectors
@@ -47,16 +47,12 @@ pub(super) fn at_demo_resolution(scene: &Showcase) -> Showcase {
     for d in devices {
         let w = ((d.width as f64 * PROJECTOR_SCALE).round() as u32).max(1);
         let h = ((d.height as f64 * PROJECTOR_SCALE).round() as u32).max(1);
-        let (sx, sy) = (w as f64 / d.width as f64, h as f64 / d.height as f64);
-        let scale = glam::DMat3::from_diagonal(DVec3::new(sx, sy, 1.0));
-        d.k = scale * d.k;
-        d.width = w;
-        d.height = h;
+        *d = crate::capture::resize_device(d, w, h)?;
     }
     for f in &mut s.faces {
         (f.width, f.height) = FACE_SIZE;
     }
-    s
+    Ok(s)
 }
 
 pub(super) use showcase_render::node::observer_in_front as face_observer;

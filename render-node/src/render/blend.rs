@@ -37,6 +37,14 @@ pub struct Blend {
     projectors: Vec<DeviceRays>,
 }
 
+/// The index of `projector` among `projectors` (same name and device):
+/// which one's share a map takes; `None` for a projector not among them.
+pub fn index_of(projectors: &[Projector], projector: &Projector) -> Option<usize> {
+    projectors
+        .iter()
+        .position(|p| p.name == projector.name && p.device == projector.device)
+}
+
 impl Blend {
     /// Set up the blend between `projectors`.
     pub fn new(projectors: &[Projector]) -> Result<Self, RenderSetupError> {

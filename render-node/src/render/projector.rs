@@ -228,12 +228,7 @@ pub fn irradiance_map_cpu(
         };
         &unshadowed
     };
-    let blend = match frame
-        .showcase
-        .projectors
-        .iter()
-        .position(|p| p.name == projector.name && p.device == projector.device)
-    {
+    let blend = match super::blend::index_of(&frame.showcase.projectors, projector) {
         Some(i) if options.blend && frame.showcase.projectors.len() > 1 => {
             Some((Blend::new(&frame.showcase.projectors)?, i))
         }

@@ -254,9 +254,7 @@ impl BlendTexture {
 fn blend_key(frame: &FrameScene, projector: &Projector) -> BlendKey {
     let projectors = &frame.showcase.projectors;
     BlendKey {
-        projector: projectors
-            .iter()
-            .position(|p| p.name == projector.name && p.device == projector.device),
+        projector: super::blend::index_of(projectors, projector),
         projectors: projectors.iter().map(|p| p.device.clone()).collect(),
         real: frame
             .showcase
