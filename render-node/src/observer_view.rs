@@ -67,6 +67,10 @@ pub struct ObserverView {
     pub target: RgbImage,
     /// Pixels where the eye sees some object (real or virtual).
     pub covered: Image<bool>,
+    /// Pixels whose centre ray meets a virtual object first (the CRT
+    /// image must show it; the projectors must leave the real surface
+    /// behind it dark).
+    pub sees_virtual: Image<bool>,
     /// Pixels whose first real surface some projector reaches (the
     /// projectors can light only these).
     pub reachable: Image<bool>,
@@ -177,12 +181,20 @@ pub fn observer_view(
         reflected: Image::new(w, h, Vec3::ZERO),
         target: Image::new(w, h, Vec3::ZERO),
         covered: Image::new(w, h, false),
+        sees_virtual: Image::new(w, h, false),
         edge: Image::new(w, h, false),
         reachable: Image::new(w, h, false),
     };
     let mut keys = Image::new(w, h, None);
     for (i, ([real, reflected, target], key, reachable)) in pixels.into_iter().enumerate() {
         keys.data[i] = key;
+        view.sees_virtual.data[i] = key.is_some_and(|(object, _, _)| {
+            frame
+                .showcase
+                .objects
+                .get(object as usize)
+                .is_some_and(|o| o.kind == ObjectKind::Virtual)
+        });
         view.reachable.data[i] = reachable;
         view.real.data[i] = real;
         view.reflected.data[i] = reflected;

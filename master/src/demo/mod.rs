@@ -373,7 +373,7 @@ fn rendering_stage(
     );
     let observers = truth.observers.len();
     let mut all_de = Vec::new();
-    let mut per_observer: Vec<(Vec<f64>, f64, f64)> = vec![(Vec::new(), 0.0, 1.0); observers];
+    let mut per_observer: Vec<Seen> = vec![Seen::default(); observers];
     let mut render_s = Vec::new();
     let pb = progress("rendering", Some(states.len() as u64));
     for state in &states {
@@ -422,10 +422,7 @@ fn rendering_stage(
                 images,
             });
             all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            seen.0
-                .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            seen.1 = seen.1.max(r.rel_rmse);
-            seen.2 = seen.2.min(r.reachable_fraction);
+            seen.add(&r);
         }
         for (observer, [left, right]) in &outputs.faces {
             let face = calibrated
@@ -453,7 +450,7 @@ fn rendering_stage(
     let p95 = views::quantile(&all_de, 0.95);
     figures.insert("delta_e2000_median".into(), serde_json::json!(median));
     figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
-    let worst = per_observer.iter().map(|p| p.1).fold(0.0f64, f64::max);
+    let worst = per_observer.iter().map(|p| p.rel).fold(0.0f64, f64::max);
     figures.insert(
         "interactive_consistency_rel_rmse".into(),
         serde_json::json!(worst),
@@ -464,12 +461,14 @@ fn rendering_stage(
             per_observer
                 .iter()
                 .enumerate()
-                .map(|(o, (de, rel, reach))| serde_json::json!({
+                .map(|(o, seen)| serde_json::json!({
                     "observer": truth.observers[o].name,
-                    "delta_e2000_median": views::quantile(de, 0.5),
-                    "delta_e2000_p95": views::quantile(de, 0.95),
-                    "consistency_rel_rmse": rel,
-                "projector_reach_fraction": reach,
+                    "delta_e2000_median": views::quantile(&seen.delta_e, 0.5),
+                    "delta_e2000_p95": views::quantile(&seen.delta_e, 0.95),
+                    "consistency_rel_rmse": seen.rel,
+                    "consistency_rel_rmse_real": seen.rel_real,
+                    "consistency_rel_rmse_virtual": seen.rel_virtual,
+                    "projector_reach_fraction": seen.reach,
                 }))
                 .collect::<Vec<_>>()
         ),
@@ -645,4 +644,42 @@ fn html_escape(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
+}
+
+/// What one observer saw over the rendered frames: every CIEDE2000 value
+/// and the worst of each figure.
+#[derive(Clone, Debug)]
+struct Seen {
+    delta_e: Vec<f64>,
+    rel: f64,
+    rel_real: Option<f64>,
+    rel_virtual: Option<f64>,
+    reach: f64,
+}
+
+impl Default for Seen {
+    fn default() -> Self {
+        Self {
+            delta_e: Vec::new(),
+            rel: 0.0,
+            rel_real: None,
+            rel_virtual: None,
+            reach: 1.0,
+        }
+    }
+}
+
+impl Seen {
+    fn add(&mut self, r: &views::ObserverResult) {
+        let worst = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        };
+        self.delta_e
+            .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+        self.rel = self.rel.max(r.rel_rmse);
+        self.rel_real = worst(self.rel_real, r.rel_rmse_real);
+        self.rel_virtual = worst(self.rel_virtual, r.rel_rmse_virtual);
+        self.reach = self.reach.min(r.reachable_fraction);
+    }
 }

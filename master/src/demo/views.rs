@@ -239,6 +239,12 @@ pub(super) struct ObserverResult {
     /// Relative RMSE of composite against target over covered pixels off
     /// the edges whose real surface some projector reaches.
     pub rel_rmse: f64,
+    /// [`Self::rel_rmse`] over the pixels that show a real surface (the
+    /// projectors' share) and over those that show a virtual object (the
+    /// CRT image's share; `None` when none is compared).
+    pub rel_rmse_real: Option<f64>,
+    /// See [`Self::rel_rmse_real`].
+    pub rel_rmse_virtual: Option<f64>,
     /// Covered pixels whose real surface some projector reaches, over
     /// covered pixels.
     pub reachable_fraction: f64,
@@ -323,11 +329,27 @@ pub(super) fn observe(
         .count();
     let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
         .with_context(|| format!("observer {observer} at frame {}", state.frame))?;
+    let part = |virtual_: bool| {
+        let part = Image {
+            width: mask.width,
+            height: mask.height,
+            data: mask
+                .data
+                .iter()
+                .zip(&view.sees_virtual.data)
+                .map(|(m, v)| *m && *v == virtual_)
+                .collect(),
+        };
+        metrics::relative_rmse(&view.composite, &view.target, Some(&part)).ok()
+    };
+    let (rel_rmse_real, rel_rmse_virtual) = (part(false), part(true));
     Ok(ObserverResult {
         view,
         exposure,
         delta_e,
         rel_rmse,
+        rel_rmse_real,
+        rel_rmse_virtual,
         reachable_fraction: reachable as f64 / covered.max(1) as f64,
     })
 }
