@@ -13,6 +13,7 @@ pub mod bench;
 pub mod blend;
 pub mod compare;
 pub mod consistency;
+pub mod cube_map;
 pub mod face;
 pub mod face_gpu;
 pub mod frame;

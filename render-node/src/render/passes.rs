@@ -25,6 +25,9 @@ pub enum Pass {
     EyeShadowViews,
     /// The irradiance map with device compensation.
     IrradianceMap,
+    /// Cube maps of the real environment around each reflective virtual
+    /// object (face role, paper section 5.3).
+    CubeMaps,
     /// A face role eye view (phantom depth, shaded virtual objects).
     FaceView,
 }
@@ -36,6 +39,7 @@ impl Pass {
             Pass::LightShadowViews => "light_shadow_views",
             Pass::EyeShadowViews => "eye_shadow_views",
             Pass::IrradianceMap => "irradiance_map",
+            Pass::CubeMaps => "cube_maps",
             Pass::FaceView => "face_view",
         }
     }
@@ -68,7 +72,12 @@ impl PassList {
     /// Every face pass.
     pub fn full_face() -> Self {
         Self {
-            passes: vec![Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+            passes: vec![
+                Pass::LightShadowViews,
+                Pass::EyeShadowViews,
+                Pass::CubeMaps,
+                Pass::FaceView,
+            ],
         }
     }
 
@@ -76,7 +85,9 @@ impl PassList {
     /// occluder can be lit and a virtual object is there (to be shaded, or
     /// to cast the occlusion shadows that phantoms are filled in for); the
     /// other observers' eye views (occluding occlusion shadows) only with
-    /// another observer (`other_eyes > 0`) and a virtual object.
+    /// another observer (`other_eyes > 0`) and a virtual object; the cube
+    /// maps only when a reflective virtual object with geometry exists
+    /// (without one the pass draws nothing any fragment reads).
     pub fn for_face(frame: &FrameScene, other_eyes: usize) -> Self {
         let has_virtual = frame
             .showcase
@@ -89,6 +100,9 @@ impl PassList {
         }
         if has_virtual && other_eyes > 0 {
             passes.push(Pass::EyeShadowViews);
+        }
+        if !super::cube_map::reflective_centres(frame).is_empty() {
+            passes.push(Pass::CubeMaps);
         }
         passes.push(Pass::FaceView);
         Self { passes }
