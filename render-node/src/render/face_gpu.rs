@@ -246,6 +246,7 @@ impl FacePipeline {
         content.write(bytemuck::cast_slice(&lights));
         content.write(bytemuck::cast_slice(&views[light_layers.start as usize..light_layers.end as usize]));
         let cube_centres: Vec<glam::Vec3> = centres.iter().map(|(_, c)| c.as_vec3()).collect();
+        self.cubes.reserve(device, centres.len())?;
         let draw_cubes = cubes
             && self.cubes.prepare(
                 device,

@@ -337,6 +337,18 @@ impl CubeMapFrames {
         self.maps.as_ref()
     }
 
+    /// Make room for `maps` maps (at least one layer, so that the face
+    /// view's binding exists when no map is drawn).
+    pub fn reserve(&mut self, device: &wgpu::Device, maps: usize) -> Result<(), GpuError> {
+        let layers = (maps * 6).max(1) as u32;
+        if self.maps.as_ref().is_none_or(|m| m.layers() < layers) {
+            self.maps = Some(CubeMaps::new(device, self.res, layers.div_ceil(6))?);
+            self.generation += 1;
+            self.key = None;
+        }
+        Ok(())
+    }
+
     /// Make room for one map per centre and upload each layer's uniform
     /// (`base` with that face's view and the centre as its eye) when the
     /// key of (`content`, `base`, `centres`) differs from the drawn one.
@@ -350,12 +362,7 @@ impl CubeMapFrames {
         far: f32,
         content: u64,
     ) -> Result<bool, GpuError> {
-        let layers = (centres.len() * 6).max(1) as u32;
-        if self.maps.as_ref().is_none_or(|m| m.layers() < layers) {
-            self.maps = Some(CubeMaps::new(device, self.res, layers.div_ceil(6))?);
-            self.generation += 1;
-            self.key = None;
-        }
+        self.reserve(device, centres.len())?;
         let mut h = Fnv64::default();
         h.write(&content.to_le_bytes());
         h.write(bytemuck::bytes_of(base));
