@@ -27,9 +27,7 @@ use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::mirror_view::FaceView;
-use crate::node::renderer::{
-    Fnv64, OutputImage, RenderError, RenderOutput, Renderer, hash_pixels,
-};
+use crate::node::renderer::{Fnv64, OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
 
 /// Near and far clip distances of face views (metres along the screen normal).
 pub const FACE_NEAR: f64 = 0.01;
@@ -194,7 +192,10 @@ impl FacePipeline {
             let o = &frame.showcase.objects[*oi];
             // w: 1 + the object's cube map, 0 for none (face_view.wgsl).
             let map = centres.iter().position(|(c, _)| c == oi);
-            let a = o.material.albedo.extend(map.map_or(0.0, |k| k as f32 + 1.0));
+            let a = o
+                .material
+                .albedo
+                .extend(map.map_or(0.0, |k| k as f32 + 1.0));
             let a = a.to_array();
             match o.kind {
                 ObjectKind::Real => {
@@ -244,7 +245,9 @@ impl FacePipeline {
         let mut content = Fnv64::default();
         content.write(&self.scene.geometry(VertexSet::All).to_le_bytes());
         content.write(bytemuck::cast_slice(&lights));
-        content.write(bytemuck::cast_slice(&views[light_layers.start as usize..light_layers.end as usize]));
+        content.write(bytemuck::cast_slice(
+            &views[light_layers.start as usize..light_layers.end as usize],
+        ));
         let cube_centres: Vec<glam::Vec3> = centres.iter().map(|(_, c)| c.as_vec3()).collect();
         self.cubes.reserve(device, centres.len())?;
         let draw_cubes = cubes

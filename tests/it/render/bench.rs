@@ -66,13 +66,16 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
     };
     ensure!(
         face("full").passes_run
-            == ["light_shadow_views", "eye_shadow_views", "cube_maps", "face_view"],
+            == [
+                "light_shadow_views",
+                "eye_shadow_views",
+                "cube_maps",
+                "face_view"
+            ],
         "{:?}",
         face("full").passes_run
     );
-    ensure!(
-        face("single_observer").passes_run == ["light_shadow_views", "cube_maps", "face_view"]
-    );
+    ensure!(face("single_observer").passes_run == ["light_shadow_views", "cube_maps", "face_view"]);
     // The sphere is reflective only in the full scene.
     ensure!(
         face("no_reflective").passes_run == ["light_shadow_views", "eye_shadow_views", "face_view"],

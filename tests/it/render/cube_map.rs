@@ -12,7 +12,9 @@ use glam::{DVec2, DVec3, Quat, Vec3};
 use showcase_proto::{CrtFace, Material, Mesh, Object, ObjectKind, Showcase, Transform};
 use showcase_render::light::metrics::relative_rmse;
 use showcase_render::light::{Image, Ray};
-use showcase_render::render::bench::{bench_face, bench_frame, bench_light, uv_sphere, variant_scene};
+use showcase_render::render::bench::{
+    bench_face, bench_frame, bench_light, uv_sphere, variant_scene,
+};
 use showcase_render::render::compare::EDGE_RADIUS_PX;
 use showcase_render::render::cube_map::{
     CUBE_FACES, cube_map_cpu, cube_maps_cpu, reflect, reflective_centres, texel_direction,
@@ -201,13 +203,20 @@ fn a_flat_mirror_shows_the_analytic_mirror_image_of_the_wall() -> Result<()> {
         Ok(())
     };
     check("cpu", &|i| cpu.radiance.data[i].as_dvec3())?;
-    let Some(ctx) = gpu_or_skip("a_flat_mirror_shows_the_analytic_mirror_image_of_the_wall")? else {
+    let Some(ctx) = gpu_or_skip("a_flat_mirror_shows_the_analytic_mirror_image_of_the_wall")?
+    else {
         return Ok(());
     };
     let passes = PassList::for_face(&frame, 0);
     ensure!(passes.runs(Pass::CubeMaps), "{passes:?}");
-    let gpu = FacePipeline::with_cube_res(&ctx.device, 512, 128)
-        .render(&ctx, &frame, &face, &[EYE], &[], &passes)?;
+    let gpu = FacePipeline::with_cube_res(&ctx.device, 512, 128).render(
+        &ctx,
+        &frame,
+        &face,
+        &[EYE],
+        &[],
+        &passes,
+    )?;
     check("gpu", &|i| Vec3::from_slice(&gpu[0][i][..3]).as_dvec3())?;
     Ok(())
 }
@@ -246,7 +255,11 @@ fn a_reflective_sphere_before_one_coloured_wall_shows_that_colour() -> Result<()
     let maps = cube_maps_cpu(&frame, &occ, 64)?;
     // -x (face 1) sees only the wall, +x (face 0) nothing.
     let face_is = |faces: &dyn Fn(usize) -> Vec<DVec3>| -> Result<()> {
-        ensure!(faces(1).iter().all(|c| (*c - wall).abs().max_element() < 1e-6));
+        ensure!(
+            faces(1)
+                .iter()
+                .all(|c| (*c - wall).abs().max_element() < 1e-6)
+        );
         ensure!(faces(0).iter().all(|c| *c == DVec3::ZERO));
         Ok(())
     };
@@ -271,7 +284,7 @@ fn a_reflective_sphere_before_one_coloured_wall_shows_that_colour() -> Result<()
             _ => Some(-1),
         }
     };
-    let classes = Image::from_fn(face.width, face.height, |x, y| class(x, y));
+    let classes = Image::from_fn(face.width, face.height, class);
     let expected: Vec<(usize, DVec3)> = (1..face.height - 1)
         .flat_map(|y| (1..face.width - 1).map(move |x| (x, y)))
         .filter_map(|(x, y)| {
@@ -295,14 +308,24 @@ fn a_reflective_sphere_before_one_coloured_wall_shows_that_colour() -> Result<()
     );
     for &(i, v) in &expected {
         let got = cpu.radiance.data[i].as_dvec3();
-        ensure!((got - v).abs().max_element() < 1e-6, "cpu pixel {i}: {got} vs {v}");
+        ensure!(
+            (got - v).abs().max_element() < 1e-6,
+            "cpu pixel {i}: {got} vs {v}"
+        );
     }
     let Some(ctx) = gpu_or_skip("a_reflective_sphere_before_one_coloured_wall_shows_that_colour")?
     else {
         return Ok(());
     };
     let mut pipeline = FacePipeline::with_cube_res(&ctx.device, 256, 64);
-    let gpu = pipeline.render(&ctx, &frame, &face, &[EYE], &[], &PassList::for_face(&frame, 0))?;
+    let gpu = pipeline.render(
+        &ctx,
+        &frame,
+        &face,
+        &[EYE],
+        &[],
+        &PassList::for_face(&frame, 0),
+    )?;
     let cubes = pipeline.read_cube_maps(&ctx)?;
     face_is(&|f| {
         cubes[0][f]
@@ -312,7 +335,10 @@ fn a_reflective_sphere_before_one_coloured_wall_shows_that_colour() -> Result<()
     })?;
     for &(i, v) in &expected {
         let got = Vec3::from_slice(&gpu[0][i][..3]).as_dvec3();
-        ensure!((got - v).abs().max_element() < 1e-5, "gpu pixel {i}: {got} vs {v}");
+        ensure!(
+            (got - v).abs().max_element() < 1e-5,
+            "gpu pixel {i}: {got} vs {v}"
+        );
     }
     Ok(())
 }
@@ -336,14 +362,15 @@ fn gpu_cube_faces_match_the_cpu_reference() -> Result<()> {
     // Tolerance as for every pass: relative RMSE <= 1 % over texels off
     // silhouette and shadow edges (EDGE_RADIUS_PX), and at most 0.1 % of
     // them more than 1 % off.
-    for f in 0..CUBE_FACES {
-        let reference = &cpu[0].faces[f];
+    for (f, (reference, state)) in cpu[0].faces.iter().zip(&cpu[0].state).enumerate() {
         let g = Image {
             width: 128,
             height: 128,
-            data: gpu[0][f].iter().map(|p| Vec3::from_slice(&p[..3])).collect(),
+            data: gpu[0][f]
+                .iter()
+                .map(|p| Vec3::from_slice(&p[..3]))
+                .collect(),
         };
-        let state = &cpu[0].state[f];
         let edges = edge_mask(state, EDGE_RADIUS_PX, false);
         let surface = state.map(|s| !s.masked);
         let off = Image {
@@ -368,7 +395,10 @@ fn gpu_cube_faces_match_the_cpu_reference() -> Result<()> {
         eprintln!(
             "face {f}: rel RMSE {all:.5} (off edges {off_edges:.5}) over {n} texels, {outliers} outliers off edges"
         );
-        ensure!(off_edges <= GPU_CPU_REL_RMSE, "face {f}: rel RMSE off edges {off_edges}");
+        ensure!(
+            off_edges <= GPU_CPU_REL_RMSE,
+            "face {f}: rel RMSE off edges {off_edges}"
+        );
         ensure!(
             outliers as f64 <= OFF_EDGE_OUTLIERS * n as f64 + 1.0,
             "face {f}: {outliers} outliers off edges"
@@ -391,7 +421,8 @@ fn cube_maps_are_skipped_without_reflective_objects() -> Result<()> {
     let plain_scene = variant_scene(&full_scene, "no_reflective");
     let face = bench_face(96, 72);
     let mut pipeline = FacePipeline::new(&ctx.device, 256);
-    let mut run = |scene: &Showcase, forced: bool| -> Result<(Vec<Pass>, Vec<Vec<[f32; 4]>>)> {
+    type Images = Vec<Vec<[f32; 4]>>;
+    let mut run = |scene: &Showcase, forced: bool| -> Result<(Vec<Pass>, Images)> {
         let frame = FrameScene::resolve(scene, &bench_frame(scene, "full", 0))?;
         let others = other_eyes(&frame, 0);
         let passes = if forced {
@@ -418,7 +449,14 @@ fn cube_maps_are_skipped_without_reflective_objects() -> Result<()> {
         .unwrap();
     let frame = FrameScene::resolve(&full_scene, &bench_frame(&full_scene, "full", 0))?;
     let occ = Occluders::new(&frame)?;
-    let cpu = face_image_cpu_with(&frame, &occ, &face, frame.eyes[0], &other_eyes(&frame, 0), &[])?;
+    let cpu = face_image_cpu_with(
+        &frame,
+        &occ,
+        &face,
+        frame.eyes[0],
+        &other_eyes(&frame, 0),
+        &[],
+    )?;
     let edges = edge_mask(&cpu.state, 1, false);
     let mut changed = 0;
     for (i, (a, b)) in full[0].iter().zip(&plain[0]).enumerate() {
@@ -467,10 +505,17 @@ fn cube_maps_are_kept_until_lights_or_geometry_change() -> Result<()> {
     f2.lights = vec![bench_light(0.7)];
     let (lit, drawn) = render(&mut kept, &f2)?;
     ensure!(drawn == 6, "a moved light drew {drawn} cube layers");
-    ensure!(lit == fresh(&f2)?, "redrawn cube maps differ from a fresh pipeline's");
+    ensure!(
+        lit == fresh(&f2)?,
+        "redrawn cube maps differ from a fresh pipeline's"
+    );
     // A virtual object moves (it shadows the room): drawn again.
     let mut f3 = f2.clone();
-    let bunny = scene.objects.iter().position(|o| o.name == "virtual bunny").unwrap();
+    let bunny = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "virtual bunny")
+        .unwrap();
     f3.object_transforms.push(showcase_proto::ObjectTransform {
         object: bunny as u32,
         transform: Transform {

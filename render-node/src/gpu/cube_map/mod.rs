@@ -64,7 +64,11 @@ impl CubeMapPass {
 
     /// The bind group of one layer's `bindings` (`cube_maps` unset: the
     /// pass draws them).
-    pub fn bind_group(&self, device: &wgpu::Device, bindings: &FaceBindings<'_>) -> wgpu::BindGroup {
+    pub fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        bindings: &FaceBindings<'_>,
+    ) -> wgpu::BindGroup {
         bind_group(device, &self.layout, bindings)
     }
 
@@ -367,15 +371,20 @@ impl CubeMapFrames {
         h.write(&content.to_le_bytes());
         h.write(bytemuck::bytes_of(base));
         h.write(&far.to_le_bytes());
-        h.write(bytemuck::cast_slice(&centres.iter().map(|c| c.to_array()).collect::<Vec<_>>()));
+        h.write(bytemuck::cast_slice(
+            &centres.iter().map(|c| c.to_array()).collect::<Vec<_>>(),
+        ));
         let key = h.finish();
         if self.key == Some(key) {
             return Ok(false);
         }
         self.key = Some(key);
         while self.uniforms.len() < centres.len() * 6 {
-            self.uniforms
-                .push(UploadBuffer::new(device, "cube map frame", wgpu::BufferUsages::UNIFORM));
+            self.uniforms.push(UploadBuffer::new(
+                device,
+                "cube map frame",
+                wgpu::BufferUsages::UNIFORM,
+            ));
         }
         for (k, c) in centres.iter().enumerate() {
             for (f, view) in cube_views(*c, CUBE_NEAR, far, self.res).iter().enumerate() {
