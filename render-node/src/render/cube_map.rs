@@ -319,6 +319,25 @@ mod tests {
         assert_eq!(map.sample(DVec3::NAN), Vec3::ZERO);
     }
 
+    proptest::proptest! {
+        #[test]
+        fn sampling_any_direction_is_finite(
+            x in proptest::num::f64::ANY,
+            y in proptest::num::f64::ANY,
+            z in proptest::num::f64::ANY,
+        ) {
+            let map = CubeMap {
+                object: 0,
+                centre: DVec3::ZERO,
+                res: 3,
+                faces: (0..CUBE_FACES).map(|f| Image::new(3, 3, Vec3::splat(f as f32))).collect(),
+                state: vec![Image::new(3, 3, PixelState::default()); CUBE_FACES],
+            };
+            let v = map.sample(DVec3::new(x, y, z));
+            proptest::prop_assert!(v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 5.0);
+        }
+    }
+
     #[test]
     fn reflection_mirrors_the_normal_component() {
         let r = reflect(DVec3::new(1.0, -1.0, 0.0), DVec3::Y);

@@ -241,9 +241,11 @@ impl FacePipeline {
             cube: [cube_res, centres.len() as u32, 0, 0],
         };
         // The maps show the lights, every object's geometry (phantoms,
-        // and virtual objects as shadow casters) and the light views.
+        // and virtual objects as shadow casters), the phantoms' albedos
+        // and the light views.
         let mut content = Fnv64::default();
         content.write(&self.scene.geometry(VertexSet::All).to_le_bytes());
+        content.write(bytemuck::cast_slice(&albedo));
         content.write(bytemuck::cast_slice(&lights));
         content.write(bytemuck::cast_slice(
             &views[light_layers.start as usize..light_layers.end as usize],
