@@ -10,6 +10,11 @@
 //! - the whole frame is reused when its [`FrameKey`] (everything visible
 //!   to this output: scene version, lights, object transforms, and the
 //!   heads only when occlusion shadows are drawn) equals the last one.
+//!
+//! The face role ([`PassList::for_face`]) also runs the cube maps only
+//! when a reflective virtual object exists; between drawn frames the
+//! face pipeline keeps its cube maps while the lights, the geometry and
+//! the albedos stay put (`crate::gpu::cube_map::CubeMapFrames`).
 
 use super::frame::FrameScene;
 use crate::node::renderer::Fnv64;
