@@ -7,6 +7,7 @@
 //! `CI` is set and otherwise print "skipping" and pass.
 
 mod bench;
+mod cube_map;
 mod face;
 mod golden;
 mod passes;

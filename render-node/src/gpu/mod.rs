@@ -10,6 +10,7 @@
 //! loaded with `include_wgsl!`, and every `.wgsl` file is validated by a
 //! naga test that needs no GPU.
 
+pub mod cube_map;
 pub mod face_view;
 pub mod flat_lambert;
 pub mod irradiance_map;

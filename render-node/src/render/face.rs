@@ -10,14 +10,17 @@
 //! unlit for them), so this eye is shown the lit reflectance map instead,
 //! `rho / pi * E` of the real surface under the virtual lights (occluding
 //! occlusion shadows, paper section 5.4; the GPU does per fragment what
-//! the paper's stencil pass does). Not yet implemented: cube-map
-//! reflections (paper section 5.3).
+//! the paper's stencil pass does). A reflective virtual object shows its
+//! cube map of the real environment instead of its diffuse shading
+//! (paper section 5.3, [`super::cube_map`]): `rho * C(reflect(d, n))` for
+//! the eye's ray direction `d` and the flat normal `n` facing the eye.
 //!
 //! Pixel `(u, v)` of the CRT is drawn at its centre: the eye's ray goes
 //! through the pixel centre's *reflected* position (`mirror_view`), so a
 //! drawn point lies on the line of sight through its reflection.
 
 use super::RenderSetupError;
+use super::cube_map::{CubeMap, DEFAULT_CUBE_RES, cube_maps_cpu, reflect};
 use super::frame::FrameScene;
 use super::projector::{Occluders, PixelState, in_occlusion_shadow, target_irradiance};
 use crate::light::{Image, Ray, RgbImage};
@@ -46,13 +49,29 @@ pub fn reflected_pixel(face: &CrtFace, pixel: DVec2) -> DVec3 {
 
 /// Render what the eye at `eye` sees through `face` on the CPU;
 /// `other_eyes` are the eyes of the other observers, whose occlusion
-/// shadows this view fills in.
+/// shadows this view fills in. Reflective objects use cube maps of
+/// [`DEFAULT_CUBE_RES`] texels per side.
 pub fn face_image_cpu(
     frame: &FrameScene,
     occluders: &Occluders,
     face: &CrtFace,
     eye: DVec3,
     other_eyes: &[DVec3],
+) -> Result<FaceImage, RenderSetupError> {
+    let cube_maps = cube_maps_cpu(frame, occluders, DEFAULT_CUBE_RES)?;
+    face_image_cpu_with(frame, occluders, face, eye, other_eyes, &cube_maps)
+}
+
+/// [`face_image_cpu`] with the reflective objects' cube maps given (from
+/// [`super::cube_map::cube_maps_cpu`]); a reflective object without one
+/// is shaded diffuse.
+pub fn face_image_cpu_with(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    face: &CrtFace,
+    eye: DVec3,
+    other_eyes: &[DVec3],
+    cube_maps: &[CubeMap],
 ) -> Result<FaceImage, RenderSetupError> {
     if !eye.is_finite() {
         return Err(RenderSetupError::NonFinite);
@@ -63,7 +82,7 @@ pub fn face_image_cpu(
         .flat_map_iter(|y| {
             (0..w).map(move |x| {
                 let target = reflected_pixel(face, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
-                face_pixel(frame, occluders, eye, other_eyes, target)
+                face_pixel(frame, occluders, cube_maps, eye, other_eyes, target)
             })
         })
         .collect();
@@ -79,6 +98,7 @@ pub fn face_image_cpu(
 fn face_pixel(
     frame: &FrameScene,
     occluders: &Occluders,
+    cube_maps: &[CubeMap],
     eye: DVec3,
     other_eyes: &[DVec3],
     through: DVec3,
@@ -112,6 +132,23 @@ fn face_pixel(
     if o.kind == ObjectKind::Real && !occluded {
         return (Vec3::ZERO, PixelState { object, ..masked });
     }
+    let state = PixelState {
+        object,
+        primitive: Some(hit.primitive),
+        occluded,
+        ..PixelState::default()
+    };
+    if let Some(map) = cube_maps.iter().find(|m| m.object == hit.object as usize) {
+        let r = reflect(dir, facing);
+        let rho = o.material.albedo_at(hit.uv.unwrap_or(Vec2::ZERO));
+        let l = rho * map.sample(r);
+        // Edges of the reflected environment are edges of this view.
+        let lit = reflected_state(map, r);
+        return (
+            if l.is_finite() { l } else { Vec3::ZERO },
+            PixelState { lit, ..state },
+        );
+    }
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let rho = o
         .material
@@ -124,12 +161,30 @@ fn face_pixel(
         } else {
             Vec3::ZERO
         },
-        PixelState {
-            object,
-            primitive: Some(hit.primitive),
-            lit,
-            occluded,
-            ..PixelState::default()
-        },
+        PixelState { lit, ..state },
     )
+}
+
+/// A digest of the states of the four texels a reflected sample blends
+/// (their objects and lit samples), standing in for `lit` of a
+/// reflective pixel: where it changes between neighbouring pixels, the
+/// reflection crosses a silhouette or shadow edge of the environment.
+fn reflected_state(map: &CubeMap, d: DVec3) -> u64 {
+    let (face, c) = super::cube_map::world_to_face(d);
+    if !(c.z > 0.0) {
+        return 0;
+    }
+    let res = f64::from(map.res);
+    let fx = ((c.x / c.z) * 0.5 + 0.5) * res - 0.5;
+    let fy = (0.5 - (c.y / c.z) * 0.5) * res - 0.5;
+    let mut h = crate::node::renderer::Fnv64::default();
+    for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+        let x = (fx.floor() + dx).clamp(0.0, res - 1.0) as u32;
+        let y = (fy.floor() + dy).clamp(0.0, res - 1.0) as u32;
+        if let Some(s) = map.state.get(face).and_then(|st| st.get(x, y)) {
+            h.write(&s.object.map_or(u64::MAX, u64::from).to_le_bytes());
+            h.write(&s.lit.to_le_bytes());
+        }
+    }
+    h.finish()
 }

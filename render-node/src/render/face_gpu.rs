@@ -1,5 +1,7 @@
 //! The face role on the GPU: per-eye views through a CRT face with phantom
-//! depth, shadow types 2 and 3 and occluding occlusion shadows, and the [`Renderer`] of a face node
+//! depth, shadow types 2 and 3, occluding occlusion shadows and cube-map
+//! reflections (kept across frames while the lights and the geometry stay
+//! put), and the [`Renderer`] of a face node
 //! (both eyes of one observer, side by side). CPU reference:
 //! [`super::face::face_image_cpu`].
 
@@ -10,11 +12,13 @@ use glam::DVec3;
 use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
 use super::RenderSetupError;
+use super::cube_map::{DEFAULT_CUBE_RES, reflective_centres};
 use super::frame::{DEFAULT_IPD, FrameScene};
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
+use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
 use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
 use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
@@ -23,7 +27,7 @@ use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::mirror_view::FaceView;
-use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
+use crate::node::renderer::{Fnv64, OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
 
 /// Near and far clip distances of face views (metres along the screen normal).
 pub const FACE_NEAR: f64 = 0.01;
@@ -33,7 +37,8 @@ pub const FACE_FAR: f64 = 20.0;
 /// The compiled face pipeline and the GPU state it keeps across frames
 /// (create once per device and face): the scene's vertices (uploaded when
 /// they change), the shadow maps (a layer whose light or eye did not move
-/// is not drawn again), per-frame uploads, bind groups, one target and
+/// is not drawn again), the cube maps (drawn again only when what they
+/// show changed), per-frame uploads, bind groups, one target and
 /// readback buffer per eye.
 #[derive(Debug)]
 pub struct FacePipeline {
@@ -47,25 +52,34 @@ pub struct FacePipeline {
     other_eyes: UploadBuffer,
     maps: Option<ShadowMaps>,
     shadow_bind: Option<(u64, wgpu::BindGroup)>,
+    cubes: CubeMapFrames,
     eyes: Vec<EyeResources>,
     /// How many of `eyes` the last frame drew.
     drawn: usize,
     last_layers_drawn: u32,
+    /// Cube maps the last frame used.
+    cube_count: usize,
 }
 
 /// One eye's uniform, bind group, target and readback buffer.
 #[derive(Debug)]
 struct EyeResources {
     frame: UploadBuffer,
-    /// The bind group and the buffer generations it names.
-    bind: Option<([u64; 5], wgpu::BindGroup)>,
+    /// The bind group and the buffer (and cube map) generations it names.
+    bind: Option<([u64; 6], wgpu::BindGroup)>,
     target: OffscreenTarget,
     readback: ColourReadback,
 }
 
 impl FacePipeline {
-    /// Compile the passes; shadow maps get `shadow_res` texels per side.
+    /// Compile the passes; shadow maps get `shadow_res` texels per side,
+    /// cube maps [`DEFAULT_CUBE_RES`].
     pub fn new(device: &wgpu::Device, shadow_res: u32) -> Self {
+        Self::with_cube_res(device, shadow_res, DEFAULT_CUBE_RES)
+    }
+
+    /// [`Self::new`] with cube maps of `cube_res` texels per side.
+    pub fn with_cube_res(device: &wgpu::Device, shadow_res: u32, cube_res: u32) -> Self {
         let storage = |label| UploadBuffer::new(device, label, wgpu::BufferUsages::STORAGE);
         Self {
             shadow: ShadowViewsPass::new(device),
@@ -78,9 +92,11 @@ impl FacePipeline {
             other_eyes: storage("face other eyes"),
             maps: None,
             shadow_bind: None,
+            cubes: CubeMapFrames::new(device, cube_res),
             eyes: Vec::new(),
             drawn: 0,
             last_layers_drawn: 0,
+            cube_count: 0,
         }
     }
 
@@ -88,6 +104,27 @@ impl FacePipeline {
     /// the same view and geometry already).
     pub fn last_layers_drawn(&self) -> u32 {
         self.last_layers_drawn
+    }
+
+    /// Cube map layers the last [`Self::draw`] drew (0 when it kept them).
+    pub fn last_cube_layers_drawn(&self) -> u32 {
+        self.cubes.last_layers_drawn()
+    }
+
+    /// Read the cube maps back (after a draw that ran
+    /// [`Pass::CubeMaps`]): per map, its six faces of `res * res` RGBA
+    /// texels (`crate::render::cube_map` order), maps in object order.
+    pub fn read_cube_maps(
+        &self,
+        ctx: &GpuContext,
+    ) -> Result<Vec<Vec<Vec<[f32; 4]>>>, RenderSetupError> {
+        let Some(maps) = self.cubes.maps() else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
+        let mut layers = maps.read(&ctx.device, &ctx.queue)?.into_iter();
+        Ok((0..self.cube_count)
+            .map(|_| layers.by_ref().take(6).collect())
+            .collect())
     }
 
     /// Draw the views of `eyes` through `face` (the light shadow views
@@ -141,13 +178,25 @@ impl FacePipeline {
             });
         }
         let eye_layers = light_layers.end..views.len() as u32;
+        let cubes = passes.runs(Pass::CubeMaps);
+        let centres = if cubes {
+            reflective_centres(frame)
+        } else {
+            Vec::new()
+        };
         let mut phantoms = Vec::new();
         let mut virtuals = Vec::new();
         let mut albedo = Vec::new();
         let mut phantom_albedo = Vec::new();
         for (oi, r) in self.scene.ranges() {
             let o = &frame.showcase.objects[*oi];
-            let a = o.material.albedo.extend(0.0).to_array();
+            // w: 1 + the object's cube map, 0 for none (face_view.wgsl).
+            let map = centres.iter().position(|(c, _)| c == oi);
+            let a = o
+                .material
+                .albedo
+                .extend(map.map_or(0.0, |k| k as f32 + 1.0));
+            let a = a.to_array();
             match o.kind {
                 ObjectKind::Real => {
                     phantoms.push(r.clone());
@@ -182,6 +231,41 @@ impl FacePipeline {
                 self.shadow.bind_group(device, self.views.buffer()),
             ));
         }
+        let (cube_res, shadow_res) = (self.cubes.res(), self.shadow_res);
+        let base = |clip_from_world, eye: DVec3, others: u32, flags: u32| FaceFrameUniform {
+            clip_from_world,
+            eye: eye.as_vec3().extend(0.0).to_array(),
+            ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
+            counts: [lights.len() as u32, others, shadow_res, flags],
+            shadow: [SHADOW_NEAR, far, 0.0, 0.0],
+            cube: [cube_res, centres.len() as u32, 0, 0],
+        };
+        // The maps show the lights, every object's geometry (phantoms,
+        // and virtual objects as shadow casters), the phantoms' albedos
+        // and the light views.
+        let mut content = Fnv64::default();
+        content.write(&self.scene.geometry(VertexSet::All).to_le_bytes());
+        content.write(bytemuck::cast_slice(&albedo));
+        content.write(bytemuck::cast_slice(&lights));
+        content.write(bytemuck::cast_slice(
+            &views[light_layers.start as usize..light_layers.end as usize],
+        ));
+        let cube_centres: Vec<glam::Vec3> = centres.iter().map(|(_, c)| c.as_vec3()).collect();
+        self.cubes.reserve(device, centres.len())?;
+        let draw_cubes = cubes
+            && self.cubes.prepare(
+                device,
+                queue,
+                &cube_centres,
+                &base([[0.0; 4]; 4], DVec3::ZERO, 0, u32::from(shadows)),
+                FACE_FAR as f32,
+                content.finish(),
+            )?;
+        self.cube_count = centres.len();
+        let cube_generation = self.cubes.generation();
+        let Some(cube_maps) = self.cubes.maps() else {
+            return Err(RenderSetupError::NothingDrawn);
+        };
         let Some(maps) = self.maps.as_mut() else {
             return Err(RenderSetupError::NothingDrawn);
         };
@@ -206,18 +290,12 @@ impl FacePipeline {
         for (&eye, res) in eyes.iter().zip(self.eyes.iter_mut()) {
             let view =
                 FaceView::new(face, eye, FACE_NEAR, FACE_FAR).ok_or(RenderSetupError::NonFinite)?;
-            let uniform = FaceFrameUniform {
-                clip_from_world: view.clip_from_world.as_mat4().to_cols_array_2d(),
-                eye: eye.as_vec3().extend(0.0).to_array(),
-                ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-                counts: [
-                    lights.len() as u32,
-                    others.len() as u32,
-                    self.shadow_res,
-                    u32::from(shadows) | (u32::from(occluding) << 1),
-                ],
-                shadow: [SHADOW_NEAR, far, 0.0, 0.0],
-            };
+            let uniform = base(
+                view.clip_from_world.as_mat4().to_cols_array_2d(),
+                eye,
+                others.len() as u32,
+                u32::from(shadows) | (u32::from(occluding) << 1),
+            );
             res.frame.write(device, queue, &[uniform]);
             let generations = [
                 res.frame.generation(),
@@ -225,6 +303,7 @@ impl FacePipeline {
                 views_generation,
                 self.albedos.generation(),
                 self.other_eyes.generation(),
+                cube_generation,
             ];
             if res.bind.as_ref().is_none_or(|(g, _)| *g != generations) {
                 let bind = self.face.bind_group(
@@ -236,6 +315,7 @@ impl FacePipeline {
                         maps,
                         albedos: self.albedos.buffer(),
                         other_eyes: self.other_eyes.buffer(),
+                        cube_maps: Some(cube_maps.array_view()),
                     },
                 );
                 res.bind = Some((generations, bind));
@@ -296,6 +376,28 @@ impl FacePipeline {
             flush(&mut encoder, Pass::EyeShadowViews.name())?;
         }
         let (vertices, _) = self.scene.buffer(VertexSet::All);
+        if draw_cubes {
+            let bindings = FaceBindings {
+                // Replaced by each layer's own uniform.
+                frame: self.lights.buffer(),
+                lights: self.lights.buffer(),
+                views: self.views.buffer(),
+                maps,
+                albedos: self.albedos.buffer(),
+                other_eyes: self.other_eyes.buffer(),
+                cube_maps: None,
+            };
+            let draws = CubeDraws {
+                vertices,
+                phantoms: &phantoms,
+                first_instance: virtuals.len() as u32,
+            };
+            self.cubes
+                .encode(device, &mut encoder, centres.len(), &bindings, &draws);
+            flush(&mut encoder, Pass::CubeMaps.name())?;
+        } else {
+            self.cubes.kept();
+        }
         let draws = FaceDraws {
             vertices,
             phantoms: &phantoms,

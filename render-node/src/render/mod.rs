@@ -1,9 +1,11 @@
 //! The real-time renderer of paper section 5, as CPU references (pure)
 //! and the GPU pipeline every render node runs: the projector role's
 //! irradiance maps with shadows, ambient, occlusion shadows and device
-//! compensation ([`projector`], [`projector_gpu`]), the direct-light
-//! consistency check ([`consistency`]), and the pass list that skips what a
-//! frame does not need ([`passes`]).
+//! compensation ([`projector`], [`projector_gpu`]), the face role's views
+//! through the beam splitter ([`face`], [`face_gpu`]) with cube-map
+//! reflections ([`cube_map`]), the direct-light consistency check
+//! ([`consistency`]), and the pass list that skips what a frame does not
+//! need ([`passes`]).
 #![forbid(unsafe_code)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which is how bad
 // input is turned away instead of propagated (as in `light`).
@@ -13,6 +15,7 @@ pub mod bench;
 pub mod blend;
 pub mod compare;
 pub mod consistency;
+pub mod cube_map;
 pub mod face;
 pub mod face_gpu;
 pub mod frame;

@@ -10,6 +10,11 @@
 //! - the whole frame is reused when its [`FrameKey`] (everything visible
 //!   to this output: scene version, lights, object transforms, and the
 //!   heads only when occlusion shadows are drawn) equals the last one.
+//!
+//! The face role ([`PassList::for_face`]) also runs the cube maps only
+//! when a reflective virtual object exists; between drawn frames the
+//! face pipeline keeps its cube maps while the lights, the geometry and
+//! the albedos stay put (`crate::gpu::cube_map::CubeMapFrames`).
 
 use super::frame::FrameScene;
 use crate::node::renderer::Fnv64;
@@ -25,6 +30,9 @@ pub enum Pass {
     EyeShadowViews,
     /// The irradiance map with device compensation.
     IrradianceMap,
+    /// Cube maps of the real environment around each reflective virtual
+    /// object (face role, paper section 5.3).
+    CubeMaps,
     /// A face role eye view (phantom depth, shaded virtual objects).
     FaceView,
 }
@@ -36,6 +44,7 @@ impl Pass {
             Pass::LightShadowViews => "light_shadow_views",
             Pass::EyeShadowViews => "eye_shadow_views",
             Pass::IrradianceMap => "irradiance_map",
+            Pass::CubeMaps => "cube_maps",
             Pass::FaceView => "face_view",
         }
     }
@@ -68,7 +77,12 @@ impl PassList {
     /// Every face pass.
     pub fn full_face() -> Self {
         Self {
-            passes: vec![Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+            passes: vec![
+                Pass::LightShadowViews,
+                Pass::EyeShadowViews,
+                Pass::CubeMaps,
+                Pass::FaceView,
+            ],
         }
     }
 
@@ -76,7 +90,9 @@ impl PassList {
     /// occluder can be lit and a virtual object is there (to be shaded, or
     /// to cast the occlusion shadows that phantoms are filled in for); the
     /// other observers' eye views (occluding occlusion shadows) only with
-    /// another observer (`other_eyes > 0`) and a virtual object.
+    /// another observer (`other_eyes > 0`) and a virtual object; the cube
+    /// maps only when a reflective virtual object with geometry exists
+    /// (without one the pass draws nothing any fragment reads).
     pub fn for_face(frame: &FrameScene, other_eyes: usize) -> Self {
         let has_virtual = frame
             .showcase
@@ -89,6 +105,9 @@ impl PassList {
         }
         if has_virtual && other_eyes > 0 {
             passes.push(Pass::EyeShadowViews);
+        }
+        if !super::cube_map::reflective_centres(frame).is_empty() {
+            passes.push(Pass::CubeMaps);
         }
         passes.push(Pass::FaceView);
         Self { passes }

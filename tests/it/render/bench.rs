@@ -65,11 +65,23 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
             .unwrap()
     };
     ensure!(
-        face("full").passes_run == ["light_shadow_views", "eye_shadow_views", "face_view"],
+        face("full").passes_run
+            == [
+                "light_shadow_views",
+                "eye_shadow_views",
+                "cube_maps",
+                "face_view"
+            ],
         "{:?}",
         face("full").passes_run
     );
-    ensure!(face("single_observer").passes_run == ["light_shadow_views", "face_view"]);
+    ensure!(face("single_observer").passes_run == ["light_shadow_views", "cube_maps", "face_view"]);
+    // The sphere is reflective only in the full scene.
+    ensure!(
+        face("no_reflective").passes_run == ["light_shadow_views", "eye_shadow_views", "face_view"],
+        "{:?}",
+        face("no_reflective").passes_run
+    );
     ensure!(face("no_virtual_objects").passes_run == ["face_view"]);
     ensure!(face("static").passes_run.is_empty());
     ensure!(face("full").gpu_cpu_rel_rmse.is_some());

@@ -182,7 +182,13 @@ fn face_renderer_draws_both_eyes_side_by_side() -> Result<()> {
         "left {left} right {right}, halves differ: {differ}"
     );
     ensure!(
-        r.last_passes() == [Pass::LightShadowViews, Pass::EyeShadowViews, Pass::FaceView],
+        r.last_passes()
+            == [
+                Pass::LightShadowViews,
+                Pass::EyeShadowViews,
+                Pass::CubeMaps,
+                Pass::FaceView
+            ],
         "{:?}",
         r.last_passes()
     );

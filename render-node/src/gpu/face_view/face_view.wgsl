@@ -6,7 +6,11 @@
 // plus ambient. Occluding occlusion shadows: a phantom point inside another
 // observer's occlusion shadow (a virtual object between it and that
 // observer's eye, from the eye shadow views) is drawn as the lit real
-// surface instead of black. CPU reference: render::face.
+// surface instead of black. Reflective virtual objects (albedo w > 0)
+// show their cube map of the real environment, albedo * C(reflect(d, n)),
+// C sampled bilinearly within a face (render::cube_map). The cube-map
+// pass draws the phantoms into the maps with this module's vs_main and
+// fs_environment (gpu::cube_map). CPU reference: render::face.
 
 struct Frame {
     // FaceView::clip_from_world of this eye.
@@ -20,6 +24,8 @@ struct Frame {
     counts: vec4<u32>,
     // near and far plane of the shadow views.
     shadow: vec4<f32>,
+    // cube map texels per side.
+    cube: vec4<u32>,
 }
 
 struct LightSample {
@@ -43,7 +49,8 @@ struct ShadowView {
 @group(0) @binding(1) var<storage, read> lights: array<LightSample>;
 @group(0) @binding(2) var<storage, read> views: array<ShadowView>;
 @group(0) @binding(3) var maps: texture_depth_2d_array;
-// Linear RGB albedo per draw, indexed by the draw's instance.
+// Linear RGB albedo per draw, indexed by the draw's instance; w is 0, or
+// 1 + k for a reflective object with cube map k (layers 6k to 6k + 5).
 @group(0) @binding(4) var<storage, read> albedos: array<vec4<f32>>;
 
 struct Eye {
@@ -54,6 +61,10 @@ struct Eye {
 
 // The other observers' eyes.
 @group(0) @binding(5) var<storage, read> eyes: array<Eye>;
+
+// The cube maps (faces as in shadow_views::cube_views, six layers each).
+// Not bound in the cube-map pass, which draws them.
+@group(0) @binding(6) var cube_maps: texture_2d_array<f32>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -228,7 +239,57 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0, 0.0, 0.0, 0.0);
 }
 
+
+// Radiance of cube map `k` along `d`: bilinear between the texel centres
+// of d's face (cube_coords), clamped at the face's edges
+// (render::cube_map::CubeMap::sample).
+fn cube_sample(k: u32, d: vec3<f32>) -> vec3<f32> {
+    let a = abs(d);
+    var face = 5u;
+    var c = vec3<f32>(d.x, d.y, -d.z);
+    if (a.x >= a.y && a.x >= a.z) {
+        face = select(1u, 0u, d.x > 0.0);
+        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
+    } else if (a.y >= a.z) {
+        face = select(3u, 2u, d.y > 0.0);
+        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
+    } else if (d.z > 0.0) {
+        face = 4u;
+        c = vec3<f32>(-d.x, d.y, d.z);
+    }
+    if (!(c.z > 0.0)) {
+        return vec3<f32>(0.0);
+    }
+    let res = f32(frame.cube.x);
+    let ndc = c.xy / c.z;
+    let f = vec2<f32>((ndc.x * 0.5 + 0.5) * res - 0.5, (0.5 - ndc.y * 0.5) * res - 0.5);
+    let f0 = floor(f);
+    let t = f - f0;
+    let hi = vec2<f32>(res - 1.0);
+    let p0 = vec2<u32>(clamp(f0, vec2<f32>(0.0), hi));
+    let p1 = vec2<u32>(clamp(f0 + 1.0, vec2<f32>(0.0), hi));
+    let layer = 6u * k + face;
+    let c00 = textureLoad(cube_maps, p0, layer, 0).rgb;
+    let c10 = textureLoad(cube_maps, vec2<u32>(p1.x, p0.y), layer, 0).rgb;
+    let c01 = textureLoad(cube_maps, vec2<u32>(p0.x, p1.y), layer, 0).rgb;
+    let c11 = textureLoad(cube_maps, p1, layer, 0).rgb;
+    return mix(mix(c00, c10, t.x), mix(c01, c11, t.x), t.y);
+}
+
 @fragment
 fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
+    let a = albedos[in.object];
+    if (a.w > 0.5) {
+        let d = normalize(in.world - frame.eye.xyz);
+        let r = reflect(d, facing(in));
+        return vec4<f32>(a.rgb * cube_sample(u32(a.w - 0.5), r), 1.0);
+    }
+    return vec4<f32>(shade(in.world, facing(in), a.rgb), 1.0);
+}
+
+// The cube-map pass: a phantom's radiance rho / pi * E seen from the
+// map's centre (frame.eye), virtual lights with shadows and ambient.
+@fragment
+fn fs_environment(in: VertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(shade(in.world, facing(in), albedos[in.object].rgb), 1.0);
 }
