@@ -12,6 +12,7 @@
 
 pub mod face_view;
 pub mod flat_lambert;
+pub mod hemicube;
 pub mod irradiance_map;
 pub mod shadow_views;
 pub mod target;
