@@ -29,8 +29,8 @@
 //! and cached (rows do not depend on when they are computed).
 
 use super::hemicube::{
-    HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene,
-    ItemTriangle, NO_ITEM,
+    HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle,
+    NO_ITEM,
 };
 use super::mesh::{Element, RadiosityMesh, barycentric_point, sub_centroids};
 use super::sources::{direct_irradiance, hash64, stratified, triangle_sample, unit};
@@ -424,7 +424,10 @@ impl<'a> Shooter<'a> {
             None if self.raster.is_some() => (self.rasterised_rows(shooter), false),
             None => {
                 self.rows_computed += 1;
-                (self.form_factors(shooter, self.row_seed(shooter), None), false)
+                (
+                    self.form_factors(shooter, self.row_seed(shooter), None),
+                    false,
+                )
             }
         };
         let p_area = self.mesh.patches[shooter].area;

@@ -23,8 +23,7 @@ use wgpu::util::DeviceExt;
 use super::target::padded_bytes_per_row;
 use super::{GpuContext, GpuError};
 use crate::radiosity::hemicube::{
-    HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene,
-    ItemTriangle, NO_ITEM,
+    HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle, NO_ITEM,
 };
 
 /// Format of the item buffer (item id + 1; 0 is no item).
@@ -33,6 +32,11 @@ pub const ITEM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Near plane distance (m); reversed depth keeps precision beyond it.
 pub const NEAR: f64 = 1e-6;
+/// The eye is lifted off the shooter's surface by this fraction of the
+/// scene's largest absolute coordinate (tens of f32 ulps), as the CPU
+/// lifts its rays by `SceneGeometry::epsilon`: otherwise the shooter's own
+/// plane, edge-on, rounds into the first row of the side faces.
+const EYE_LIFT: f64 = 1e-5;
 /// Faces per hemi-cube.
 const FACES: usize = 5;
 /// Readback bytes a batch may use; the batch size follows from it.
@@ -87,6 +91,8 @@ pub struct GpuHemiCubeScene {
     padded_row: u32,
     vertices: Option<wgpu::Buffer>,
     vertex_count: u32,
+    /// Eye lift off the surface (m): [`EYE_LIFT`] times the scene scale.
+    lift: f64,
     targets: Mutex<BatchTargets>,
 }
 
@@ -203,6 +209,12 @@ impl GpuHemiCube {
             })
             .collect();
         let vertex_count = vertices.len() as u32;
+        let scale = triangles
+            .iter()
+            .flat_map(|t| t.vertices)
+            .map(|v| v.abs().max_element())
+            .filter(|m| m.is_finite())
+            .fold(1e-3, f64::max);
         let vertices = (!vertices.is_empty()).then(|| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("hemicube vertices"),
@@ -227,6 +239,7 @@ impl GpuHemiCube {
             padded_row,
             vertices,
             vertex_count,
+            lift: EYE_LIFT * scale,
             targets: Mutex::new(targets),
         })
     }
@@ -381,6 +394,10 @@ impl GpuHemiCubeScene {
         let mut uniforms = vec![0u8; stride * FACES * shots.len()];
         let mut viewports = Vec::with_capacity(shots.len());
         for (i, shot) in shots.iter().enumerate() {
+            let shot = &HemiCubeShot {
+                origin: shot.origin + self.lift * shot.normal,
+                ..*shot
+            };
             let faces = face_projections(shot, n);
             for (k, (m, first, rows)) in faces.iter().enumerate() {
                 let face = FaceUniform {
