@@ -104,8 +104,9 @@ fn shot_record(
     let t = Instant::now();
     let scene = gpu.upload_triangles(n, &triangles)?;
     let upload = t.elapsed().as_secs_f64();
-    // Warm-up (pipeline and first-use costs), then timed runs.
-    scene.render_shots(&shots[..1])?;
+    // Warm-up (pipeline, first touch of the batch's textures and
+    // readback memory), then timed runs.
+    scene.render_shots(&shots)?;
     let t = Instant::now();
     for s in &shots {
         for items in scene.render_shots(std::slice::from_ref(s))? {

@@ -314,3 +314,19 @@ pub fn run_radiosity_on(
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(summary)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{BadFormFactorDevice, FormFactorDevice};
+
+    #[test]
+    fn form_factor_devices_parse_and_refuse_others_by_name() {
+        assert_eq!("cpu".parse(), Ok(FormFactorDevice::Cpu));
+        assert_eq!("gpu".parse(), Ok(FormFactorDevice::Gpu));
+        for bad in ["GPU", "", "cuda"] {
+            let e = bad.parse::<FormFactorDevice>().unwrap_err();
+            assert_eq!(e, BadFormFactorDevice(bad.to_string()));
+            assert!(e.to_string().contains(&format!("{bad:?}")), "{e}");
+        }
+    }
+}
