@@ -121,6 +121,10 @@ pub struct RadiosityArgs {
     /// Stop when the unshot energy fraction falls below this.
     #[arg(long)]
     pub threshold: Option<f64>,
+    /// Where hemi-cube item buffers are made: `cpu` (rays) or `gpu`
+    /// (wgpu rasterisation).
+    #[arg(long, default_value = "cpu")]
+    pub form_factors: crate::radiosity_job::FormFactorDevice,
 }
 
 /// Arguments of `replay`.
@@ -352,7 +356,12 @@ pub fn run(cli: Cli) -> Result<()> {
                 hemicube: args.hemicube,
                 threshold: args.threshold,
             };
-            let summary = crate::radiosity_job::run_radiosity(&args.scene, &args.out, &opts)?;
+            let summary = crate::radiosity_job::run_radiosity_on(
+                &args.scene,
+                &args.out,
+                &opts,
+                args.form_factors,
+            )?;
             println!("{}", serde_json::to_string_pretty(&summary)?);
             Ok(())
         }

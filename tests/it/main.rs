@@ -8,6 +8,7 @@ mod cluster;
 mod codec;
 mod demo;
 mod gpu;
+mod hemicube;
 mod light;
 mod observer;
 mod radiosity;

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod consistency;
 pub mod export;
+pub mod gpu_hemicube;
 pub mod report;
 pub mod scene;
 
@@ -35,6 +36,33 @@ pub struct RadiosityOptions {
     pub threshold: Option<f64>,
 }
 
+/// Where the hemi-cube's item buffers are made (`--form-factors cpu|gpu`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FormFactorDevice {
+    /// Rays on the CPU.
+    #[default]
+    Cpu,
+    /// Rasterised on the GPU (wgpu; lavapipe where there is no GPU).
+    Gpu,
+}
+
+/// Why a `--form-factors` value was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("form-factor device {0:?} is not cpu or gpu")]
+pub struct BadFormFactorDevice(pub String);
+
+impl std::str::FromStr for FormFactorDevice {
+    type Err = BadFormFactorDevice;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "cpu" => Ok(Self::Cpu),
+            "gpu" => Ok(Self::Gpu),
+            other => Err(BadFormFactorDevice(other.to_string())),
+        }
+    }
+}
+
 /// Default largest patch area (m^2).
 pub const DEFAULT_PATCH_AREA: f64 = 0.01;
 
@@ -57,6 +85,21 @@ impl RadiosityOptions {
             method: FormFactorMethod::Hybrid,
             ..d
         }
+    }
+
+    /// [`Self::solve`] with its hemi-cube item buffers made on `device`:
+    /// for the GPU this opens a headless device.
+    pub fn solve_on(&self, device: FormFactorDevice) -> anyhow::Result<SolveOptions> {
+        let mut solve = self.solve();
+        if device == FormFactorDevice::Gpu {
+            let ctx = showcase_render::gpu::GpuContext::new_headless()
+                .context("opening a gpu for --form-factors gpu")?;
+            tracing::info!(adapter = %ctx.describe(), "hemi-cube item buffers on the gpu");
+            solve.item_buffer = radiosity::shooting::ItemBufferBackend::Raster(
+                std::sync::Arc::new(showcase_render::gpu::hemicube::GpuHemiCube::new(&ctx)),
+            );
+        }
+        Ok(solve)
     }
 }
 
@@ -117,11 +160,20 @@ pub struct Solved {
 /// Mesh, solve with one round of adaptive refinement, and run the augmented
 /// passes when the scene has real objects and projectors.
 pub fn solve_showcase(showcase: &Showcase, options: &RadiosityOptions) -> anyhow::Result<Solved> {
+    solve_showcase_on(showcase, options, FormFactorDevice::Cpu)
+}
+
+/// [`solve_showcase`] with the hemi-cube item buffers made on `device`.
+pub fn solve_showcase_on(
+    showcase: &Showcase,
+    options: &RadiosityOptions,
+    device: FormFactorDevice,
+) -> anyhow::Result<Solved> {
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
     let mut mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
     let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
-    let solve = options.solve();
+    let solve = options.solve_on(device)?;
     let solution =
         radiosity::solve_adaptive(&mut mesh, &all, &lights, &solve, &RefineOptions::default())
             .context("solving")?;
@@ -189,9 +241,20 @@ pub fn run_radiosity(
     out: &Path,
     options: &RadiosityOptions,
 ) -> anyhow::Result<Summary> {
+    run_radiosity_on(scene, out, options, FormFactorDevice::Cpu)
+}
+
+/// [`run_radiosity`] with the hemi-cube item buffers made on `device`
+/// (`--form-factors cpu|gpu`).
+pub fn run_radiosity_on(
+    scene: &Path,
+    out: &Path,
+    options: &RadiosityOptions,
+    device: FormFactorDevice,
+) -> anyhow::Result<Summary> {
     let showcase = load_any_scene(scene)?;
     let start = Instant::now();
-    let solved = solve_showcase(&showcase, options)?;
+    let solved = solve_showcase_on(&showcase, options, device)?;
     let mut maps = Vec::new();
     if let Some(a) = &solved.augmented {
         let b2 = solved.mesh.vertex_values(&a.b2);
@@ -250,4 +313,20 @@ pub fn run_radiosity(
     std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{BadFormFactorDevice, FormFactorDevice};
+
+    #[test]
+    fn form_factor_devices_parse_and_refuse_others_by_name() {
+        assert_eq!("cpu".parse(), Ok(FormFactorDevice::Cpu));
+        assert_eq!("gpu".parse(), Ok(FormFactorDevice::Gpu));
+        for bad in ["GPU", "", "cuda"] {
+            let e = bad.parse::<FormFactorDevice>().unwrap_err();
+            assert_eq!(e, BadFormFactorDevice(bad.to_string()));
+            assert!(e.to_string().contains(&format!("{bad:?}")), "{e}");
+        }
+    }
 }

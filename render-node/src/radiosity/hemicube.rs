@@ -6,6 +6,14 @@
 //! here by casting one ray per pixel centre into the shared BVH
 //! ([`HemiCube::item_buffer`]); [`HemiCube::accumulate`] then turns any item
 //! buffer (CPU or GPU) into per-element form factors with f64 sums.
+//!
+//! A rasteriser (the GPU hemi-cube in `crate::gpu::hemicube`) plugs in
+//! through [`ItemBufferRasteriser`]: it gets the element triangles once
+//! ([`ItemTriangle`]) and then renders batches of [`HemiCubeShot`]s into
+//! item buffers laid out exactly as [`HemiCube::new`] orders its pixels:
+//! the top face row by row (`y` rows, `x` columns of the local frame), then
+//! the side faces `+x`, `-x`, `+y`, `-y`, each `resolution / 2` rows from
+//! the surface (`z` near 0) up, `resolution` columns along the other axis.
 
 use crate::light::{Hit, Ray, SceneGeometry};
 use glam::DVec3;
@@ -21,6 +29,73 @@ pub enum HemiCubeError {
     /// The resolution is odd, below 2 or above 4096.
     #[error("hemi-cube resolution {0} must be even and in 2..=4096")]
     BadResolution(u32),
+}
+
+/// Where a hemi-cube sits for one shot: a shooter's centre, its unit
+/// normal, and the rotation about the normal (radians) against aliasing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HemiCubeShot {
+    /// Eye point (the shooting patch's centre).
+    pub origin: DVec3,
+    /// Unit surface normal (the top face's axis).
+    pub normal: DVec3,
+    /// Turn of the tangent frame about the normal (radians).
+    pub rotation: f64,
+}
+
+impl HemiCubeShot {
+    /// The local frame `(x, y, z)` of the hemi-cube in world space: the
+    /// tangents of [`HemiCube::world_directions`] and the normal.
+    pub fn frame(&self) -> [DVec3; 3] {
+        let (t1, t2) = frame(self.normal, self.rotation);
+        [t1, t2, self.normal]
+    }
+}
+
+/// One element triangle handed to a rasteriser.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ItemTriangle {
+    /// The id its pixels get in the item buffer (below [`NO_ITEM`]).
+    pub item: u32,
+    /// World corners.
+    pub vertices: [DVec3; 3],
+    /// Unit front normal: pixels that see the other side get [`NO_ITEM`]
+    /// (the triangle still occludes).
+    pub normal: DVec3,
+}
+
+/// Why a rasterised item buffer could not be made.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum ItemBufferError {
+    /// The rasteriser (e.g. the GPU device) failed; the message says how.
+    #[error("item-buffer rasteriser failed: {0}")]
+    Raster(String),
+}
+
+/// Something that rasterises hemi-cube item buffers (the GPU hemi-cube):
+/// the step of [`HemiCube::item_buffer`] that a rasteriser replaces.
+pub trait ItemBufferRasteriser: Send + Sync {
+    /// One line naming the rasteriser (e.g. the GPU adapter).
+    fn describe(&self) -> String;
+
+    /// Upload `triangles` (the receivers and occluders of a solve) for
+    /// hemi-cubes of top-face `resolution`.
+    fn upload(
+        &self,
+        resolution: u32,
+        triangles: &[ItemTriangle],
+    ) -> Result<Box<dyn ItemBufferScene>, ItemBufferError>;
+}
+
+/// Triangles uploaded by an [`ItemBufferRasteriser`].
+pub trait ItemBufferScene: Send + Sync {
+    /// How many shots one [`Self::render`] call handles best (at least 1).
+    fn batch_size(&self) -> usize;
+
+    /// One item buffer per shot, in [`HemiCube`] pixel order, holding the
+    /// [`ItemTriangle::item`] seen front-on at each pixel centre or
+    /// [`NO_ITEM`].
+    fn render(&self, shots: &[HemiCubeShot]) -> Result<Vec<Vec<u32>>, ItemBufferError>;
 }
 
 /// A hemi-cube of `resolution x resolution` top-face pixels.

@@ -19,14 +19,26 @@
 //! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so
 //! every shot passes on strictly less power than it takes: the unshot power
 //! falls monotonically and B stays finite.
+//!
+//! Item buffers: the hemi-cube's item buffer is cast with rays on the CPU
+//! ([`ItemBufferBackend::Cpu`]) or rasterised by an
+//! [`ItemBufferRasteriser`] such as the GPU hemi-cube
+//! ([`ItemBufferBackend::Raster`]). A rasteriser renders a batch of
+//! shooters per call: when a shooter's row is missing, the rows of the
+//! next patches by unshot power that have none yet are computed with it
+//! and cached (rows do not depend on when they are computed).
 
-use super::hemicube::{HemiCube, NO_ITEM};
+use super::hemicube::{
+    HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle,
+    NO_ITEM,
+};
 use super::mesh::{Element, RadiosityMesh, barycentric_point, sub_centroids};
 use super::sources::{direct_irradiance, hash64, stratified, triangle_sample, unit};
 use crate::light::{SceneGeometry, form_factor_point_polygon};
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
+use std::sync::Arc;
 
 /// How a shot's form factors are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -48,6 +60,37 @@ pub enum FormFactorMethod {
     Hybrid,
 }
 
+/// Who makes the hemi-cube's item buffers (where [`FormFactorMethod`]
+/// uses the hemi-cube: `HemiCube` and `Hybrid`).
+#[derive(Clone, Default)]
+pub enum ItemBufferBackend {
+    /// One ray per pixel centre into the shared BVH, on the CPU.
+    #[default]
+    Cpu,
+    /// A rasteriser, e.g. `crate::gpu::hemicube::GpuHemiCube`.
+    Raster(Arc<dyn ItemBufferRasteriser>),
+}
+
+impl std::fmt::Debug for ItemBufferBackend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Cpu => f.write_str("Cpu"),
+            Self::Raster(r) => write!(f, "Raster({})", r.describe()),
+        }
+    }
+}
+
+impl PartialEq for ItemBufferBackend {
+    /// Equal when both are the CPU or both the same rasteriser object.
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Cpu, Self::Cpu) => true,
+            (Self::Raster(a), Self::Raster(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
 /// Why a solve cannot start.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SolveError {
@@ -57,6 +100,9 @@ pub enum SolveError {
     /// The threshold is not in `(0, 1)`.
     #[error("unshot-energy threshold {0} must be in (0, 1)")]
     BadThreshold(f64),
+    /// The item-buffer rasteriser could not take the mesh.
+    #[error(transparent)]
+    ItemBuffer(#[from] ItemBufferError),
     /// The active mask does not have one entry per element.
     #[error("active mask has {got} entries for {elements} elements")]
     MaskLength {
@@ -88,6 +134,8 @@ pub struct SolveOptions {
     pub visibility_samples: u32,
     /// Memory for cached form-factor rows (bytes); 0 disables the cache.
     pub form_factor_cache_bytes: usize,
+    /// Who makes the hemi-cube item buffers.
+    pub item_buffer: ItemBufferBackend,
 }
 
 impl Default for SolveOptions {
@@ -102,6 +150,7 @@ impl Default for SolveOptions {
             min_pixels: 4.0,
             visibility_samples: 4,
             form_factor_cache_bytes: 1 << 30,
+            item_buffer: ItemBufferBackend::Cpu,
         }
     }
 }
@@ -145,6 +194,10 @@ pub struct Shooter<'a> {
     row_bytes: usize,
     /// Rows computed (cache misses).
     rows_computed: usize,
+    /// The active elements uploaded to the rasteriser, if one is used.
+    raster: Option<Box<dyn ItemBufferScene>>,
+    /// Rows whose rasterised item buffer failed and were cast on the CPU.
+    raster_fallbacks: usize,
 }
 
 impl<'a> Shooter<'a> {
@@ -170,6 +223,23 @@ impl<'a> Shooter<'a> {
             FormFactorMethod::RayCast => None,
             _ => Some(HemiCube::new(options.hemicube)?),
         };
+        let raster = match (&hemicube, &options.item_buffer) {
+            (Some(h), ItemBufferBackend::Raster(r)) => {
+                let triangles: Vec<ItemTriangle> = mesh
+                    .elements
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| active[*j])
+                    .map(|(j, e)| ItemTriangle {
+                        item: j as u32,
+                        vertices: e.vertices,
+                        normal: e.normal,
+                    })
+                    .collect();
+                Some(r.upload(h.resolution(), &triangles)?)
+            }
+            _ => None,
+        };
         let patch_active = mesh
             .patches
             .iter()
@@ -190,6 +260,8 @@ impl<'a> Shooter<'a> {
             rows: vec![None; mesh.patches.len()],
             row_bytes: 0,
             rows_computed: 0,
+            raster,
+            raster_fallbacks: 0,
         })
     }
 
@@ -349,12 +421,13 @@ impl<'a> Shooter<'a> {
         self.unshot[shooter] = DVec3::ZERO;
         let (ff, cached) = match self.rows[shooter].take() {
             Some(row) => (row, true),
+            None if self.raster.is_some() => (self.rasterised_rows(shooter), false),
             None => {
-                let seed = hash64(
-                    self.options.seed ^ (shooter as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15),
-                );
                 self.rows_computed += 1;
-                (self.form_factors(shooter, seed), false)
+                (
+                    self.form_factors(shooter, self.row_seed(shooter), None),
+                    false,
+                )
             }
         };
         let p_area = self.mesh.patches[shooter].area;
@@ -382,9 +455,92 @@ impl<'a> Shooter<'a> {
         true
     }
 
+    /// Seed of patch `p`'s hemi-cube rotation and sample jitter.
+    fn row_seed(&self, p: usize) -> u64 {
+        hash64(self.options.seed ^ (p as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+    }
+
+    /// The hemi-cube of patch `p` (its centre, normal and seeded rotation).
+    fn shot_of(&self, p: usize) -> HemiCubeShot {
+        let patch = &self.mesh.patches[p];
+        HemiCubeShot {
+            origin: patch.center,
+            normal: patch.normal,
+            rotation: unit(self.row_seed(p)) * std::f64::consts::TAU,
+        }
+    }
+
+    /// The row of `shooter` through the rasteriser, computed in one batch
+    /// with the rows of the patches with most unshot power that have no
+    /// cached row yet (those are cached here while the cache has room;
+    /// without a cache the batch is the shooter alone).
+    fn rasterised_rows(&mut self, shooter: usize) -> Vec<(u32, f64)> {
+        let Some(raster) = self.raster.as_ref() else {
+            return self.form_factors(shooter, self.row_seed(shooter), None);
+        };
+        let mut batch = vec![shooter];
+        if self.options.form_factor_cache_bytes > 0 {
+            let mut others: Vec<(f64, usize)> = (0..self.mesh.patches.len())
+                .filter(|&p| p != shooter && self.patch_active[p] && self.rows[p].is_none())
+                .map(|p| (power(self.unshot[p], self.mesh.patches[p].area), p))
+                .collect();
+            others.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            batch.extend(
+                others
+                    .iter()
+                    .take(raster.batch_size().max(1) - 1)
+                    .map(|&(_, p)| p),
+            );
+        }
+        let shots: Vec<HemiCubeShot> = batch.iter().map(|&p| self.shot_of(p)).collect();
+        let buffers = match raster.render(&shots) {
+            Ok(b) if b.len() == shots.len() => Some(b),
+            Ok(b) => {
+                tracing::warn!(
+                    got = b.len(),
+                    shots = shots.len(),
+                    "item-buffer rasteriser returned the wrong number of buffers; casting rays"
+                );
+                None
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "item-buffer rasteriser failed; casting rays");
+                None
+            }
+        };
+        let Some(buffers) = buffers else {
+            self.raster_fallbacks += 1;
+            self.rows_computed += 1;
+            return self.form_factors(shooter, self.row_seed(shooter), None);
+        };
+        let rows: Vec<Vec<(u32, f64)>> = batch
+            .iter()
+            .zip(&buffers)
+            .map(|(&p, items)| self.form_factors(p, self.row_seed(p), Some(items)))
+            .collect();
+        self.rows_computed += rows.len();
+        let mut rows = rows.into_iter();
+        let own = rows.next().unwrap_or_default();
+        for (&p, row) in batch[1..].iter().zip(rows) {
+            let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>();
+            if self.row_bytes + bytes <= self.options.form_factor_cache_bytes {
+                self.row_bytes += bytes;
+                self.rows[p] = Some(row);
+            }
+        }
+        own
+    }
+
     /// Form factors `F_pj` from patch `shooter` to the active receivers,
-    /// scaled to sum to at most 1.
-    fn form_factors(&self, shooter: usize, seed: u64) -> Vec<(u32, f64)> {
+    /// scaled to sum to at most 1. `raster_items` is the shooter's
+    /// rasterised item buffer (active elements seen front-on), or `None` to
+    /// cast it on the CPU.
+    fn form_factors(
+        &self,
+        shooter: usize,
+        seed: u64,
+        raster_items: Option<&[u32]>,
+    ) -> Vec<(u32, f64)> {
         let mesh = self.mesh;
         let p = &mesh.patches[shooter];
         let method = self.options.method;
@@ -466,15 +622,26 @@ impl<'a> Shooter<'a> {
         if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
             let rotation = unit(seed) * std::f64::consts::TAU;
             let active = &self.active;
-            let items = h.item_buffer(self.geometry, p.center, p.normal, rotation, |hit| {
-                if !hit.front_face {
-                    return None;
-                }
-                let prim = mesh.primitive_of(hit.object, hit.triangle)?;
-                let (e, _) = mesh.locate(prim, hit.barycentric)?;
-                let el = &mesh.elements[e as usize];
-                (active[e as usize] && el.patch as usize != shooter && !use_ray(el)).then_some(e)
-            });
+            let keep = |e: u32| -> bool {
+                let Some(el) = mesh.elements.get(e as usize) else {
+                    return false;
+                };
+                active[e as usize] && el.patch as usize != shooter && !use_ray(el)
+            };
+            let items = match raster_items {
+                Some(items) => items
+                    .iter()
+                    .map(|&e| if keep(e) { e } else { NO_ITEM })
+                    .collect(),
+                None => h.item_buffer(self.geometry, p.center, p.normal, rotation, |hit| {
+                    if !hit.front_face {
+                        return None;
+                    }
+                    let prim = mesh.primitive_of(hit.object, hit.triangle)?;
+                    let (e, _) = mesh.locate(prim, hit.barycentric)?;
+                    keep(e).then_some(e)
+                }),
+            };
             let mut ff = vec![0.0; mesh.elements.len()];
             debug_assert!(
                 items
@@ -509,9 +676,36 @@ impl<'a> Shooter<'a> {
         self.shots
     }
 
-    /// Form-factor rows computed so far (shots that found no cached row).
+    /// Form-factor rows computed so far (shots that found no cached row,
+    /// plus rows computed ahead in a rasterised batch).
     pub fn rows_computed(&self) -> usize {
         self.rows_computed
+    }
+
+    /// Rows whose rasterised item buffer failed and that were cast on the
+    /// CPU instead (0 unless the rasteriser failed).
+    pub fn item_buffer_fallbacks(&self) -> usize {
+        self.raster_fallbacks
+    }
+
+    /// The form-factor row of patch `p`: `(element, F_pj)` for every
+    /// active receiver with a non-zero form factor, from the cache or
+    /// computed now (not cached); `None` for an inactive or missing patch.
+    pub fn form_factor_row(&self, p: usize) -> Option<Vec<(u32, f64)>> {
+        if !self.patch_active.get(p).copied().unwrap_or(false) {
+            return None;
+        }
+        if let Some(row) = &self.rows[p] {
+            return Some(row.clone());
+        }
+        let items = match &self.raster {
+            Some(r) => match r.render(&[self.shot_of(p)]) {
+                Ok(mut b) if b.len() == 1 => b.pop(),
+                _ => None,
+            },
+            None => None,
+        };
+        Some(self.form_factors(p, self.row_seed(p), items.as_deref()))
     }
 
     /// The unshot fraction after every shot.
