@@ -18,7 +18,11 @@
 //! The **target** is the scene as if all lighting were virtual: the first
 //! surface on the eye's ray, real or virtual, shaded `rho / pi * E` by the
 //! virtual lights with every shadow (the irradiance the renderers aim
-//! for, [`target_irradiance`]).
+//! for, [`target_irradiance`]). A reflective virtual object is a mirror
+//! tinted by its albedo, as the face view draws it
+//! ([`crate::render::cube_map`]), but its reflection is traced exactly
+//! from each surface point into the real environment: the cube map seen
+//! from one centre is the approximation the target judges.
 //!
 //! Pure: no IO, no GPU.
 
@@ -26,6 +30,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use crate::light::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
+use crate::render::cube_map::{environment, reflect};
 use crate::render::projector::{Occluders, emitted_intensity, target_irradiance};
 use crate::render::{FrameScene, RenderSetupError};
 use glam::{DVec2, DVec3, Vec2, Vec3};
@@ -71,6 +76,8 @@ pub struct ObserverView {
     /// image must show it; the projectors must leave the real surface
     /// behind it dark).
     pub sees_virtual: Image<bool>,
+    /// Pixels of [`Self::sees_virtual`] whose object is reflective.
+    pub sees_reflective: Image<bool>,
     /// Pixels whose first real surface some projector reaches (the
     /// projectors can light only these).
     pub reachable: Image<bool>,
@@ -182,19 +189,17 @@ pub fn observer_view(
         target: Image::new(w, h, Vec3::ZERO),
         covered: Image::new(w, h, false),
         sees_virtual: Image::new(w, h, false),
+        sees_reflective: Image::new(w, h, false),
         edge: Image::new(w, h, false),
         reachable: Image::new(w, h, false),
     };
     let mut keys = Image::new(w, h, None);
     for (i, ([real, reflected, target], key, reachable)) in pixels.into_iter().enumerate() {
         keys.data[i] = key;
-        view.sees_virtual.data[i] = key.is_some_and(|(object, _, _)| {
-            frame
-                .showcase
-                .objects
-                .get(object as usize)
-                .is_some_and(|o| o.kind == ObjectKind::Virtual)
-        });
+        let seen = key.and_then(|(object, _, _)| frame.showcase.objects.get(object as usize));
+        let virtual_ = seen.filter(|o| o.kind == ObjectKind::Virtual);
+        view.sees_virtual.data[i] = virtual_.is_some();
+        view.sees_reflective.data[i] = virtual_.is_some_and(|o| o.material.reflective);
         view.reachable.data[i] = reachable;
         view.real.data[i] = real;
         view.reflected.data[i] = reflected;
@@ -363,7 +368,16 @@ fn target_radiance(
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
         .as_dvec3();
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
-    let l = rho / PI * e;
+    let l = if object.material.reflective && object.kind == ObjectKind::Virtual {
+        // A mirror tinted by its albedo (render::cube_map's model), traced
+        // exactly from the surface point: the cube map's single centre is
+        // the approximation under test.
+        let dir = reflect(ray.direction, facing);
+        let from = hit.point + facing * 1e-6;
+        rho * environment(frame, occluders, from, dir).0.as_dvec3()
+    } else {
+        rho / PI * e
+    };
     Some((
         if l.is_finite() { l } else { DVec3::ZERO },
         Some((hit.object, hit.primitive, lit)),

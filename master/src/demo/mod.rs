@@ -468,6 +468,7 @@ fn rendering_stage(
                     "consistency_rel_rmse": seen.rel,
                     "consistency_rel_rmse_real": seen.rel_real,
                     "consistency_rel_rmse_virtual": seen.rel_virtual,
+                    "consistency_rel_rmse_reflective": seen.rel_reflective,
                     "projector_reach_fraction": seen.reach,
                 }))
                 .collect::<Vec<_>>()
@@ -654,6 +655,7 @@ struct Seen {
     rel: f64,
     rel_real: Option<f64>,
     rel_virtual: Option<f64>,
+    rel_reflective: Option<f64>,
     reach: f64,
 }
 
@@ -664,6 +666,7 @@ impl Default for Seen {
             rel: 0.0,
             rel_real: None,
             rel_virtual: None,
+            rel_reflective: None,
             reach: 1.0,
         }
     }
@@ -680,6 +683,7 @@ impl Seen {
         self.rel = self.rel.max(r.rel_rmse);
         self.rel_real = worst(self.rel_real, r.rel_rmse_real);
         self.rel_virtual = worst(self.rel_virtual, r.rel_rmse_virtual);
+        self.rel_reflective = worst(self.rel_reflective, r.rel_rmse_reflective);
         self.reach = self.reach.min(r.reachable_fraction);
     }
 }

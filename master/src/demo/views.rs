@@ -16,7 +16,8 @@ use showcase_render::gpu::GpuContext;
 use showcase_render::light::{Image, RgbImage, metrics};
 use showcase_render::node::Renderer;
 use showcase_render::observer_view::{MirrorImage, ObserverView, ProjectedLight, observer_view};
-use showcase_render::render::face::face_image_cpu;
+use showcase_render::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
+use showcase_render::render::face::face_image_cpu_with;
 use showcase_render::render::face_gpu::FaceRenderer;
 use showcase_render::render::projector_gpu::ProjectorRenderer;
 use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
@@ -180,6 +181,9 @@ impl NodeRenderers {
                         irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
                     out.projectors.push(map.value);
                 }
+                // The maps depend on the lights and the real room, not
+                // on the eye: one set serves every face and eye.
+                let cube_maps = cube_maps_cpu(&frame, &occluders, DEFAULT_CUBE_RES)?;
                 for (f, face) in scene.faces.iter().enumerate() {
                     let Some(observer) = face_observer(scene, f) else {
                         continue;
@@ -189,8 +193,10 @@ impl NodeRenderers {
                         .filter(|&o| o != observer)
                         .flat_map(|o| eyes_of(scene, &state, o))
                         .collect();
-                    let l = face_image_cpu(&frame, &occluders, face, eyes[0], &others)?;
-                    let r = face_image_cpu(&frame, &occluders, face, eyes[1], &others)?;
+                    let draw = |eye| {
+                        face_image_cpu_with(&frame, &occluders, face, eye, &others, &cube_maps)
+                    };
+                    let (l, r) = (draw(eyes[0])?, draw(eyes[1])?);
                     out.faces.push((observer, [l.radiance, r.radiance]));
                 }
             }
@@ -240,11 +246,13 @@ pub(super) struct ObserverResult {
     /// the edges whose real surface some projector reaches.
     pub rel_rmse: f64,
     /// [`Self::rel_rmse`] over the pixels that show a real surface (the
-    /// projectors' share) and over those that show a virtual object (the
-    /// CRT image's share; `None` when none is compared).
+    /// projectors' share; `None` when none is compared).
     pub rel_rmse_real: Option<f64>,
-    /// See [`Self::rel_rmse_real`].
+    /// Over the pixels that show a diffuse virtual object (the CRT image).
     pub rel_rmse_virtual: Option<f64>,
+    /// Over the pixels that show a reflective virtual object (the CRT
+    /// image's cube-map reflection against the exactly traced one).
+    pub rel_rmse_reflective: Option<f64>,
     /// Covered pixels whose real surface some projector reaches, over
     /// covered pixels.
     pub reachable_fraction: f64,
@@ -329,20 +337,26 @@ pub(super) fn observe(
         .count();
     let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
         .with_context(|| format!("observer {observer} at frame {}", state.frame))?;
-    let part = |virtual_: bool| {
+    // Pixels of `mask` that show a virtual object (`virtual_`) that is
+    // reflective (`reflective`, ignored for real surfaces).
+    let part = |virtual_: bool, reflective: bool| {
         let part = Image {
             width: mask.width,
             height: mask.height,
-            data: mask
-                .data
-                .iter()
-                .zip(&view.sees_virtual.data)
-                .map(|(m, v)| *m && *v == virtual_)
+            data: (0..mask.data.len())
+                .map(|i| {
+                    let v = view.sees_virtual.data[i];
+                    mask.data[i]
+                        && v == virtual_
+                        && (!v || view.sees_reflective.data[i] == reflective)
+                })
                 .collect(),
         };
         metrics::relative_rmse(&view.composite, &view.target, Some(&part)).ok()
     };
-    let (rel_rmse_real, rel_rmse_virtual) = (part(false), part(true));
+    let rel_rmse_real = part(false, false);
+    let rel_rmse_virtual = part(true, false);
+    let rel_rmse_reflective = part(true, true);
     Ok(ObserverResult {
         view,
         exposure,
@@ -350,6 +364,7 @@ pub(super) fn observe(
         rel_rmse,
         rel_rmse_real,
         rel_rmse_virtual,
+        rel_rmse_reflective,
         reachable_fraction: reachable as f64 / covered.max(1) as f64,
     })
 }

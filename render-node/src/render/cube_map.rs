@@ -214,8 +214,9 @@ pub fn cube_maps_cpu(
         .collect()
 }
 
-/// Radiance of the first real surface from `from` along unit `dir`.
-fn environment(
+/// Radiance of the first real surface from `from` along unit `dir` (the
+/// model a texel holds), and that surface's state.
+pub fn environment(
     frame: &FrameScene,
     occluders: &Occluders,
     from: DVec3,
