@@ -43,7 +43,7 @@ pub mod sources;
 
 pub use augmented::{
     AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity, augmented_radiosity_with,
-    irradiance_map,
+    gathered_b2_vertices, irradiance_map,
 };
 pub use gather::{
     GatherOptions, VertexGather, gather_adaptive, gather_vertices, refine_by_vertices,
