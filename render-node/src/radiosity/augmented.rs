@@ -260,7 +260,15 @@ pub fn gathered_b2_vertices(
         .collect();
     let real_vertex = mesh.vertex_values(&is_real);
     let b0 = mesh.vertex_values(&solution.b0);
-    let reflected = gather_vertices(mesh, &real_b0, mesh, real, &[], options);
+    // The gather returns emission + rho E at each vertex; only rho E is
+    // the real room's interreflection.
+    let emission =
+        mesh.vertex_values(&mesh.elements.iter().map(|e| e.emission).collect::<Vec<_>>());
+    let reflected: Vec<DVec3> = gather_vertices(mesh, &real_b0, mesh, real, &[], options)
+        .iter()
+        .zip(&emission)
+        .map(|(g, e)| (*g - *e).max(DVec3::ZERO))
+        .collect();
     b0.iter()
         .zip(&reflected)
         .zip(&real_vertex)

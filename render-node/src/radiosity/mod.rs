@@ -35,6 +35,8 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod augmented;
+#[cfg(test)]
+mod augmented_tests;
 pub mod gather;
 pub mod hemicube;
 pub mod mesh;
