@@ -371,8 +371,11 @@ fn record(
 /// virtual, the walls real, one 640 x 480 projector in front of the open
 /// side. (A projector pixel sends one intensity through its footprint,
 /// whose cos / r^2 and B2 vary across it, fast at grazing incidence: the
-/// direct light's error against B2 scales with the pixel size, 0.028 of
-/// mean B2 at 160 x 120, 0.014 at 320 x 240, 0.007 at 640 x 480.)
+/// direct light's relative RMSE against B2 is 0.028 at 160 x 120 and 0.014
+/// at 320 x 240; at 640 x 480 it is 0.017, 0.003 on the back wall and
+/// ceiling, most of it on the grazing right wall next to clipped elements,
+/// where B2 drops steeply to 0. The end-to-end figure at 1024 paths per
+/// pixel: 0.038 at 160 x 120, 0.026 at 640 x 480, 0.022 at 2560 x 1920.)
 pub fn figure3_scene(cornell: &Showcase) -> Showcase {
     let mut s = cornell.clone();
     for o in &mut s.objects {
