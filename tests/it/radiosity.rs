@@ -12,8 +12,8 @@ use showcase_master::radiosity_job::{RadiosityOptions, load_obj_scene, run_radio
 use showcase_proto::PinholeDevice;
 use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_render::radiosity::{
-    B1Pass, FormFactorMethod, MeshOptions, RadiosityMesh, SolveOptions, augmented_radiosity,
-    augmented_radiosity_with, irradiance_map,
+    B1Pass, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, SolveOptions,
+    augmented_radiosity, augmented_radiosity_with, gathered_b2_vertices, irradiance_map,
 };
 use std::path::Path;
 
@@ -269,5 +269,90 @@ fn projected_maps_reproduce_b0_in_the_simulated_showcase() -> anyhow::Result<()>
     let (paper, one) = (&figures[0], &figures[1]);
     assert!(one.rel_rmse < 0.3 * paper.rel_rmse, "{one:?} vs {paper:?}");
     assert!((one.level - 1.0).abs() < 0.1, "{one:?}");
+    Ok(())
+}
+
+#[test]
+fn gathered_one_bounce_maps_reach_the_consistency_target() -> anyhow::Result<()> {
+    // Issue 5's target: the real walls, lit only by the projector showing
+    // its irradiance map and by their own interreflection (path-traced by
+    // the sim, independent of the solver), show B0 to a relative RMSE of
+    // at most 0.03 over the unclipped real surface the camera sees. This
+    // takes the one-bounce B1 pass with the real interreflection gathered
+    // at the vertices; the element B2 of the same pass, averaged to the
+    // vertices, misses it at the walls' edges and corners.
+    let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
+    let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
+    let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
+    let mesh = RadiosityMesh::build(
+        &s,
+        &all,
+        &MeshOptions {
+            max_patch_area: 0.02,
+            element_depth: 1,
+            ..MeshOptions::default()
+        },
+    )?;
+    let options = SolveOptions {
+        hemicube: 32,
+        threshold: 1e-2,
+        method: FormFactorMethod::Hybrid,
+        ..SolveOptions::default()
+    };
+    let one = augmented_radiosity_with(&mesh, &all, &real, &[], &options, B1Pass::OneBounce)?;
+    let unclipped: Vec<bool> = one
+        .b0
+        .iter()
+        .zip(&one.b1)
+        .map(|(b0, b1)| (2.0 * *b0 - *b1).min_element() >= 0.0)
+        .collect();
+    let b0 = mesh.vertex_values(&one.b0);
+    let camera = PinholeDevice::look_at(
+        DVec3::new(0.25, 0.3, -0.85),
+        DVec3::new(0.278, 0.274, 0.28),
+        DVec3::Y,
+        42.0,
+        48,
+        36,
+    );
+    let mut figures = Vec::new();
+    for b2 in [
+        gathered_b2_vertices(&mesh, &real, &one, &GatherOptions::default()),
+        mesh.vertex_values(&one.b2),
+    ] {
+        let map = irradiance_map(&mesh, &real, &b2, &s.projectors, 0)?;
+        figures.push(consistency(
+            &s,
+            &Promise {
+                mesh: &mesh,
+                real: &real,
+                b0_vertices: &b0,
+                b2_vertices: &b2,
+                unclipped: &unclipped,
+            },
+            std::slice::from_ref(&map),
+            &camera,
+            1024,
+        )?);
+    }
+    let (gathered, element) = (&figures[0], &figures[1]);
+    // Most of the real surface the camera sees is compared.
+    assert!(
+        gathered.pixels * 10 > gathered.real_pixels * 8,
+        "{gathered:?}"
+    );
+    assert!(gathered.rel_rmse <= 0.03, "{gathered:?}");
+    assert!(
+        gathered.rel_rmse < element.rel_rmse,
+        "{gathered:?} vs {element:?}"
+    );
+    assert!((gathered.level - 1.0).abs() < 0.02, "{gathered:?}");
+    // The per-surface figures are the overall one split by surface.
+    let sq: f64 = gathered
+        .per_object
+        .iter()
+        .map(|o| o.rel_rmse * o.rel_rmse * o.pixels as f64)
+        .sum();
+    assert!(((sq / gathered.pixels as f64).sqrt() - gathered.rel_rmse).abs() < 1e-9);
     Ok(())
 }

@@ -37,6 +37,31 @@ pub struct Consistency {
     /// Sum of the sim's B over the sum of B0 (all channels, compared
     /// pixels): the overall level.
     pub level: f64,
+    /// The sim's interreflected light alone (two or more bounces) against
+    /// what augmented radiosity left to the real room, `B0 - B2`, as
+    /// rmse / mean(B0): the indirect share of `rel_rmse`.
+    pub indirect_rel_rmse: f64,
+    /// The same figures per real object (surface), each as rmse over that
+    /// object's pixels / the mean B0 of all compared pixels, so that the
+    /// pixel-weighted squares add up to the overall figures'.
+    pub per_object: Vec<SurfaceConsistency>,
+}
+
+/// [`Consistency`] on one real object.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceConsistency {
+    /// Index into `Showcase::objects`.
+    pub object: u32,
+    /// Camera pixels compared on it.
+    pub pixels: usize,
+    /// rmse there / mean B0 overall.
+    pub rel_rmse: f64,
+    /// Direct light against B2: rmse there / mean B0 overall.
+    pub direct_rel_rmse: f64,
+    /// Interreflection against `B0 - B2`: rmse there / mean B0 overall.
+    pub indirect_rel_rmse: f64,
+    /// Sum of the sim's B over the sum of B0 there.
+    pub level: f64,
 }
 
 /// What augmented radiosity promised, on the mesh the maps were made from.
@@ -64,6 +89,19 @@ pub fn consistency(
     maps: &[IrradianceMap],
     camera: &PinholeDevice,
     samples: u32,
+) -> anyhow::Result<Consistency> {
+    consistency_seeded(scene, promise, maps, camera, samples, 17)
+}
+
+/// [`consistency`] with the sim's random seed `seed` (two seeds measure
+/// the path tracer's noise).
+pub fn consistency_seeded(
+    scene: &Showcase,
+    promise: &Promise<'_>,
+    maps: &[IrradianceMap],
+    camera: &PinholeDevice,
+    samples: u32,
+    seed: u64,
 ) -> anyhow::Result<Consistency> {
     anyhow::ensure!(
         maps.len() == scene.projectors.len(),
@@ -104,7 +142,7 @@ pub fn consistency(
                 .collect(),
         };
         let light = ProjectorLight::new(rays.clone(), intensity).context("sim projector")?;
-        let image = world.render(&camera_rays, Some(&light), samples, 17);
+        let image = world.render(&camera_rays, Some(&light), samples, seed);
         for (r, v) in radiance.iter_mut().zip(&image.total().data) {
             *r += v.as_dvec3();
         }
@@ -115,6 +153,8 @@ pub fn consistency(
     }
     let (mut test, mut reference) = (Vec::new(), Vec::new());
     let (mut direct_test, mut direct_reference) = (Vec::new(), Vec::new());
+    let (mut indirect_test, mut indirect_reference) = (Vec::new(), Vec::new());
+    let mut objects = Vec::new();
     let mut real_pixels = 0;
     for i in 0..w * h {
         let Some(ray) = camera_rays.pixel_ray(i % w, i / w) else {
@@ -168,15 +208,63 @@ pub fn consistency(
         }
         let sim = radiance[i as usize] * std::f64::consts::PI;
         let sim_direct = direct[i as usize] * std::f64::consts::PI;
+        objects.push(hit.object);
         for c in 0..3 {
             test.push(sim[c]);
             reference.push(b0[c]);
             direct_test.push(sim_direct[c]);
             direct_reference.push(b2[c]);
+            indirect_test.push(sim[c] - sim_direct[c]);
+            indirect_reference.push(b0[c] - b2[c]);
         }
     }
     let rel_rmse = relative_rmse_values(&test, &reference, None)?;
     let direct_rel_rmse = relative_rmse_values(&direct_test, &direct_reference, None)?;
+    let mean_b0 = reference.iter().sum::<f64>() / reference.len().max(1) as f64;
+    let indirect_sq: f64 = indirect_test
+        .iter()
+        .zip(&indirect_reference)
+        .map(|(t, r)| (t - r) * (t - r))
+        .sum();
+    let indirect_rel_rmse = (indirect_sq / indirect_test.len().max(1) as f64).sqrt() / mean_b0;
+    let mut ids = objects.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    let rms_over = |t: &[f64], r: &[f64], object: u32| -> f64 {
+        let (mut sq, mut n) = (0.0, 0usize);
+        for (k, o) in objects.iter().enumerate() {
+            if *o == object {
+                for c in 0..3 {
+                    let d = t[3 * k + c] - r[3 * k + c];
+                    sq += d * d;
+                    n += 1;
+                }
+            }
+        }
+        let v = (sq / n.max(1) as f64).sqrt() / mean_b0;
+        if v.is_finite() { v } else { 0.0 }
+    };
+    let per_object = ids
+        .iter()
+        .map(|&object| {
+            let (mut st, mut sr) = (0.0, 0.0);
+            for (k, o) in objects.iter().enumerate() {
+                if *o == object {
+                    st += test[3 * k..3 * k + 3].iter().sum::<f64>();
+                    sr += reference[3 * k..3 * k + 3].iter().sum::<f64>();
+                }
+            }
+            let level = st / sr;
+            SurfaceConsistency {
+                object,
+                pixels: objects.iter().filter(|o| **o == object).count(),
+                rel_rmse: rms_over(&test, &reference, object),
+                direct_rel_rmse: rms_over(&direct_test, &direct_reference, object),
+                indirect_rel_rmse: rms_over(&indirect_test, &indirect_reference, object),
+                level: if level.is_finite() { level } else { 0.0 },
+            }
+        })
+        .collect();
     let level = test.iter().sum::<f64>() / reference.iter().sum::<f64>();
     Ok(Consistency {
         rel_rmse,
@@ -184,6 +272,12 @@ pub fn consistency(
         real_pixels,
         direct_rel_rmse,
         level: if level.is_finite() { level } else { 0.0 },
+        indirect_rel_rmse: if indirect_rel_rmse.is_finite() {
+            indirect_rel_rmse
+        } else {
+            0.0
+        },
+        per_object,
     })
 }
 

@@ -8,20 +8,29 @@
 //! - B3: real surfaces only, each emitting `E = B2`: the check `B3 ~ B0`.
 //!
 //! The irradiance map of a projector (equation 4.6) is rendered from its
-//! view: per pixel, the first real surface hit, `B2` interpolated there,
-//! `F = cos(theta) / r^2 * h` (h = 1 for the closest front-facing hit, 0
-//! otherwise), and the projector drive `(B2 / (rho F) / k - black) / eta`,
-//! where `k` is the number of projectors that see the point (they share
-//! the work equally) and `eta`, `black` are the projector's intensity at
-//! full drive and at zero (W/sr). The paper writes `* eta` for its
-//! brightness factor; with our `ProjectorResponse::eta` in W/sr per unit
-//! drive the physically consistent form divides by it. The drive is linear
+//! view: at each sub-pixel point, the first real surface hit, `B2`
+//! interpolated there, `F = cos(theta) / r^2 * h` (h = 1 for the closest
+//! front-facing hit, 0 otherwise) and `k`, the number of projectors that
+//! see the point (they share the work equally). The paper's per-pixel
+//! `L = B2 / (rho F) / k` holds at one point only, but a pixel sends one
+//! intensity through its whole solid angle and `F` and `B2` change across
+//! its footprint (fast at grazing incidence, and across an edge between
+//! surfaces, where the pixel-centre value overshoots the other surface
+//! tenfold). So the pixel's intensity is the least-squares fit
+//! `L = sum(rho F B2 / k) / sum((rho F)^2)` over [`MAP_SUBSAMPLES`]^2
+//! points, which is the paper's `L` on a uniform footprint. The projector
+//! drive is `(L - black) / eta`, where `eta`, `black` are the projector's
+//! intensity at full drive and at zero (W/sr). The paper writes `* eta`
+//! for its brightness factor; with our `ProjectorResponse::eta` in W/sr
+//! per unit drive the physically consistent form divides by it. The drive
+//! is linear
 //! (before the device's gamma) and clamped to `[0, 1]`.
 
+use super::gather::{GatherOptions, gather_vertices};
 use super::mesh::RadiosityMesh;
 use super::shooting::{Shooter, SolveError, SolveOptions};
 use crate::light::{DeviceError, DeviceRays, Image, RgbImage, SceneGeometry};
-use glam::{DVec3, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 use showcase_proto::{Light, Projector};
 
@@ -64,7 +73,22 @@ pub enum B1Pass {
     /// `B2 = (I - K) B0` and `B3 = (I - K)^-1 B2 = B0` exactly wherever B2
     /// needs no clipping.
     OneBounce,
+    /// Beyond the paper: one bounce that also accounts for clipping. Where
+    /// the real interreflection alone exceeds B0 (`(K B)_i > B0_i`, e.g.
+    /// on a real floor in a virtual object's shadow), no projector can take
+    /// light away: B2 is 0 there and the real surface settles at
+    /// `B_i = (K B)_i > B0_i`, and that surplus is interreflected onto the
+    /// other real surfaces. This pass finds the radiosity the real room
+    /// will actually reach, the fixed point `B* = max(B0, K B*)` (per
+    /// channel; monotone from `B0` and a contraction, so a few iterations
+    /// of one bounce each), and sets `B1 = B0 + K B*`: then
+    /// `B2 = max(2 B0 - B1, 0) = max(B0 - K B*, 0)` and the real room's
+    /// `(I - K)^-1 B2 = B*`, equal to B0 wherever B2 is not clipped.
+    ClipCompensated,
 }
+
+/// Fixed-point iterations of [`B1Pass::ClipCompensated`] at most.
+pub const CLIP_ITERATIONS: usize = 8;
 
 /// Run the passes as the paper does ([`B1Pass::Converged`]). `all` holds
 /// every object's geometry and `real` only the real objects'; both from the
@@ -111,6 +135,7 @@ pub fn augmented_radiosity_with(
                 s.run();
             }
             B1Pass::OneBounce => s.shoot_each_once(),
+            B1Pass::ClipCompensated => return Ok(clip_compensated(&mut s, emission)),
         }
         Ok((s.radiosity().to_vec(), s.shots()))
     };
@@ -153,6 +178,145 @@ pub fn augmented_radiosity_with(
         clipped_elements,
         shots: [s0.shots(), shots1, shots3],
     })
+}
+
+/// One bounce of the real transport: `K x` for exitance `x` per element,
+/// with the form-factor rows `shooter` has cached (its energy is reset).
+fn one_bounce(shooter: &mut Shooter<'_>, x: &[DVec3]) -> Vec<DVec3> {
+    shooter.restart();
+    shooter.add_emission(x, 1.0);
+    shooter.shoot_each_once();
+    shooter
+        .radiosity()
+        .iter()
+        .zip(x)
+        .map(|(b, x)| (*b - *x).max(DVec3::ZERO))
+        .collect()
+}
+
+/// [`B1Pass::ClipCompensated`]: `B1 = B0 + K B*` with `B* = max(B0, K B*)`,
+/// iterated from `B* = B0` until no element changes by more than 1e-6 of
+/// the largest B0 or [`CLIP_ITERATIONS`]. `shooter` holds only the real
+/// elements and already has `b0` added (non-real elements are zero in
+/// `b0`). Returns B1 and the shots taken.
+fn clip_compensated(shooter: &mut Shooter<'_>, b0: &[DVec3]) -> (Vec<DVec3>, usize) {
+    let scale = b0.iter().map(|b| b.max_element()).fold(0.0, f64::max);
+    let mut shots = 0;
+    let mut b = b0.to_vec();
+    let mut kb = one_bounce(shooter, &b);
+    shots += shooter.shots();
+    for _ in 0..CLIP_ITERATIONS {
+        let next: Vec<DVec3> = b0.iter().zip(&kb).map(|(b0, kb)| b0.max(*kb)).collect();
+        let change = next
+            .iter()
+            .zip(&b)
+            .map(|(n, b)| (*n - *b).abs().max_element())
+            .fold(0.0, f64::max);
+        b = next;
+        kb = one_bounce(shooter, &b);
+        shots += shooter.shots();
+        if !(change > 1e-6 * scale) {
+            break;
+        }
+    }
+    let b1 = b0.iter().zip(&kb).map(|(b0, kb)| *b0 + *kb).collect();
+    (b1, shots)
+}
+
+/// B2 per vertex of `mesh` with the real interreflection evaluated *at*
+/// the vertices: `max(B0_v - rho E_v, 0)` on real vertices (0 elsewhere),
+/// where `B0_v` is B0 averaged to the vertices
+/// ([`RadiosityMesh::vertex_values`], the interpolated B0 the display
+/// promises) and `E_v` is the irradiance that the real surfaces' B0 sends
+/// to the vertex, gathered from the patches over the real geometry `real`
+/// ([`gather_vertices`]: closed-form point-to-polygon form factors with
+/// visibility rays).
+///
+/// Why: the real room adds its interreflection point by point, `K B(x)`,
+/// but `B0 - B2 = K B0` of the element passes is an element average, and
+/// averaged to a vertex it lies half an element inside at every edge and
+/// corner, where the real interreflection changes fastest (a wall next
+/// to a wall sees it at a form factor up to 1/2). Interpolated B2 then
+/// misses the real interreflection there by a first-order amount; gathered
+/// at the vertices it is right to second order in the element size. This
+/// is the one-bounce rule of [`B1Pass::OneBounce`] (`B2 = (I - K) B0`)
+/// evaluated at the vertices, so use it with that pass's `solution`.
+pub fn gathered_b2_vertices(
+    mesh: &RadiosityMesh,
+    real: &SceneGeometry,
+    solution: &AugmentedSolution,
+    options: &GatherOptions,
+) -> Vec<DVec3> {
+    let is_real: Vec<DVec3> = mesh
+        .elements
+        .iter()
+        .map(|e| if e.real { DVec3::ONE } else { DVec3::ZERO })
+        .collect();
+    let real_b0: Vec<DVec3> = solution
+        .b0
+        .iter()
+        .zip(&is_real)
+        .map(|(b, r)| *b * *r)
+        .collect();
+    let real_vertex = mesh.vertex_values(&is_real);
+    let b0 = mesh.vertex_values(&solution.b0);
+    // The gather returns emission + rho E at each vertex; only rho E is
+    // the real room's interreflection.
+    let emission =
+        mesh.vertex_values(&mesh.elements.iter().map(|e| e.emission).collect::<Vec<_>>());
+    let reflected: Vec<DVec3> = gather_vertices(mesh, &real_b0, mesh, real, &[], options)
+        .iter()
+        .zip(&emission)
+        .map(|(g, e)| (*g - *e).max(DVec3::ZERO))
+        .collect();
+    b0.iter()
+        .zip(&reflected)
+        .zip(&real_vertex)
+        .map(|((b0, kb), r)| {
+            let v = (*b0 - *kb).max(DVec3::ZERO);
+            if r.min_element() > 1.0 - 1e-9 && v.is_finite() {
+                v
+            } else {
+                DVec3::ZERO
+            }
+        })
+        .collect()
+}
+
+/// Sub-pixel points per side at which [`irradiance_map`] fits a pixel's
+/// intensity (`MAP_SUBSAMPLES^2` rays per pixel).
+pub const MAP_SUBSAMPLES: u32 = 4;
+
+/// One sub-pixel point of an irradiance map: `(rho F, B2 / k)` per channel
+/// at the first real front-facing surface through continuous pixel
+/// coordinate `pixel` of `this`, or `None` where there is none.
+fn map_sample(
+    mesh: &RadiosityMesh,
+    real: &SceneGeometry,
+    all_projectors: &[DeviceRays],
+    this: &DeviceRays,
+    pixel: DVec2,
+    b2_vertices: &[DVec3],
+) -> Option<(DVec3, DVec3)> {
+    let ray = this.ray_through(pixel)?;
+    let hit = real.closest_hit(&ray, 0.0, f64::INFINITY)?;
+    if !hit.front_face {
+        return None;
+    }
+    let prim = mesh.primitive_of(hit.object, hit.triangle)?;
+    let (e, _) = mesh.locate(prim, hit.barycentric)?;
+    let b2 = mesh.interpolate(prim, hit.barycentric, b2_vertices)?;
+    let rho = mesh.elements.get(e as usize)?.reflectance;
+    let n = hit.geometric_normal;
+    let cos = -n.dot(ray.direction);
+    let f = cos / (hit.t * hit.t);
+    let sharing = all_projectors
+        .iter()
+        .filter(|r| r.sees(real, hit.point, n))
+        .count()
+        .max(1) as f64;
+    let rho_f = rho * f;
+    (rho_f.is_finite() && b2.is_finite()).then_some((rho_f.max(DVec3::ZERO), b2 / sharing))
 }
 
 /// A projector's irradiance map: linear drive per pixel.
@@ -205,36 +369,48 @@ pub fn irradiance_map(
     let eta = f64::from(response.eta);
     let black = f64::from(response.black_level).max(0.0);
     let (w, h) = (this.device().width, this.device().height);
+    let n = MAP_SUBSAMPLES.max(1);
     let pixels: Vec<Option<(Vec3, bool)>> = (0..w * h)
         .into_par_iter()
         .map(|i| {
             let (x, y) = (i % w, i / w);
-            let ray = this.pixel_ray(x, y)?;
-            let hit = real.closest_hit(&ray, 0.0, f64::INFINITY)?;
-            if !hit.front_face {
+            // Least squares over the pixel's footprint: the projector pixel
+            // sends one intensity I through its whole solid angle, which
+            // makes exitance rho F I at each point it lights; pick the I
+            // that minimises sum (rho F I - B2 / k)^2 over n x n
+            // sub-pixel points (per channel).
+            let (mut num, mut den) = (DVec3::ZERO, DVec3::ZERO);
+            let mut hits = 0;
+            for sub in 0..n * n {
+                let offset = DVec2::new(
+                    (f64::from(sub % n) + 0.5) / f64::from(n),
+                    (f64::from(sub / n) + 0.5) / f64::from(n),
+                );
+                let Some(sample) = map_sample(
+                    mesh,
+                    real,
+                    &rays,
+                    this,
+                    DVec2::new(f64::from(x), f64::from(y)) + offset,
+                    b2_vertices,
+                ) else {
+                    continue;
+                };
+                hits += 1;
+                let (rho_f, want) = sample;
+                num += rho_f * want;
+                den += rho_f * rho_f;
+            }
+            if hits == 0 {
                 return None;
             }
-            let prim = mesh.primitive_of(hit.object, hit.triangle)?;
-            let (e, _) = mesh.locate(prim, hit.barycentric)?;
-            let b2 = mesh.interpolate(prim, hit.barycentric, b2_vertices)?;
-            let rho = mesh.elements[e as usize].reflectance;
-            let n = hit.geometric_normal;
-            let cos = -n.dot(ray.direction);
-            let f = cos / (hit.t * hit.t);
-            let sharing = rays
-                .iter()
-                .filter(|r| r.sees(real, hit.point, n))
-                .count()
-                .max(1) as f64;
             let mut clipped = false;
             let mut drive = DVec3::ZERO;
             for c in 0..3 {
-                let denom = rho[c] * f;
-                let want = b2[c] / sharing;
-                let d = if denom > RHO_F_FLOOR && eta > 0.0 {
-                    (want / denom - black) / eta
+                let d = if den[c] > RHO_F_FLOOR * RHO_F_FLOOR && eta > 0.0 {
+                    (num[c] / den[c] - black) / eta
                 } else {
-                    if want > 0.0 {
+                    if num[c] > 0.0 {
                         clipped = true;
                     }
                     0.0

@@ -35,6 +35,8 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod augmented;
+#[cfg(test)]
+mod augmented_tests;
 pub mod gather;
 pub mod hemicube;
 pub mod mesh;
@@ -43,7 +45,7 @@ pub mod sources;
 
 pub use augmented::{
     AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity, augmented_radiosity_with,
-    irradiance_map,
+    gathered_b2_vertices, irradiance_map,
 };
 pub use gather::{
     GatherOptions, VertexGather, gather_adaptive, gather_vertices, refine_by_vertices,
