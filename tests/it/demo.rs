@@ -70,7 +70,7 @@ fn short_demo_writes_an_honest_report() {
         "reflectance_coverage",
         "reflectance_eta_rel_error",
         "radiosity_consistency_rel_rmse",
-        "radiosity_one_bounce_consistency_rel_rmse",
+        "radiosity_paper_consistency_rel_rmse",
     ] {
         let v = figures[key]
             .as_f64()
@@ -81,6 +81,9 @@ fn short_demo_writes_an_honest_report() {
     assert!(figures["calibration_rms_px"].as_f64().unwrap() < 1.0);
     // Eta estimated within issue 3's 1%.
     assert!(figures["reflectance_eta_rel_error"].as_f64().unwrap() <= 0.01);
+    // Augmented radiosity through the simulated projectors (issue 5's 0.03).
+    let radiosity = figures["radiosity_consistency_rel_rmse"].as_f64().unwrap();
+    assert!(radiosity <= 0.03, "radiosity consistency {radiosity}");
     assert_eq!(figures["dropped_frames"], 0);
     // Swap skew and tracking-to-swap are timings: `bench cluster` holds
     // them to their targets, a test on a loaded machine must not.

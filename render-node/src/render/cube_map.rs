@@ -122,9 +122,12 @@ impl CubeMap {
             let (x, y) = (x.clamp(0.0, max) as u32, y.clamp(0.0, max) as u32);
             self.faces[face].get(x, y).copied().unwrap_or(Vec3::ZERO)
         };
-        let top = at(x0, y0).lerp(at(x0 + 1.0, y0), tx);
-        let bottom = at(x0, y0 + 1.0).lerp(at(x0 + 1.0, y0 + 1.0), tx);
-        let v = top.lerp(bottom, ty);
+        // `a + (b - a) t` is exactly `a` when the texels are equal (glam's
+        // `lerp`, `a (1 - t) + b t`, can round past both).
+        let mix = |a: Vec3, b: Vec3, t: f32| a + (b - a) * t;
+        let top = mix(at(x0, y0), at(x0 + 1.0, y0), tx);
+        let bottom = mix(at(x0, y0 + 1.0), at(x0 + 1.0, y0 + 1.0), tx);
+        let v = mix(top, bottom, ty);
         if v.is_finite() { v } else { Vec3::ZERO }
     }
 }
