@@ -49,11 +49,6 @@ impl Layout {
     }
 }
 
-/// The skew-symmetric (cross-product) matrix of `a`.
-fn cross_matrix(a: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
-}
-
 impl CameraModel {
     /// Intrinsics from an upper-triangular `K` with `K[2][2] = 1`.
     pub(crate) fn from_k(
@@ -164,12 +159,12 @@ impl CameraModel {
                 -(b[r][0] * x + b[r][1] * y) * iz,
             ]
         });
-        // d(x_cam) / d(omega) = -[R X]_x for the update R <- exp(omega) R.
-        let dw = -cross_matrix(&rx);
+        // d(x_cam) / d(omega) = -[R X]_x for the update R <- exp(omega) R,
+        // so the row g of d(u, v) / d(x_cam) becomes -g [R X]_x = (R X) x g.
+        let [gu, gv] = g.map(Vector3::from);
+        let (du, dv) = (rx.cross(&gu), rx.cross(&gv));
         for k in 0..3 {
-            jac[k] = std::array::from_fn(|r| {
-                g[r][0] * dw[(0, k)] + g[r][1] * dw[(1, k)] + g[r][2] * dw[(2, k)]
-            });
+            jac[k] = [du[k], dv[k]];
             jac[3 + k] = [g[0][k], g[1][k]];
         }
         if layout.intrinsics {

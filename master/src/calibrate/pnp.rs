@@ -5,7 +5,8 @@
 use super::CalibrationError;
 use super::camera::{CameraModel, Observation};
 use super::dlt::{Spread, homography};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, SymmetricEigen, Vector2, Vector3, Vector4};
+use super::nullspace::smallest_eigenvectors;
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, SMatrix, SVector, Vector2, Vector3, Vector4};
 
 /// The rotation nearest to `m` in the Frobenius norm.
 pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
@@ -35,25 +36,20 @@ fn absolute_orientation(
     (r, mc - r * mw)
 }
 
-/// Undistortion-free normalised image coordinates `K^-1 [u, v, 1]`.
-fn normalised_points(
-    intrinsics: &CameraModel,
-    obs: &[Observation],
-) -> Result<Vec<Vector2<f64>>, CalibrationError> {
-    let k_inv =
-        intrinsics
-            .k()
-            .try_inverse()
-            .ok_or_else(|| CalibrationError::InvalidCameraMatrix {
-                reason: "the matrix is singular".to_string(),
-            })?;
-    Ok(obs
-        .iter()
-        .map(|o| {
-            let m = k_inv * o.pixel.push(1.0);
-            Vector2::new(m.x / m.z, m.y / m.z)
+/// `K^-1` of the known intrinsics.
+fn inverse_k(intrinsics: &CameraModel) -> Result<Matrix3<f64>, CalibrationError> {
+    intrinsics
+        .k()
+        .try_inverse()
+        .ok_or_else(|| CalibrationError::InvalidCameraMatrix {
+            reason: "the matrix is singular".to_string(),
         })
-        .collect())
+}
+
+/// Undistortion-free normalised image coordinates `K^-1 [u, v, 1]`.
+fn normalised_point(k_inv: &Matrix3<f64>, pixel: &Vector2<f64>) -> Vector2<f64> {
+    let m = k_inv * pixel.push(1.0);
+    Vector2::new(m.x / m.z, m.y / m.z)
 }
 
 fn with_pose(
@@ -77,15 +73,15 @@ pub(crate) fn pose_from_homography(
     spread: &Spread,
 ) -> Result<CameraModel, CalibrationError> {
     let basis = spread.axes;
-    let plane: Vec<Vector2<f64>> = obs
+    let k_inv = inverse_k(intrinsics)?;
+    let pairs: Vec<(Vector2<f64>, Vector2<f64>)> = obs
         .iter()
         .map(|o| {
             let d = basis.transpose() * (o.world - spread.centroid);
-            Vector2::new(d.x, d.y)
+            (d.xy(), normalised_point(&k_inv, &o.pixel))
         })
         .collect();
-    let image = normalised_points(intrinsics, obs)?;
-    let mut h = homography(&plane, &image)?;
+    let mut h = homography(&pairs)?;
     // The plane's centroid maps to h3; it must lie in front (z > 0).
     if h[(2, 2)] < 0.0 {
         h = -h;
@@ -152,23 +148,27 @@ pub(crate) fn epnp(
             [1.0 - a.x - a.y - a.z, a.x, a.y, a.z]
         })
         .collect();
-    let image = normalised_points(intrinsics, obs)?;
-    let mut m = DMatrix::zeros(2 * obs.len(), 12);
-    for (i, (a, p)) in alphas.iter().zip(&image).enumerate() {
+    let k_inv = inverse_k(intrinsics)?;
+    // M^T M accumulated point by point (M, 2n x 12, is never formed).
+    let mut mtm = SMatrix::<f64, 12, 12>::zeros();
+    for (a, o) in alphas.iter().zip(obs) {
+        let p = normalised_point(&k_inv, &o.pixel);
+        let mut r1 = SVector::<f64, 12>::zeros();
+        let mut r2 = SVector::<f64, 12>::zeros();
         for j in 0..4 {
-            m[(2 * i, 3 * j)] = a[j];
-            m[(2 * i, 3 * j + 2)] = -a[j] * p.x;
-            m[(2 * i + 1, 3 * j + 1)] = a[j];
-            m[(2 * i + 1, 3 * j + 2)] = -a[j] * p.y;
+            r1[3 * j] = a[j];
+            r1[3 * j + 2] = -a[j] * p.x;
+            r2[3 * j + 1] = a[j];
+            r2[3 * j + 2] = -a[j] * p.y;
         }
+        mtm.syger(1.0, &r1, &r1, 1.0);
+        mtm.syger(1.0, &r2, &r2, 1.0);
     }
-    let eig = SymmetricEigen::new(m.transpose() * &m);
-    let mut order: Vec<usize> = (0..12).collect();
-    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-    let kernel: Vec<Vec<f64>> = order[..4]
-        .iter()
-        .map(|&k| eig.eigenvectors.column(k).iter().copied().collect())
-        .collect();
+    mtm.fill_upper_triangle_with_lower_triangle();
+    let kernel: [SVector<f64, 12>; 4] =
+        smallest_eigenvectors(&mtm).ok_or_else(|| CalibrationError::Degenerate {
+            reason: "the EPnP system has no eigen-decomposition".to_string(),
+        })?;
 
     let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
     let dist2: Vec<f64> = pairs
