@@ -49,11 +49,6 @@ impl Layout {
     }
 }
 
-/// The skew-symmetric (cross-product) matrix of `a`.
-fn cross_matrix(a: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
-}
-
 impl CameraModel {
     /// Intrinsics from an upper-triangular `K` with `K[2][2] = 1`.
     pub(crate) fn from_k(
@@ -142,20 +137,26 @@ impl CameraModel {
         let iz = 1.0 / c.z;
         let (x, y) = (c.x * iz, c.y * iz);
         let r2 = x * x + y * y;
-        let d = 1.0 + self.k1 * r2 + self.k2 * r2 * r2;
-        let dd = self.k1 + 2.0 * self.k2 * r2;
-        let (xd, yd) = (x * d, y * d);
-        // d(xd, yd) / d(x, y)
-        let (a11, a12) = (d + 2.0 * x * x * dd, 2.0 * x * y * dd);
-        let (a21, a22) = (2.0 * x * y * dd, d + 2.0 * y * y * dd);
-        // d(u, v) / d(x, y)
-        let b = [
-            [
-                self.fx * a11 + self.skew * a21,
-                self.fx * a12 + self.skew * a22,
-            ],
-            [self.fy * a21, self.fy * a22],
-        ];
+        let distorted = self.k1 != 0.0 || self.k2 != 0.0;
+        // d(u, v) / d(x, y), and the distorted (xd, yd).
+        let (b, xd, yd) = if distorted {
+            let d = 1.0 + self.k1 * r2 + self.k2 * r2 * r2;
+            let dd = self.k1 + 2.0 * self.k2 * r2;
+            // d(xd, yd) / d(x, y)
+            let (a11, a12) = (d + 2.0 * x * x * dd, 2.0 * x * y * dd);
+            let (a21, a22) = (2.0 * x * y * dd, d + 2.0 * y * y * dd);
+            let b = [
+                [
+                    self.fx * a11 + self.skew * a21,
+                    self.fx * a12 + self.skew * a22,
+                ],
+                [self.fy * a21, self.fy * a22],
+            ];
+            (b, x * d, y * d)
+        } else {
+            // The same with d = 1, dd = 0 (the pose-only hot path).
+            ([[self.fx, self.skew], [0.0, self.fy]], x, y)
+        };
         // d(x, y) / d(x_cam) = [[1/z, 0, -x/z], [0, 1/z, -y/z]]
         let g: [[f64; 3]; 2] = std::array::from_fn(|r| {
             [
@@ -164,12 +165,12 @@ impl CameraModel {
                 -(b[r][0] * x + b[r][1] * y) * iz,
             ]
         });
-        // d(x_cam) / d(omega) = -[R X]_x for the update R <- exp(omega) R.
-        let dw = -cross_matrix(&rx);
+        // d(x_cam) / d(omega) = -[R X]_x for the update R <- exp(omega) R,
+        // so the row g of d(u, v) / d(x_cam) becomes -g [R X]_x = (R X) x g.
+        let [gu, gv] = g.map(Vector3::from);
+        let (du, dv) = (rx.cross(&gu), rx.cross(&gv));
         for k in 0..3 {
-            jac[k] = std::array::from_fn(|r| {
-                g[r][0] * dw[(0, k)] + g[r][1] * dw[(1, k)] + g[r][2] * dw[(2, k)]
-            });
+            jac[k] = [du[k], dv[k]];
             jac[3 + k] = [g[0][k], g[1][k]];
         }
         if layout.intrinsics {
@@ -257,7 +258,18 @@ mod tests {
             skew: true,
             distortion: true,
         };
-        let m = model();
+        // With distortion, and without (its own branch).
+        let undistorted = CameraModel {
+            k1: 0.0,
+            k2: 0.0,
+            ..model()
+        };
+        for m in [model(), undistorted] {
+            jacobian_matches_central_differences(&m, layout);
+        }
+    }
+
+    fn jacobian_matches_central_differences(m: &CameraModel, layout: Layout) {
         let x = Vector3::new(0.1, 0.05, -0.2);
         let mut jac = vec![[0.0; 2]; layout.len()];
         m.project_with_jacobian(&x, layout, &mut jac).unwrap();

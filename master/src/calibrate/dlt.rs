@@ -4,7 +4,8 @@
 
 use super::CalibrationError;
 use super::camera::{CameraModel, Observation};
-use nalgebra::{DMatrix, Matrix3, Matrix3x4, SymmetricEigen, Vector2, Vector3};
+use super::nullspace::{NullSpaceError, null_vector};
+use nalgebra::{Matrix3, Matrix3x4, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
 
 /// Singular values of the centred world points, largest first, relative to
 /// the largest: `[1, s2/s1, s3/s1]`, with the principal axes as columns.
@@ -79,64 +80,55 @@ fn normalise_2d(points: impl Iterator<Item = Vector2<f64>> + Clone) -> Option<Ma
     ))
 }
 
-/// Unit null vector of `a` (the right singular vector of the smallest
-/// singular value), with the second-smallest singular value relative to
-/// the largest: near zero, the null space is not one-dimensional. Solved
-/// through the eigenvectors of `A^T A`: the system is Hartley-normalised,
-/// so squaring its condition costs nothing a refinement would notice, and
-/// it is several times faster than the SVD of the tall `A`.
-fn null_vector(a: DMatrix<f64>) -> Option<(Vec<f64>, f64)> {
-    let ata = a.tr_mul(&a);
-    let cols = ata.ncols();
-    // Fixed-size eigen-decompositions for the two systems we solve (DLT
-    // 12x12, homography 9x9): several times faster than the dynamic one.
-    macro_rules! eigen {
-        ($n:literal) => {{
-            let m = nalgebra::SMatrix::<f64, $n, $n>::from_iterator(ata.iter().copied());
-            let eig = SymmetricEigen::try_new(m, f64::EPSILON, 200)?;
-            let values: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-            let vectors: Vec<Vec<f64>> = eig
-                .eigenvectors
-                .column_iter()
-                .map(|c| c.iter().copied().collect())
-                .collect();
-            (values, vectors)
-        }};
+/// The normal matrix `A^T A` (`N = 3 K` unknowns) of the homogeneous DLT
+/// system with the rows `[0, -x, v x]` and `[x, 0, -u x]` for each
+/// normalised pair of a point `x` (homogeneous, `K` entries) and a pixel
+/// `(u, v)`. With `S = sum x x^T` and its weighted sums `S_u` (by u), `S_v`
+/// (by v), `S_w` (by `u^2 + v^2`) it is
+/// `[[S, 0, -S_u], [0, S, -S_v], [-S_u, -S_v, S_w]]`: four K x K sums per
+/// point instead of two N x N outer products, and the 2n x N `A` is never formed.
+fn dlt_normal_matrix<const K: usize, const N: usize>(
+    pairs: impl Iterator<Item = (SVector<f64, K>, Vector2<f64>)>,
+) -> SMatrix<f64, N, N> {
+    const { assert!(N == 3 * K) };
+    let mut s = [SMatrix::<f64, K, K>::zeros(); 4];
+    for (x, p) in pairs {
+        let xx = x * x.transpose();
+        s[0] += xx;
+        s[1] += xx * p.x;
+        s[2] += xx * p.y;
+        s[3] += xx * (p.x * p.x + p.y * p.y);
     }
-    let (values, vectors) = match cols {
-        9 => eigen!(9),
-        12 => eigen!(12),
-        _ => {
-            let eig = SymmetricEigen::try_new(ata, f64::EPSILON, 200)?;
-            let vectors = eig
-                .eigenvectors
-                .column_iter()
-                .map(|c| c.iter().copied().collect())
-                .collect();
-            (eig.eigenvalues.iter().copied().collect(), vectors)
-        }
+    let mut m = SMatrix::<f64, N, N>::zeros();
+    let mut put = |r: usize, c: usize, block: &SMatrix<f64, K, K>| {
+        m.fixed_view_mut::<K, K>(r * K, c * K).copy_from(block);
     };
-    let mut idx: Vec<usize> = (0..cols).collect();
-    idx.sort_by(|&i, &j| values[i].total_cmp(&values[j]));
-    let (smallest, second, largest) = (idx[0], idx[1], idx[cols - 1]);
-    let ratio = (values[second].max(0.0) / values[largest].max(f64::MIN_POSITIVE)).sqrt();
-    Some((vectors[smallest].clone(), ratio))
+    let (su, sv) = (-s[1], -s[2]);
+    put(0, 0, &s[0]);
+    put(1, 1, &s[0]);
+    put(0, 2, &su);
+    put(2, 0, &su);
+    put(1, 2, &sv);
+    put(2, 1, &sv);
+    put(2, 2, &s[3]);
+    m
 }
 
-/// Below this ratio of the second-smallest to the largest singular value
-/// (of the normalised system) the linear system has no unique solution,
-/// for example when the points and the device centre lie on a twisted cubic.
-const NULL_SPACE_RATIO: f64 = 1e-7;
-
 /// Normalised DLT: the projection matrix P (up to scale) from at least six
-/// non-coplanar correspondences.
-pub(crate) fn projection_dlt(obs: &[Observation]) -> Result<Matrix3x4<f64>, CalibrationError> {
+/// non-coplanar correspondences with their [`spread`].
+///
+/// The 12x12 normal matrix `A^T A` of the Hartley-normalised system is
+/// accumulated point by point (the 2n x 12 `A` is never formed) and its
+/// smallest eigenvector taken; normalisation keeps it well conditioned.
+pub(crate) fn projection_dlt(
+    obs: &[Observation],
+    sp: &Spread,
+) -> Result<Matrix3x4<f64>, CalibrationError> {
     let degenerate = |reason: &str| CalibrationError::Degenerate {
         reason: reason.to_string(),
     };
     let t2 = normalise_2d(obs.iter().map(|o| o.pixel))
         .ok_or_else(|| degenerate("all pixels coincide"))?;
-    let sp = spread(obs);
     let n = obs.len() as f64;
     let mean3 = obs
         .iter()
@@ -144,25 +136,18 @@ pub(crate) fn projection_dlt(obs: &[Observation]) -> Result<Matrix3x4<f64>, Cali
         .sum::<f64>()
         / n;
     let s3 = 3f64.sqrt() / mean3;
-    let mut a = DMatrix::zeros(2 * obs.len(), 12);
-    for (i, o) in obs.iter().enumerate() {
+    let ata: SMatrix<f64, 12, 12> = dlt_normal_matrix(obs.iter().map(|o| {
         let x = (o.world - sp.centroid) * s3;
-        let xh = [x.x, x.y, x.z, 1.0];
         let p = t2 * o.pixel.push(1.0);
-        for j in 0..4 {
-            a[(2 * i, 4 + j)] = -xh[j];
-            a[(2 * i, 8 + j)] = p.y * xh[j];
-            a[(2 * i + 1, j)] = xh[j];
-            a[(2 * i + 1, 8 + j)] = -p.x * xh[j];
-        }
-    }
-    let (v, ratio) = null_vector(a).ok_or_else(|| degenerate("the DLT system has no SVD"))?;
-    if ratio < NULL_SPACE_RATIO {
-        return Err(degenerate(&format!(
+        (x.push(1.0), p.xy())
+    }));
+    let v = null_vector(&ata).map_err(|e| match e {
+        NullSpaceError::NoDecomposition => degenerate("the DLT system has no eigen-decomposition"),
+        NullSpaceError::NotUnique(ratio) => degenerate(&format!(
             "the DLT solution is not unique (singular value ratio {ratio:.3e})"
-        )));
-    }
-    let pn = Matrix3x4::from_row_slice(&v);
+        )),
+    })?;
+    let pn = Matrix3x4::from_row_slice(v.as_slice());
     // Undo the normalisations: P = T2^-1 Pn T3.
     let c = sp.centroid;
     let t3 = nalgebra::Matrix4::new(
@@ -242,35 +227,29 @@ pub(crate) fn decompose_projection(
 }
 
 /// Normalised DLT homography `H` with `pixel ~ H [a, b, 1]` from planar
-/// coordinates `plane` to image points `image` (at least four).
+/// coordinates to image points, given as `(plane, image)` pairs (at least
+/// four). Like [`projection_dlt`], through the 9x9 normal matrix.
 pub(crate) fn homography(
-    plane: &[Vector2<f64>],
-    image: &[Vector2<f64>],
+    pairs: &[(Vector2<f64>, Vector2<f64>)],
 ) -> Result<Matrix3<f64>, CalibrationError> {
     let degenerate = |reason: String| CalibrationError::Degenerate { reason };
-    let ta = normalise_2d(plane.iter().copied())
+    let ta = normalise_2d(pairs.iter().map(|(x, _)| *x))
         .ok_or_else(|| degenerate("all plane points coincide".into()))?;
-    let tb = normalise_2d(image.iter().copied())
+    let tb = normalise_2d(pairs.iter().map(|(_, u)| *u))
         .ok_or_else(|| degenerate("all image points coincide".into()))?;
-    let mut a = DMatrix::zeros(2 * plane.len(), 9);
-    for (i, (x, u)) in plane.iter().zip(image).enumerate() {
-        let x = ta * x.push(1.0);
+    let ata: SMatrix<f64, 9, 9> = dlt_normal_matrix(pairs.iter().map(|(x, u)| {
         let u = tb * u.push(1.0);
-        for j in 0..3 {
-            a[(2 * i, 3 + j)] = -x[j];
-            a[(2 * i, 6 + j)] = u.y * x[j];
-            a[(2 * i + 1, j)] = x[j];
-            a[(2 * i + 1, 6 + j)] = -u.x * x[j];
+        (ta * x.push(1.0), u.xy())
+    }));
+    let v = null_vector(&ata).map_err(|e| match e {
+        NullSpaceError::NoDecomposition => {
+            degenerate("the homography system has no eigen-decomposition".into())
         }
-    }
-    let (v, ratio) =
-        null_vector(a).ok_or_else(|| degenerate("the homography system has no SVD".into()))?;
-    if ratio < NULL_SPACE_RATIO {
-        return Err(degenerate(format!(
+        NullSpaceError::NotUnique(ratio) => degenerate(format!(
             "the homography is not unique (singular value ratio {ratio:.3e})"
-        )));
-    }
-    let hn = Matrix3::from_row_slice(&v);
+        )),
+    })?;
+    let hn = Matrix3::from_row_slice(v.as_slice());
     let tb_inv = tb
         .try_inverse()
         .ok_or_else(|| degenerate("singular image normalisation".into()))?;

@@ -161,10 +161,40 @@ pub(super) fn run_calibrate_file(
     let text =
         std::fs::read_to_string(points).with_context(|| format!("reading {}", points.display()))?;
     let input: CalibrationInput = serde_json::from_str(&text)
+        .map_err(|e| explain_input_error(&text, e))
         .with_context(|| format!("parsing calibration points {}", points.display()))?;
     let calibration = calibrate(&input, &CalibrateOptions::with_method(method))
         .with_context(|| format!("calibrating {} from {}", input.device, points.display()))?;
     let json = serde_json::to_string_pretty(&calibration).context("serialising the calibration")?;
     std::fs::write(out, json + "\n").with_context(|| format!("writing {}", out.display()))?;
     Ok(calibration)
+}
+
+/// The parse error of a points file, with the first malformed point named
+/// (`points[3].pixel must be [u, v] ...`) where serde's message gives only
+/// a line and column.
+fn explain_input_error(text: &str, err: serde_json::Error) -> anyhow::Error {
+    let fault = serde_json::from_str::<serde_json::Value>(text)
+        .ok()
+        .and_then(|doc| {
+            let points = doc.get("points")?.as_array()?;
+            points.iter().enumerate().find_map(|(i, p)| {
+                [("world", 3, "[x, y, z]"), ("pixel", 2, "[u, v]")]
+                    .into_iter()
+                    .find_map(|(key, len, shape)| {
+                        let v = p.get(key);
+                        let ok = v
+                            .and_then(|v| v.as_array())
+                            .is_some_and(|a| a.len() == len && a.iter().all(|x| x.is_number()));
+                        (!ok).then(|| {
+                            let got = v.map_or("nothing".to_string(), |v| v.to_string());
+                            format!("points[{i}].{key} must be {shape} ({len} numbers), got {got}")
+                        })
+                    })
+            })
+        });
+    match fault {
+        Some(fault) => anyhow::Error::new(err).context(fault),
+        None => err.into(),
+    }
 }

@@ -19,6 +19,7 @@ mod camera;
 mod dlt;
 mod io;
 mod lm;
+mod nullspace;
 mod pnp;
 mod powell;
 mod simulate;
@@ -417,7 +418,7 @@ pub fn calibrate(
                 ratio: spread.plane_ratio,
             });
         }
-        None => dlt::decompose_projection(&dlt::projection_dlt(&obs)?, &obs)?,
+        None => dlt::decompose_projection(&dlt::projection_dlt(&obs, &spread)?, &obs)?,
         Some(k) if coplanar => pnp::pose_from_homography(k, &obs, &spread)?,
         Some(k) => pnp::epnp(k, &obs, &spread)?,
     };

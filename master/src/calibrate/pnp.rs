@@ -5,10 +5,39 @@
 use super::CalibrationError;
 use super::camera::{CameraModel, Observation};
 use super::dlt::{Spread, homography};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, SymmetricEigen, Vector2, Vector3, Vector4};
+use super::nullspace::smallest_eigenvectors;
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, SMatrix, SVector, Vector2, Vector3, Vector4};
 
-/// The rotation nearest to `m` in the Frobenius norm.
+/// The rotation nearest to `m` in the Frobenius norm: the orthogonal polar
+/// factor when `det m > 0`, by Newton's iteration `X <- (g X + X^-T / g) / 2`
+/// with Higham's scaling `g` (a handful of 3x3 inverses, several times
+/// cheaper than an SVD); otherwise, or if it does not settle, by the SVD.
 pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
+    if m.determinant() > 0.0 {
+        let mut x = *m;
+        for _ in 0..30 {
+            let Some(inv) = x.try_inverse() else { break };
+            let g = (inv.norm() / x.norm()).sqrt();
+            let next = (x * g + inv.transpose() / g) * 0.5;
+            let change = (next - x).amax();
+            x = next;
+            if !change.is_finite() {
+                break;
+            }
+            if change < 1e-9 {
+                // Quadratic convergence: one more step reaches rounding level.
+                if let Some(inv) = x.try_inverse() {
+                    return (x + inv.transpose()) * 0.5;
+                }
+                break;
+            }
+        }
+    }
+    nearest_rotation_by_svd(m)
+}
+
+/// [`nearest_rotation`] through the SVD `m = U S V^T`: `U diag(1, 1, det) V^T`.
+fn nearest_rotation_by_svd(m: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = m.svd(true, true);
     let (u, v_t) = (
         svd.u.unwrap_or_else(Matrix3::identity),
@@ -35,25 +64,20 @@ fn absolute_orientation(
     (r, mc - r * mw)
 }
 
-/// Undistortion-free normalised image coordinates `K^-1 [u, v, 1]`.
-fn normalised_points(
-    intrinsics: &CameraModel,
-    obs: &[Observation],
-) -> Result<Vec<Vector2<f64>>, CalibrationError> {
-    let k_inv =
-        intrinsics
-            .k()
-            .try_inverse()
-            .ok_or_else(|| CalibrationError::InvalidCameraMatrix {
-                reason: "the matrix is singular".to_string(),
-            })?;
-    Ok(obs
-        .iter()
-        .map(|o| {
-            let m = k_inv * o.pixel.push(1.0);
-            Vector2::new(m.x / m.z, m.y / m.z)
+/// `K^-1` of the known intrinsics.
+fn inverse_k(intrinsics: &CameraModel) -> Result<Matrix3<f64>, CalibrationError> {
+    intrinsics
+        .k()
+        .try_inverse()
+        .ok_or_else(|| CalibrationError::InvalidCameraMatrix {
+            reason: "the matrix is singular".to_string(),
         })
-        .collect())
+}
+
+/// Undistortion-free normalised image coordinates `K^-1 [u, v, 1]`.
+fn normalised_point(k_inv: &Matrix3<f64>, pixel: &Vector2<f64>) -> Vector2<f64> {
+    let m = k_inv * pixel.push(1.0);
+    Vector2::new(m.x / m.z, m.y / m.z)
 }
 
 fn with_pose(
@@ -77,15 +101,15 @@ pub(crate) fn pose_from_homography(
     spread: &Spread,
 ) -> Result<CameraModel, CalibrationError> {
     let basis = spread.axes;
-    let plane: Vec<Vector2<f64>> = obs
+    let k_inv = inverse_k(intrinsics)?;
+    let pairs: Vec<(Vector2<f64>, Vector2<f64>)> = obs
         .iter()
         .map(|o| {
             let d = basis.transpose() * (o.world - spread.centroid);
-            Vector2::new(d.x, d.y)
+            (d.xy(), normalised_point(&k_inv, &o.pixel))
         })
         .collect();
-    let image = normalised_points(intrinsics, obs)?;
-    let mut h = homography(&plane, &image)?;
+    let mut h = homography(&pairs)?;
     // The plane's centroid maps to h3; it must lie in front (z > 0).
     if h[(2, 2)] < 0.0 {
         h = -h;
@@ -152,23 +176,27 @@ pub(crate) fn epnp(
             [1.0 - a.x - a.y - a.z, a.x, a.y, a.z]
         })
         .collect();
-    let image = normalised_points(intrinsics, obs)?;
-    let mut m = DMatrix::zeros(2 * obs.len(), 12);
-    for (i, (a, p)) in alphas.iter().zip(&image).enumerate() {
+    let k_inv = inverse_k(intrinsics)?;
+    // M^T M accumulated point by point (M, 2n x 12, is never formed).
+    let mut mtm = SMatrix::<f64, 12, 12>::zeros();
+    for (a, o) in alphas.iter().zip(obs) {
+        let p = normalised_point(&k_inv, &o.pixel);
+        let mut r1 = SVector::<f64, 12>::zeros();
+        let mut r2 = SVector::<f64, 12>::zeros();
         for j in 0..4 {
-            m[(2 * i, 3 * j)] = a[j];
-            m[(2 * i, 3 * j + 2)] = -a[j] * p.x;
-            m[(2 * i + 1, 3 * j + 1)] = a[j];
-            m[(2 * i + 1, 3 * j + 2)] = -a[j] * p.y;
+            r1[3 * j] = a[j];
+            r1[3 * j + 2] = -a[j] * p.x;
+            r2[3 * j + 1] = a[j];
+            r2[3 * j + 2] = -a[j] * p.y;
         }
+        mtm.syger(1.0, &r1, &r1, 1.0);
+        mtm.syger(1.0, &r2, &r2, 1.0);
     }
-    let eig = SymmetricEigen::new(m.transpose() * &m);
-    let mut order: Vec<usize> = (0..12).collect();
-    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-    let kernel: Vec<Vec<f64>> = order[..4]
-        .iter()
-        .map(|&k| eig.eigenvectors.column(k).iter().copied().collect())
-        .collect();
+    mtm.fill_upper_triangle_with_lower_triangle();
+    let kernel: [SVector<f64, 12>; 4] =
+        smallest_eigenvectors(&mtm).ok_or_else(|| CalibrationError::Degenerate {
+            reason: "the EPnP system has no eigen-decomposition".to_string(),
+        })?;
 
     let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
     let dist2: Vec<f64> = pairs
@@ -280,6 +308,28 @@ mod tests {
     use crate::calibrate::dlt::spread;
     use crate::calibrate::io::model_of_device;
     use crate::calibrate::{fiducial_rig, projector_in_showcase, simulate_fiducials};
+
+    #[test]
+    fn newton_polar_rotation_matches_the_svd() {
+        use nalgebra::Rotation3;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for i in 0..200 {
+            let m = match i % 3 {
+                // Near a rotation (a homography's columns).
+                0 => {
+                    Rotation3::new(Vector3::new(0.3, -1.1, 2.0 + i as f64)).into_inner()
+                        + Matrix3::from_fn(|_, _| rng.random_range(-0.05..0.05))
+                }
+                // Anything, including reflections (det < 0: the SVD path).
+                _ => Matrix3::from_fn(|_, _| rng.random_range(-1.0..1.0)),
+            };
+            let (fast, svd) = (nearest_rotation(&m), nearest_rotation_by_svd(&m));
+            assert!((fast - svd).amax() < 1e-11, "{m} {fast} {svd}");
+            assert!((fast.transpose() * fast - Matrix3::identity()).amax() < 1e-14);
+            assert!((fast.determinant() - 1.0).abs() < 1e-14);
+        }
+    }
 
     #[test]
     fn epnp_is_exact_on_noise_free_points_down_to_four() {
