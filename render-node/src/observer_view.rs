@@ -78,6 +78,9 @@ pub struct ObserverView {
     pub sees_virtual: Image<bool>,
     /// Pixels of [`Self::sees_virtual`] whose object is reflective.
     pub sees_reflective: Image<bool>,
+    /// The object (index into the scene's objects) the centre ray meets
+    /// first, if any.
+    pub first_object: Image<Option<u32>>,
     /// Pixels whose first real surface some projector reaches (the
     /// projectors can light only these).
     pub reachable: Image<bool>,
@@ -190,6 +193,7 @@ pub fn observer_view(
         covered: Image::new(w, h, false),
         sees_virtual: Image::new(w, h, false),
         sees_reflective: Image::new(w, h, false),
+        first_object: Image::new(w, h, None),
         edge: Image::new(w, h, false),
         reachable: Image::new(w, h, false),
     };
@@ -198,6 +202,7 @@ pub fn observer_view(
         keys.data[i] = key;
         let seen = key.and_then(|(object, _, _)| frame.showcase.objects.get(object as usize));
         let virtual_ = seen.filter(|o| o.kind == ObjectKind::Virtual);
+        view.first_object.data[i] = key.map(|(object, _, _)| object);
         view.sees_virtual.data[i] = virtual_.is_some();
         view.sees_reflective.data[i] = virtual_.is_some_and(|o| o.material.reflective);
         view.reachable.data[i] = reachable;

@@ -470,6 +470,7 @@ fn rendering_stage(
                     "consistency_rel_rmse_real": seen.rel_real,
                     "consistency_rel_rmse_virtual": seen.rel_virtual,
                     "consistency_rel_rmse_reflective": seen.rel_reflective,
+                    "consistency_rel_rmse_per_object": seen.per_object,
                     "projector_reach_fraction": seen.reach,
                 }))
                 .collect::<Vec<_>>()
@@ -657,6 +658,7 @@ struct Seen {
     rel_real: Option<f64>,
     rel_virtual: Option<f64>,
     rel_reflective: Option<f64>,
+    per_object: std::collections::BTreeMap<String, f64>,
     reach: f64,
 }
 
@@ -668,6 +670,7 @@ impl Default for Seen {
             rel_real: None,
             rel_virtual: None,
             rel_reflective: None,
+            per_object: std::collections::BTreeMap::new(),
             reach: 1.0,
         }
     }
@@ -685,6 +688,10 @@ impl Seen {
         self.rel_real = worst(self.rel_real, r.rel_rmse_real);
         self.rel_virtual = worst(self.rel_virtual, r.rel_rmse_virtual);
         self.rel_reflective = worst(self.rel_reflective, r.rel_rmse_reflective);
+        for (name, e) in &r.rel_rmse_per_object {
+            let w = self.per_object.entry(name.clone()).or_insert(0.0);
+            *w = w.max(*e);
+        }
         self.reach = self.reach.min(r.reachable_fraction);
     }
 }

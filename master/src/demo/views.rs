@@ -253,6 +253,8 @@ pub(super) struct ObserverResult {
     /// Over the pixels that show a reflective virtual object (the CRT
     /// image's cube-map reflection against the exactly traced one).
     pub rel_rmse_reflective: Option<f64>,
+    /// [`Self::rel_rmse`] per object the pixels show (name, value).
+    pub rel_rmse_per_object: Vec<(String, f64)>,
     /// Covered pixels whose real surface some projector reaches, over
     /// covered pixels.
     pub reachable_fraction: f64,
@@ -354,6 +356,26 @@ pub(super) fn observe(
         };
         metrics::relative_rmse(&view.composite, &view.target, Some(&part)).ok()
     };
+    let rel_rmse_per_object = truth
+        .objects
+        .iter()
+        .enumerate()
+        .filter_map(|(i, o)| {
+            let part = Image {
+                width: mask.width,
+                height: mask.height,
+                data: mask
+                    .data
+                    .iter()
+                    .zip(&view.first_object.data)
+                    .map(|(m, f)| *m && *f == Some(i as u32))
+                    .collect(),
+            };
+            metrics::relative_rmse(&view.composite, &view.target, Some(&part))
+                .ok()
+                .map(|e| (o.name.clone(), e))
+        })
+        .collect();
     let rel_rmse_real = part(false, false);
     let rel_rmse_virtual = part(true, false);
     let rel_rmse_reflective = part(true, true);
@@ -365,6 +387,7 @@ pub(super) fn observe(
         rel_rmse_real,
         rel_rmse_virtual,
         rel_rmse_reflective,
+        rel_rmse_per_object,
         reachable_fraction: reachable as f64 / covered.max(1) as f64,
     })
 }
