@@ -17,7 +17,7 @@ use showcase_render::light::{Image, RgbImage, metrics};
 use showcase_render::node::Renderer;
 use showcase_render::observer_view::{MirrorImage, ObserverView, ProjectedLight, observer_view};
 use showcase_render::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
-use showcase_render::render::face::face_image_cpu_with;
+use showcase_render::render::face::{eyes_to_fill, face_image_cpu_with};
 use showcase_render::render::face_gpu::FaceRenderer;
 use showcase_render::render::projector_gpu::ProjectorRenderer;
 use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
@@ -193,10 +193,11 @@ impl NodeRenderers {
                         .filter(|&o| o != observer)
                         .flat_map(|o| eyes_of(scene, &state, o))
                         .collect();
-                    let draw = |eye| {
-                        face_image_cpu_with(&frame, &occluders, face, eye, &others, &cube_maps)
+                    let draw = |k: usize| {
+                        let filled = eyes_to_fill(&eyes, k, &others);
+                        face_image_cpu_with(&frame, &occluders, face, eyes[k], &filled, &cube_maps)
                     };
-                    let (l, r) = (draw(eyes[0])?, draw(eyes[1])?);
+                    let (l, r) = (draw(0)?, draw(1)?);
                     out.faces.push((observer, [l.radiance, r.radiance]));
                 }
             }

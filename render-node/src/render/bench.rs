@@ -17,7 +17,7 @@ use showcase_proto::{
 use super::RenderSetupError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
 use super::consistency::direct_light_consistency;
-use super::face::face_image_cpu;
+use super::face::{eyes_to_fill, face_image_cpu};
 use super::face_gpu::{FacePipeline, other_eyes};
 use super::frame::FrameScene;
 use super::passes::{FrameKey, PassList};
@@ -498,7 +498,8 @@ fn bench_face_variant(
     };
     let state0 = bench_frame(&s, variant, 0);
     let first = FrameScene::resolve(&s, &state0)?;
-    let passes = PassList::for_face(&first, other_eyes(&first, 0).len());
+    // Stereo: each eye also fills its other eye's occlusion shadows.
+    let passes = PassList::for_face(&first, other_eyes(&first, 0).len() + 1);
     let eyes = eyes_of(&state0);
     let others0 = other_eyes(&first, 0);
     let images = pipeline.render(ctx, &first, &face, &eyes, &others0, &passes)?;
@@ -512,7 +513,7 @@ fn bench_face_variant(
         let timed = n > frames;
         let start = Instant::now();
         let frame = FrameScene::resolve(&s, &state)?;
-        let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len());
+        let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len() + 1);
         // Everything a face shows: lights, transforms, and the heads.
         let key = FrameKey::face(0, 0, &state);
         if last_key != Some(key) {
@@ -545,7 +546,8 @@ fn bench_face_variant(
     let mut gpu_cpu = None;
     if options.accuracy {
         let occluders = Occluders::new(&first)?;
-        let cpu = face_image_cpu(&first, &occluders, &face, eyes[0], &others0)?;
+        let filled = eyes_to_fill(&eyes, 0, &others0);
+        let cpu = face_image_cpu(&first, &occluders, &face, eyes[0], &filled)?;
         let g = Image {
             width,
             height,

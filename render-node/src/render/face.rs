@@ -5,8 +5,10 @@
 //! with shadow types 2 and 3 (virtual objects and real phantoms occlude
 //! the lights), the ambient term in shadows, and phantom depth (a pixel
 //! whose first surface is a real phantom stays black: the real object is
-//! seen through the mirror), except inside other observers' occlusion
-//! shadows: there the real surface is dark (the projector leaves it
+//! seen through the mirror), except inside the occlusion shadows of the
+//! other tracked eyes (other observers', and in stereo the observer's own
+//! other eye, whose shadow lies beside what this eye sees of a virtual
+//! object): there the real surface is dark (the projector leaves it
 //! unlit for them), so this eye is shown the lit reflectance map instead,
 //! `rho / pi * E` of the real surface under the virtual lights (occluding
 //! occlusion shadows, paper section 5.4; the GPU does per fragment what
@@ -47,9 +49,26 @@ pub fn reflected_pixel(face: &CrtFace, pixel: DVec2) -> DVec3 {
     p - 2.0 * (n.dot(p) - f64::from(face.mirror.offset)) * n
 }
 
+/// The eyes whose occlusion shadows eye `k` of `eyes` (one observer's
+/// eyes) fills in: every other observer's eye (`other_observers`) and the
+/// observer's own other eye(s), whose shadows lie beside the virtual
+/// objects this eye sees (the GPU pass uses the same set).
+pub fn eyes_to_fill(eyes: &[DVec3], k: usize, other_observers: &[DVec3]) -> Vec<DVec3> {
+    other_observers
+        .iter()
+        .copied()
+        .chain(
+            eyes.iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, e)| *e),
+        )
+        .collect()
+}
+
 /// Render what the eye at `eye` sees through `face` on the CPU;
-/// `other_eyes` are the eyes of the other observers, whose occlusion
-/// shadows this view fills in. Reflective objects use cube maps of
+/// `other_eyes` are the other tracked eyes whose occlusion shadows this
+/// view fills in ([`eyes_to_fill`]). Reflective objects use cube maps of
 /// [`DEFAULT_CUBE_RES`] texels per side.
 pub fn face_image_cpu(
     frame: &FrameScene,

@@ -19,6 +19,7 @@ use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
 use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
+use crate::gpu::face_view::NO_OWN_EYE;
 use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
 use crate::gpu::irradiance_map::EyeGpu;
 use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
@@ -159,8 +160,11 @@ impl FacePipeline {
         } else {
             None
         };
-        let mut others = Vec::with_capacity(other_eyes.len());
-        for e in other_eyes {
+        // Every tracked eye but the drawn one casts occlusion shadows this
+        // view fills: the other observers' eyes, then this observer's own
+        // eyes (each eye's uniform names its own entry, which it skips).
+        let mut others = Vec::with_capacity(other_eyes.len() + eyes.len());
+        for e in other_eyes.iter().chain(eyes) {
             let first = views.len() as u32;
             if let (true, Some((c, r))) = (occluding, virtual_sphere) {
                 views.extend(fitted_views(
@@ -232,14 +236,16 @@ impl FacePipeline {
             ));
         }
         let (cube_res, shadow_res) = (self.cubes.res(), self.shadow_res);
-        let base = |clip_from_world, eye: DVec3, others: u32, flags: u32| FaceFrameUniform {
-            clip_from_world,
-            eye: eye.as_vec3().extend(0.0).to_array(),
-            ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-            counts: [lights.len() as u32, others, shadow_res, flags],
-            shadow: [SHADOW_NEAR, far, 0.0, 0.0],
-            cube: [cube_res, centres.len() as u32, 0, 0],
-        };
+        let base =
+            |clip_from_world, eye: DVec3, others: u32, own: u32, flags: u32| FaceFrameUniform {
+                clip_from_world,
+                eye: eye.as_vec3().extend(0.0).to_array(),
+                ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
+                counts: [lights.len() as u32, others, shadow_res, flags],
+                shadow: [SHADOW_NEAR, far, 0.0, 0.0],
+                cube: [cube_res, centres.len() as u32, 0, 0],
+                own: [own, 0, 0, 0],
+            };
         // The maps show the lights, every object's geometry (phantoms,
         // and virtual objects as shadow casters), the phantoms' albedos
         // and the light views.
@@ -257,7 +263,13 @@ impl FacePipeline {
                 device,
                 queue,
                 &cube_centres,
-                &base([[0.0; 4]; 4], DVec3::ZERO, 0, u32::from(shadows)),
+                &base(
+                    [[0.0; 4]; 4],
+                    DVec3::ZERO,
+                    0,
+                    NO_OWN_EYE,
+                    u32::from(shadows),
+                ),
                 FACE_FAR as f32,
                 content.finish(),
             )?;
@@ -287,13 +299,14 @@ impl FacePipeline {
                 })
                 .collect::<Result<_, RenderSetupError>>()?;
         }
-        for (&eye, res) in eyes.iter().zip(self.eyes.iter_mut()) {
+        for (k, (&eye, res)) in eyes.iter().zip(self.eyes.iter_mut()).enumerate() {
             let view =
                 FaceView::new(face, eye, FACE_NEAR, FACE_FAR).ok_or(RenderSetupError::NonFinite)?;
             let uniform = base(
                 view.clip_from_world.as_mat4().to_cols_array_2d(),
                 eye,
                 others.len() as u32,
+                (other_eyes.len() + k) as u32,
                 u32::from(shadows) | (u32::from(occluding) << 1),
             );
             res.frame.write(device, queue, &[uniform]);
@@ -531,7 +544,7 @@ impl FaceRenderer {
         }
         let resolved = FrameScene::resolve(scene, frame).map_err(|e| RenderError(e.to_string()))?;
         let other_eyes = other_eyes(&resolved, self.observer);
-        let passes = PassList::for_face(&resolved, other_eyes.len());
+        let passes = PassList::for_face(&resolved, other_eyes.len() + eyes.len() - 1);
         let images = self
             .pipeline
             .render(&self.ctx, &resolved, face, &eyes, &other_eyes, &passes)

@@ -89,8 +89,10 @@ impl PassList {
     /// The passes a face frame needs: light shadow views only when an
     /// occluder can be lit and a virtual object is there (to be shaded, or
     /// to cast the occlusion shadows that phantoms are filled in for); the
-    /// other observers' eye views (occluding occlusion shadows) only with
-    /// another observer (`other_eyes > 0`) and a virtual object; the cube
+    /// eye views of the other tracked eyes (occluding occlusion shadows)
+    /// only when a drawn eye sees another eye's shadows (`other_eyes > 0`:
+    /// another observer's eyes, or the observer's own other eye in stereo)
+    /// and a virtual object exists; the cube
     /// maps only when a reflective virtual object with geometry exists
     /// (without one the pass draws nothing any fragment reads).
     pub fn for_face(frame: &FrameScene, other_eyes: usize) -> Self {

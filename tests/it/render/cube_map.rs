@@ -428,7 +428,7 @@ fn cube_maps_are_skipped_without_reflective_objects() -> Result<()> {
         let passes = if forced {
             PassList::full_face()
         } else {
-            PassList::for_face(&frame, others.len())
+            PassList::for_face(&frame, others.len() + 1)
         };
         let eyes = [frame.eyes[0], frame.eyes[1]];
         let images = pipeline.render(&ctx, &frame, &face, &eyes, &others, &passes)?;

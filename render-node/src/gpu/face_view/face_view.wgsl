@@ -3,10 +3,10 @@
 // with depth, so real objects hide virtual ones; virtual objects are shaded
 // rho / pi * E with E from the virtual light samples (shadow types 2 and 3
 // from the light shadow views, which hold phantoms and virtual objects)
-// plus ambient. Occluding occlusion shadows: a phantom point inside another
-// observer's occlusion shadow (a virtual object between it and that
-// observer's eye, from the eye shadow views) is drawn as the lit real
-// surface instead of black. Reflective virtual objects (albedo w > 0)
+// plus ambient. Occluding occlusion shadows: a phantom point inside the
+// occlusion shadow of any other tracked eye (another observer's, or this
+// observer's other eye; a virtual object between it and that eye, from
+// the eye shadow views) is drawn as the lit real surface instead of black. Reflective virtual objects (albedo w > 0)
 // show their cube map of the real environment, albedo * C(reflect(d, n)),
 // C sampled bilinearly within a face (render::cube_map). The cube-map
 // pass draws the phantoms into the maps with this module's vs_main and
@@ -26,6 +26,8 @@ struct Frame {
     shadow: vec4<f32>,
     // cube map texels per side.
     cube: vec4<u32>,
+    // x: this eye's own entry in `eyes` (skipped), 0xffffffff for none.
+    own: vec4<u32>,
 }
 
 struct LightSample {
@@ -231,6 +233,9 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
     let p = in.world;
     let n = facing(in);
     for (var e = 0u; e < frame.counts.y; e++) {
+        if (e == frame.own.x) {
+            continue;
+        }
         let eye = eyes[e];
         if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
             return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);

@@ -26,7 +26,14 @@ pub struct FaceFrameUniform {
     pub shadow: [f32; 4],
     /// x: cube map texels per side.
     pub cube: [u32; 4],
+    /// x: this eye's own entry in the eyes buffer, skipped by the
+    /// occluding occlusion shadows ([`NO_OWN_EYE`] for none).
+    pub own: [u32; 4],
 }
+
+/// [`FaceFrameUniform::own`] when the eyes buffer holds no entry of the
+/// drawn eye.
+pub const NO_OWN_EYE: u32 = u32::MAX;
 
 /// The buffers and maps the pass reads (see [`FaceViewPass::bind_group`]).
 #[derive(Clone, Copy, Debug)]
