@@ -233,7 +233,7 @@ fn radiosity_stage(out: &Path) -> Result<StageOutcome> {
     // headline) and with the paper's converged B1.
     let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cornell-box.obj");
     let cornell = crate::radiosity_job::load_obj_scene(&cornell)?;
-    let record = crate::radiosity_job::bench::augmented_record(&cornell)?;
+    let record = crate::radiosity_job::bench::augmented_record_with(&cornell, false)?;
     let gathered = record["consistency_rel_rmse"].as_f64();
     let paper = record["paper_consistency_rel_rmse"].as_f64();
     figures.insert(
