@@ -22,8 +22,12 @@
 //! a static pair is re-computed only when the segment between the centres,
 //! widened by the larger of the two triangles' radii, meets the bounding
 //! box of the object's old or new place, and then only when one of its own
-//! visibility rays meets one of those boxes (a conservative test: a pair
-//! passing it has the very same rays and value as before). The rows of the
+//! visibility rays may see a difference: a ray that certainly passes
+//! through both places is blocked before and after, one that certainly
+//! misses both sees the same as before (tested against the object's
+//! triangles with a margin far above the ray offsets; when unsure, the
+//! entry is recomputed). A pair whose rays all see no difference has the
+//! very same value as before. The rows of the
 //! object's own patches are recomputed whole. Re-computed entries use the
 //! same seeds as a fresh solve, so a patched row equals a fresh row of the
 //! moved scene (to round-off). With hemi-cube methods every row that is
@@ -132,6 +136,91 @@ impl Bounds {
             }
         }
         true
+    }
+}
+
+/// Where a segment stands against an object's triangles, with a margin
+/// far above round-off and the ray offsets of [`SceneGeometry::visible`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Crossing {
+    /// It certainly passes through a triangle's interior.
+    Hit,
+    /// It certainly misses every triangle.
+    Miss,
+    /// Too close to an edge, an end or a plane to tell.
+    Unsure,
+}
+
+/// Relative margin of [`crossing`] (in barycentric and segment units).
+const CROSSING_MARGIN: f64 = 1e-6;
+
+/// How the segment `a`-`b` meets `triangles` (Moller-Trumbore with a
+/// margin on both sides).
+fn crossing(triangles: &[[DVec3; 3]], a: DVec3, b: DVec3) -> Crossing {
+    let d = b - a;
+    let m = CROSSING_MARGIN;
+    let mut all_miss = true;
+    for [v0, v1, v2] in triangles {
+        let (e1, e2) = (*v1 - *v0, *v2 - *v0);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        let scale = e1.length() * e2.length() * d.length();
+        if !(det.abs() > 1e-9 * scale) {
+            // Parallel to the plane (or degenerate): only sure when the
+            // segment is far from the triangle's box.
+            let lo = v0.min(*v1).min(*v2);
+            let hi = v0.max(*v1).max(*v2);
+            let pad = m * (1.0 + (hi - lo).max_element());
+            let bounds = Bounds { lo, hi }.grown(pad);
+            if bounds.meets_segment(a, b) {
+                all_miss = false;
+            }
+            continue;
+        }
+        let inv = 1.0 / det;
+        let s = a - *v0;
+        let u = s.dot(p) * inv;
+        let q = s.cross(e1);
+        let v = d.dot(q) * inv;
+        let t = e2.dot(q) * inv;
+        if u > m && v > m && u + v < 1.0 - m && t > m && t < 1.0 - m {
+            return Crossing::Hit;
+        }
+        let miss = u < -m || v < -m || u + v > 1.0 + m || t < -m || t > 1.0 + m;
+        if !miss {
+            all_miss = false;
+        }
+    }
+    if all_miss {
+        Crossing::Miss
+    } else {
+        Crossing::Unsure
+    }
+}
+
+/// The moved object's old and new place.
+struct Places {
+    /// Bounding boxes (old, new), with a margin.
+    boxes: [Bounds; 2],
+    /// Triangles (old, new).
+    triangles: [Vec<[DVec3; 3]>; 2],
+}
+
+impl Places {
+    /// True unless the segment certainly meets both places or certainly
+    /// neither (then its visibility is the same before and after).
+    fn may_change(&self, a: DVec3, b: DVec3) -> bool {
+        let [o, n] = [0, 1].map(|k| {
+            if self.boxes[k].meets_segment(a, b) {
+                crossing(&self.triangles[k], a, b)
+            } else {
+                Crossing::Miss
+            }
+        });
+        !matches!(
+            (o, n),
+            (Crossing::Hit, Crossing::Hit) | (Crossing::Miss, Crossing::Miss)
+        )
     }
 }
 
@@ -262,7 +351,17 @@ impl<'a> Shooter<'a> {
             .max(new_box.hi - new_box.lo)
             .max_element();
         let margin = 1e-6 * (1.0 + extent);
-        let boxes = [old_box.grown(margin), new_box.grown(margin)];
+        let triangles_of = |m: &RadiosityMesh| -> Vec<[DVec3; 3]> {
+            m.primitives
+                .iter()
+                .filter(|p| p.object == object)
+                .map(|p| p.vertices)
+                .collect()
+        };
+        let places = Places {
+            boxes: [old_box.grown(margin), new_box.grown(margin)],
+            triangles: [triangles_of(old_mesh), triangles_of(mesh)],
+        };
 
         // The old rows of every patch that shot or has a cached row.
         let n = old_mesh.patches.len();
@@ -311,7 +410,7 @@ impl<'a> Shooter<'a> {
                     new.form_factors(i, seed, None)
                 } else {
                     stats.rows_patched = 1;
-                    let changes = new.changed_entries(i, object, &boxes, &mut stats);
+                    let changes = new.changed_entries(i, object, &places, &mut stats);
                     let raw: Vec<(u32, f64)> = if *old_scale == 1.0 {
                         old_row.clone()
                     } else {
@@ -368,14 +467,14 @@ impl<'a> Shooter<'a> {
     }
 
     /// The entries of ray-cast row `i` (a static patch) that the move of
-    /// `object` (old and new place within `boxes`) may change, recomputed
+    /// `object` (old and new place in `places`) may change, recomputed
     /// on the moved scene: `(element, raw F)`, sorted, zero where it is
     /// now zero.
     fn changed_entries(
         &self,
         i: usize,
         object: u32,
-        boxes: &[Bounds; 2],
+        places: &Places,
         stats: &mut MoveStats,
     ) -> Vec<(u32, f64)> {
         let mesh = self.mesh;
@@ -393,15 +492,15 @@ impl<'a> Shooter<'a> {
                 true
             } else {
                 let widen = rp.max(radius(e.center, &e.vertices));
-                if !boxes
+                if !places
+                    .boxes
                     .iter()
                     .any(|b| b.grown(widen).meets_segment(p.center, e.center))
                 {
                     continue;
                 }
                 stats.pairs_near += 1;
-                receiver_rays(mesh, i, j, &samples, seed)
-                    .any(|(x, y)| boxes.iter().any(|b| b.meets_segment(x, y)))
+                receiver_rays(mesh, i, j, &samples, seed).any(|(x, y)| places.may_change(x, y))
             };
             if recompute {
                 stats.entries_recomputed += 1;
@@ -432,6 +531,29 @@ mod tests {
         assert!(b.meets_segment(0.5 * DVec3::ONE, 0.5 * DVec3::ONE + x));
         // Diagonal past a corner.
         assert!(!b.meets_segment(DVec3::new(1.5, -0.5, 0.5), DVec3::new(2.5, 0.5, 0.5)));
+    }
+
+    #[test]
+    fn crossing_is_sure_only_away_from_edges_and_ends() {
+        let tri = [[DVec3::ZERO, DVec3::X, DVec3::Y]];
+        let down = |x: f64, y: f64| crossing(&tri, DVec3::new(x, y, 1.0), DVec3::new(x, y, -1.0));
+        assert_eq!(down(0.2, 0.2), Crossing::Hit);
+        assert_eq!(down(0.7, 0.7), Crossing::Miss);
+        assert_eq!(down(-0.1, 0.2), Crossing::Miss);
+        assert_eq!(down(0.5, 0.5), Crossing::Unsure);
+        assert_eq!(down(0.0, 0.3), Crossing::Unsure);
+        // Ending on the plane, short of it, and in the plane.
+        let at = |z: f64| crossing(&tri, DVec3::new(0.2, 0.2, 1.0), DVec3::new(0.2, 0.2, z));
+        assert_eq!(at(0.0), Crossing::Unsure);
+        assert_eq!(at(0.5), Crossing::Miss);
+        assert_eq!(
+            crossing(&tri, DVec3::new(-1.0, 0.2, 0.0), DVec3::new(2.0, 0.2, 0.0)),
+            Crossing::Unsure
+        );
+        assert_eq!(
+            crossing(&tri, DVec3::new(-1.0, 0.2, 0.5), DVec3::new(2.0, 0.2, 0.5)),
+            Crossing::Miss
+        );
     }
 
     #[test]
