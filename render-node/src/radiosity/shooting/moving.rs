@@ -204,6 +204,8 @@ struct Places {
     boxes: [Bounds; 2],
     /// Triangles (old, new).
     triangles: [Vec<[DVec3; 3]>; 2],
+    /// Each element's largest distance from its centre to a corner.
+    radii: Vec<f64>,
 }
 
 impl Places {
@@ -361,6 +363,11 @@ impl<'a> Shooter<'a> {
         let places = Places {
             boxes: [old_box.grown(margin), new_box.grown(margin)],
             triangles: [triangles_of(old_mesh), triangles_of(mesh)],
+            radii: mesh
+                .elements
+                .iter()
+                .map(|e| radius(e.center, &e.vertices))
+                .collect(),
         };
 
         // The old rows of every patch that shot or has a cached row.
@@ -411,12 +418,13 @@ impl<'a> Shooter<'a> {
                 } else {
                     stats.rows_patched = 1;
                     let changes = new.changed_entries(i, object, &places, &mut stats);
-                    let raw: Vec<(u32, f64)> = if *old_scale == 1.0 {
-                        old_row.clone()
+                    let mut row = if *old_scale == 1.0 {
+                        merge_changes(old_row, &changes)
                     } else {
-                        old_row.iter().map(|&(j, f)| (j, f / old_scale)).collect()
+                        let raw: Vec<(u32, f64)> =
+                            old_row.iter().map(|&(j, f)| (j, f / old_scale)).collect();
+                        merge_changes(&raw, &changes)
                     };
-                    let mut row = merge_changes(&raw, &changes);
                     let scale = normalise(&mut row);
                     (row, scale)
                 };
@@ -491,7 +499,7 @@ impl<'a> Shooter<'a> {
             let recompute = if e.object == object {
                 true
             } else {
-                let widen = rp.max(radius(e.center, &e.vertices));
+                let widen = rp.max(places.radii[j as usize]);
                 if !places
                     .boxes
                     .iter()
