@@ -114,7 +114,9 @@ fn incremental_update_matches_a_fresh_solve_after_an_object_moves() {
     sh.add_light(&light, 1.0);
     sh.run();
     let limit = o.threshold * sh.injected_power();
-    let (mut moved, stats) = sh.move_object(&m1, &g1, 2, &[light.clone()]).unwrap();
+    let (mut moved, stats) = sh
+        .move_object(&m1, &g1, 2, std::slice::from_ref(&light))
+        .unwrap();
 
     // The corrected rows are the moved scene's rows, entry for entry.
     let fresh = Shooter::new(&m1, &g1, None, &o).unwrap();

@@ -14,6 +14,9 @@
 //! and hemi-cube rotation are seeded by the patch index), so a cached row
 //! equals a recomputed one, and an incremental update after a virtual light
 //! moves reuses every row.
+//! After a virtual object moves, [`Shooter::move_object`] corrects the rows
+//! (only the entries whose rays may see the move) and shoots the difference
+//! (see `moving`).
 //!
 //! Energy: the form factors of one shot are scaled down if they sum above 1,
 //! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so

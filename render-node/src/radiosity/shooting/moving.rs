@@ -226,6 +226,14 @@ impl Places {
     }
 }
 
+/// A form-factor row (sorted by element) and the scale it was normalised
+/// with.
+type ScaledRow = (Vec<(u32, f64)>, f64);
+
+/// A row after the move: the row, its scale, its difference from the old
+/// row, and what it took.
+type UpdatedRow = (Vec<(u32, f64)>, f64, Vec<(u32, f64)>, MoveStats);
+
 /// Largest distance from `center` to a corner.
 fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
     vertices
@@ -372,7 +380,7 @@ impl<'a> Shooter<'a> {
 
         // The old rows of every patch that shot or has a cached row.
         let n = old_mesh.patches.len();
-        let mut old_rows: Vec<Option<(Vec<(u32, f64)>, f64)>> = vec![None; n];
+        let mut old_rows: Vec<Option<ScaledRow>> = vec![None; n];
         for (i, slot) in old_rows.iter_mut().enumerate() {
             if let Some(row) = self.rows[i].take() {
                 *slot = Some((row, self.row_scale[i]));
@@ -405,7 +413,7 @@ impl<'a> Shooter<'a> {
             raster_fallbacks: self.raster_fallbacks,
         };
         let ray_cast = new.options.method == FormFactorMethod::RayCast;
-        let updated: Vec<Option<(Vec<(u32, f64)>, f64, Vec<(u32, f64)>, MoveStats)>> = old_rows
+        let updated: Vec<Option<UpdatedRow>> = old_rows
             .par_iter()
             .enumerate()
             .map(|(i, old)| {
