@@ -33,7 +33,8 @@
 //! moved scene (to round-off). With hemi-cube methods every row that is
 //! needed is recomputed whole (correct, not faster).
 
-use super::{FormFactorMethod, Shooter, normalise, ray_cast_form_factor, receiver_rays};
+use super::ray_cast::{normalise, ray_cast_form_factor, receiver_rays};
+use super::{FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
 use crate::radiosity::sources::stratified;
