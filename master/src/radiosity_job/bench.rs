@@ -1,7 +1,7 @@
 //! `bench radiosity`: run time against error on the Cornell box, sweeping
 //! patch size, hemi-cube resolution, threshold and form-factor method,
-//! plus scaling to 20,000 elements, an incremental update after a virtual
-//! light moves, and one augmented-radiosity record.
+//! plus scaling to 20,000 elements, incremental updates after a virtual
+//! light or a virtual object moves, and one augmented-radiosity record.
 //!
 //! - `rel_error`: B (with the ambient term) against a fine solution
 //!   (ray-cast form factors on 0.01 m^2 patches to a threshold of 1e-4,
@@ -31,6 +31,9 @@ use showcase_render::radiosity::{
 };
 use std::path::Path;
 use std::time::Instant;
+
+mod object;
+pub use object::{cornell_with_small_cube, incremental_object_record};
 
 /// One benchmark record (a JSON object).
 pub type BenchRecord = Value;
@@ -684,6 +687,13 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
     records.push(record(&showcase, &reference, &scaling, "scaling")?);
     for intensity in [0.5, 0.05, 0.005] {
         records.push(incremental_record(&showcase, intensity)?);
+    }
+    let shift = Vec3::new(0.03, 0.0, 0.02);
+    let with_cube = cornell_with_small_cube(&showcase, 0.06);
+    for area in [0.02, 0.005] {
+        for (scene, name) in [(&showcase, "short_block"), (&with_cube, "small_cube")] {
+            records.push(incremental_object_record(scene, name, shift, area, 5)?);
+        }
     }
     records.push(augmented_record(&showcase)?);
     Ok(records)

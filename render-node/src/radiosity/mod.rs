@@ -52,7 +52,9 @@ pub use gather::{
 };
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
-pub use shooting::{ConvergencePoint, FormFactorMethod, Shooter, SolveError, SolveOptions};
+pub use shooting::{
+    ConvergencePoint, FormFactorMethod, MoveError, MoveStats, Shooter, SolveError, SolveOptions,
+};
 
 use crate::light::SceneGeometry;
 use glam::DVec3;
@@ -297,5 +299,7 @@ pub fn relative_error_vertices(
     e.is_finite().then_some(e)
 }
 
+#[cfg(test)]
+mod moving_tests;
 #[cfg(test)]
 mod tests;

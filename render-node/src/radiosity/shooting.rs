@@ -14,6 +14,9 @@
 //! and hemi-cube rotation are seeded by the patch index), so a cached row
 //! equals a recomputed one, and an incremental update after a virtual light
 //! moves reuses every row.
+//! After a virtual object moves, [`Shooter::move_object`] corrects the rows
+//! (only the entries whose rays may see the move) and shoots the difference
+//! (see `moving`).
 //!
 //! Energy: the form factors of one shot are scaled down if they sum above 1,
 //! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so
@@ -32,13 +35,18 @@ use super::hemicube::{
     HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle,
     NO_ITEM,
 };
-use super::mesh::{Element, RadiosityMesh, barycentric_point, sub_centroids};
-use super::sources::{direct_irradiance, hash64, stratified, triangle_sample, unit};
-use crate::light::{SceneGeometry, form_factor_point_polygon};
+use super::mesh::{Element, RadiosityMesh};
+use super::sources::{direct_irradiance, hash64, stratified, unit};
+use crate::light::SceneGeometry;
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
 use std::sync::Arc;
+
+mod moving;
+mod ray_cast;
+pub use moving::{MoveError, MoveStats};
+use ray_cast::{normalise, ray_cast_form_factor};
 
 /// How a shot's form factors are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -190,6 +198,11 @@ pub struct Shooter<'a> {
     curve: Vec<ConvergencePoint>,
     /// Cached form-factor rows per patch.
     rows: Vec<Option<Vec<(u32, f64)>>>,
+    /// The scale each cached row was normalised with (at most 1): the
+    /// raw form factors are the row over it.
+    row_scale: Vec<f64>,
+    /// Exitance each patch has shot so far (sum of its shots' deltas).
+    shot: Vec<DVec3>,
     /// Bytes held in `rows`.
     row_bytes: usize,
     /// Rows computed (cache misses).
@@ -258,6 +271,8 @@ impl<'a> Shooter<'a> {
             shots: 0,
             curve: Vec::new(),
             rows: vec![None; mesh.patches.len()],
+            row_scale: vec![1.0; mesh.patches.len()],
+            shot: vec![DVec3::ZERO; mesh.patches.len()],
             row_bytes: 0,
             rows_computed: 0,
             raster,
@@ -282,10 +297,15 @@ impl<'a> Shooter<'a> {
     /// Shoot a virtual light directly to every active element (at its
     /// centre): B gains `scale * rho * E_direct`, which also becomes unshot.
     pub fn add_light(&mut self, light: &Light, scale: f64) {
+        let deposits = self.light_deposits(light, scale);
+        self.deposit(&deposits);
+    }
+
+    /// What [`Self::add_light`] deposits per element.
+    fn light_deposits(&self, light: &Light, scale: f64) -> Vec<DVec3> {
         let samples = self.options.visibility_samples.max(16);
         let seed = self.options.seed;
-        let deposits: Vec<DVec3> = self
-            .mesh
+        self.mesh
             .elements
             .par_iter()
             .enumerate()
@@ -303,8 +323,7 @@ impl<'a> Shooter<'a> {
                 );
                 finite(scale * e.reflectance * irradiance)
             })
-            .collect();
-        self.deposit(&deposits);
+            .collect()
     }
 
     fn deposit(&mut self, deposits: &[DVec3]) {
@@ -325,6 +344,7 @@ impl<'a> Shooter<'a> {
     pub fn restart(&mut self) {
         self.radiosity.iter_mut().for_each(|b| *b = DVec3::ZERO);
         self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        self.shot.iter_mut().for_each(|u| *u = DVec3::ZERO);
         self.injected = 0.0;
         self.shots = 0;
         self.curve.clear();
@@ -419,15 +439,17 @@ impl<'a> Shooter<'a> {
             return false;
         }
         self.unshot[shooter] = DVec3::ZERO;
-        let (ff, cached) = match self.rows[shooter].take() {
-            Some(row) => (row, true),
-            None if self.raster.is_some() => (self.rasterised_rows(shooter), false),
+        self.shot[shooter] += delta;
+        let (ff, scale, cached) = match self.rows[shooter].take() {
+            Some(row) => (row, self.row_scale[shooter], true),
+            None if self.raster.is_some() => {
+                let (row, scale) = self.rasterised_rows(shooter);
+                (row, scale, false)
+            }
             None => {
                 self.rows_computed += 1;
-                (
-                    self.form_factors(shooter, self.row_seed(shooter), None),
-                    false,
-                )
+                let (row, scale) = self.form_factors(shooter, self.row_seed(shooter), None);
+                (row, scale, false)
             }
         };
         let p_area = self.mesh.patches[shooter].area;
@@ -446,6 +468,7 @@ impl<'a> Shooter<'a> {
         {
             self.row_bytes += bytes;
             self.rows[shooter] = Some(ff);
+            self.row_scale[shooter] = scale;
         }
         self.shots += 1;
         self.curve.push(ConvergencePoint {
@@ -474,7 +497,7 @@ impl<'a> Shooter<'a> {
     /// with the rows of the patches with most unshot power that have no
     /// cached row yet (those are cached here while the cache has room;
     /// without a cache the batch is the shooter alone).
-    fn rasterised_rows(&mut self, shooter: usize) -> Vec<(u32, f64)> {
+    fn rasterised_rows(&mut self, shooter: usize) -> (Vec<(u32, f64)>, f64) {
         let Some(raster) = self.raster.as_ref() else {
             return self.form_factors(shooter, self.row_seed(shooter), None);
         };
@@ -513,34 +536,35 @@ impl<'a> Shooter<'a> {
             self.rows_computed += 1;
             return self.form_factors(shooter, self.row_seed(shooter), None);
         };
-        let rows: Vec<Vec<(u32, f64)>> = batch
+        let rows: Vec<(Vec<(u32, f64)>, f64)> = batch
             .iter()
             .zip(&buffers)
             .map(|(&p, items)| self.form_factors(p, self.row_seed(p), Some(items)))
             .collect();
         self.rows_computed += rows.len();
         let mut rows = rows.into_iter();
-        let own = rows.next().unwrap_or_default();
-        for (&p, row) in batch[1..].iter().zip(rows) {
+        let own = rows.next().unwrap_or((Vec::new(), 1.0));
+        for (&p, (row, scale)) in batch[1..].iter().zip(rows) {
             let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>();
             if self.row_bytes + bytes <= self.options.form_factor_cache_bytes {
                 self.row_bytes += bytes;
                 self.rows[p] = Some(row);
+                self.row_scale[p] = scale;
             }
         }
         own
     }
 
     /// Form factors `F_pj` from patch `shooter` to the active receivers,
-    /// scaled to sum to at most 1. `raster_items` is the shooter's
-    /// rasterised item buffer (active elements seen front-on), or `None` to
-    /// cast it on the CPU.
+    /// scaled to sum to at most 1, and the scale applied. `raster_items` is
+    /// the shooter's rasterised item buffer (active elements seen front-on),
+    /// or `None` to cast it on the CPU.
     fn form_factors(
         &self,
         shooter: usize,
         seed: u64,
         raster_items: Option<&[u32]>,
-    ) -> Vec<(u32, f64)> {
+    ) -> (Vec<(u32, f64)>, f64) {
         let mesh = self.mesh;
         let p = &mesh.patches[shooter];
         let method = self.options.method;
@@ -575,48 +599,11 @@ impl<'a> Shooter<'a> {
             })
             .collect();
         let samples = stratified(self.options.visibility_samples, seed);
-        let k = samples.len();
-        let p_size = p.area.sqrt();
         let mut out: Vec<(u32, f64)> = receivers
             .par_iter()
             .filter_map(|&j| {
-                let e = &mesh.elements[j as usize];
-                // Unoccluded area-averaged form factor: the closed form at
-                // the centroids of n^2 equal sub-triangles, n growing as
-                // the pair gets close relative to its size.
-                let closeness = (p_size + e.area.sqrt()) / (e.center - p.center).length();
-                let n = (2.0 * closeness).ceil().clamp(1.0, 8.0) as u32;
-                let points = sub_centroids(n);
-                let unoccluded = points
-                    .iter()
-                    .map(|b| {
-                        let x = barycentric_point(&e.vertices, *b);
-                        form_factor_point_polygon(x, e.normal, &p.vertices).unwrap_or(0.0)
-                    })
-                    .sum::<f64>()
-                    / points.len() as f64;
-                if !(unoccluded > 0.0) {
-                    return None;
-                }
-                // Visible fraction: rays between paired jittered points of
-                // the receiver (its centre for one sample) and the patch.
-                let shift = glam::DVec2::new(unit(seed ^ j as u64), unit(seed ^ !(j as u64)));
-                let seen = (0..k)
-                    .filter(|&i| {
-                        let x = if k == 1 {
-                            e.center
-                        } else {
-                            triangle_sample(
-                                &e.vertices,
-                                (samples[i] + glam::DVec2::new(shift.y, shift.x)).fract(),
-                            )
-                        };
-                        let y = triangle_sample(&p.vertices, (samples[k - 1 - i] + shift).fract());
-                        self.geometry.visible(x, e.normal, y, true)
-                    })
-                    .count();
-                let f = unoccluded * seen as f64 / k as f64 * e.area / p.area;
-                (f > 0.0 && f.is_finite()).then_some((j, f))
+                ray_cast_form_factor(mesh, self.geometry, shooter, j, &samples, seed)
+                    .map(|f| (j, f))
             })
             .collect();
         if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
@@ -652,13 +639,8 @@ impl<'a> Shooter<'a> {
                 out.push((j, ff[j as usize]));
             }
         }
-        let total: f64 = out.iter().map(|(_, f)| f).sum();
-        if total > 1.0 {
-            for (_, f) in &mut out {
-                *f /= total;
-            }
-        }
-        out
+        let scale = normalise(&mut out);
+        (out, scale)
     }
 
     /// Element radiosity B (exitance, W/m^2) so far.
@@ -705,7 +687,7 @@ impl<'a> Shooter<'a> {
             },
             None => None,
         };
-        Some(self.form_factors(p, self.row_seed(p), items.as_deref()))
+        Some(self.form_factors(p, self.row_seed(p), items.as_deref()).0)
     }
 
     /// The unshot fraction after every shot.

@@ -1,0 +1,236 @@
+//! Incremental update after a virtual object moves: the corrected form
+//! factors equal those of a fresh solve of the moved scene, and shooting
+//! the difference reaches a fresh solve's solution with fewer shots.
+
+use super::*;
+use crate::light::ObjectFilter;
+use glam::Vec3;
+use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
+
+/// One object made of quads `(corner, u, v)` facing `u x v`.
+fn quads_object(
+    s: &mut Showcase,
+    name: &str,
+    quads: &[(Vec3, Vec3, Vec3)],
+    m: Material,
+    kind: ObjectKind,
+) {
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for &(c, u, v) in quads {
+        let k = positions.len() as u32;
+        positions.extend([c, c + u, c + u + v, c + v]);
+        triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    let id = s.add_mesh(Mesh {
+        positions,
+        normals: vec![],
+        uvs: vec![],
+        triangles,
+    });
+    s.objects.push(Object {
+        name: name.into(),
+        mesh: id,
+        material: m,
+        kind,
+        transform: Transform::IDENTITY,
+    });
+}
+
+/// A closed unit box (inward faces, the top emitting) with a virtual cube
+/// of side `a` floating inside (outward faces), translated by `shift`.
+fn box_with_block(shift: Vec3) -> Showcase {
+    let mut s = Showcase::default();
+    let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
+    let wall = Material::diffuse(Vec3::new(0.7, 0.6, 0.5));
+    let mut top = Material::diffuse(Vec3::splat(0.6));
+    top.emission = Vec3::splat(0.5);
+    let o = Vec3::ZERO;
+    quads_object(
+        &mut s,
+        "walls",
+        &[(o, z, x), (o, y, z), (x, z, y), (z, y, x), (o, x, y)],
+        wall,
+        ObjectKind::Real,
+    );
+    quads_object(&mut s, "top", &[(y, x, z)], top, ObjectKind::Real);
+    let a = 0.25;
+    let (ax, ay, az) = (a * x, a * y, a * z);
+    let c = Vec3::new(0.3, 0.2, 0.35);
+    quads_object(
+        &mut s,
+        "block",
+        &[
+            (c, ax, az),
+            (c + ay, az, ax),
+            (c, az, ay),
+            (c + ax, ay, az),
+            (c, ay, ax),
+            (c + az, ax, ay),
+        ],
+        Material::diffuse(Vec3::new(0.2, 0.5, 0.8)),
+        ObjectKind::Virtual,
+    );
+    s.objects[2].transform.translation = shift;
+    s
+}
+
+fn mesh_of(s: &Showcase) -> (RadiosityMesh, SceneGeometry) {
+    let g = SceneGeometry::build(s, &ObjectFilter::All).unwrap();
+    let m = RadiosityMesh::build(
+        s,
+        &g,
+        &MeshOptions {
+            max_patch_area: 0.13,
+            element_depth: 1,
+            ..MeshOptions::default()
+        },
+    )
+    .unwrap();
+    (m, g)
+}
+
+fn ray_cast(threshold: f64) -> SolveOptions {
+    SolveOptions {
+        threshold,
+        method: FormFactorMethod::RayCast,
+        ..SolveOptions::default()
+    }
+}
+
+#[test]
+fn incremental_update_matches_a_fresh_solve_after_an_object_moves() {
+    let light = Light::Point {
+        position: Vec3::new(0.6, 0.8, 0.5),
+        intensity: Vec3::splat(0.3),
+    };
+    let before = box_with_block(Vec3::ZERO);
+    let after = box_with_block(Vec3::new(0.07, 0.0, -0.04));
+    let (m0, g0) = mesh_of(&before);
+    let (m1, g1) = mesh_of(&after);
+    let o = ray_cast(1e-4);
+    let mut sh = Shooter::new(&m0, &g0, None, &o).unwrap();
+    sh.add_surface_emission();
+    sh.add_light(&light, 1.0);
+    sh.run();
+    let limit = o.threshold * sh.injected_power();
+    let (mut moved, stats) = sh
+        .move_object(&m1, &g1, 2, std::slice::from_ref(&light))
+        .unwrap();
+
+    // The corrected rows are the moved scene's rows, entry for entry.
+    let fresh = Shooter::new(&m1, &g1, None, &o).unwrap();
+    let mut worst = 0.0_f64;
+    for p in 0..m1.patches.len() {
+        let (a, b) = (
+            moved.form_factor_row(p).unwrap(),
+            fresh.form_factor_row(p).unwrap(),
+        );
+        assert_eq!(
+            a.iter().map(|e| e.0).collect::<Vec<_>>(),
+            b.iter().map(|e| e.0).collect::<Vec<_>>(),
+            "row {p}"
+        );
+        for (x, y) in a.iter().zip(&b) {
+            worst = worst.max((x.1 - y.1).abs());
+        }
+    }
+    assert!(worst < 1e-12, "largest form-factor difference {worst}");
+    // Only part of the static pairs had to be recomputed.
+    let block_patches = m1.patches.iter().filter(|p| p.object == 2).count();
+    assert_eq!(stats.rows_recomputed, block_patches);
+    assert_eq!(stats.rows_patched, m1.patches.len() - block_patches);
+    let static_pairs = stats.rows_patched * m1.elements.len();
+    assert!(
+        stats.entries_recomputed > 0 && 2 * stats.entries_recomputed < static_pairs,
+        "{stats:?} of {static_pairs} pairs"
+    );
+
+    let incremental_shots = moved.run_to_power(limit);
+    let b = moved.radiosity();
+    let largest = b.iter().map(|v| v.max_element()).fold(0.0, f64::max);
+    assert!(b.iter().all(|v| v.is_finite()));
+    let lowest = b.iter().map(|v| v.min_element()).fold(0.0, f64::min);
+    assert!(lowest > -1e-3 * largest, "negative B {lowest} of {largest}");
+
+    let full = solve(&m1, &g1, std::slice::from_ref(&light), &o).unwrap();
+    let reference = solve(&m1, &g1, std::slice::from_ref(&light), &ray_cast(1e-7)).unwrap();
+    let err = |x: &[DVec3]| relative_error(&m1, x, &m1, &reference.radiosity, 4).unwrap();
+    let (inc_err, full_err) = (err(b), err(&full.radiosity));
+    assert!(inc_err < 0.005, "incremental {inc_err}, full {full_err}");
+    assert!(full_err < 0.005, "full {full_err}");
+    let vs_full = relative_error(&m1, b, &m1, &full.radiosity, 4).unwrap();
+    assert!(vs_full < 0.005, "incremental vs fresh: {vs_full}");
+    // The block really changed the light: the old solution is far off.
+    let stale = relative_error(
+        &m0,
+        &moved_stale(&m0, &g0, &light, &o),
+        &m1,
+        &reference.radiosity,
+        4,
+    )
+    .unwrap();
+    assert!(
+        stale > 5.0 * inc_err.max(1e-3),
+        "stale {stale}, incremental {inc_err}"
+    );
+    assert!(
+        incremental_shots < full.shots,
+        "{incremental_shots} vs {}",
+        full.shots
+    );
+}
+
+/// The solution before the move (what a display would keep without an
+/// update).
+fn moved_stale(
+    m: &RadiosityMesh,
+    g: &SceneGeometry,
+    light: &Light,
+    o: &SolveOptions,
+) -> Vec<DVec3> {
+    solve(m, g, std::slice::from_ref(light), o)
+        .unwrap()
+        .radiosity
+}
+
+#[test]
+fn a_move_that_changes_more_than_the_object_is_refused() {
+    let before = box_with_block(Vec3::ZERO);
+    let (m0, g0) = mesh_of(&before);
+    let (m1, g1) = mesh_of(&box_with_block(Vec3::new(0.05, 0.0, 0.0)));
+    let o = ray_cast(1e-2);
+    let start = || {
+        let mut s = Shooter::new(&m0, &g0, None, &o).unwrap();
+        s.add_surface_emission();
+        s.run();
+        s
+    };
+    // The block is object 2; the walls (object 0) did not move.
+    let Err(e) = start().move_object(&m1, &g1, 0, &[]) else {
+        panic!("a move of the walls was accepted although the block moved");
+    };
+    assert!(
+        matches!(e, MoveError::StaticElementChanged { object: 0, .. }),
+        "{e}"
+    );
+    assert_eq!(
+        start().move_object(&m1, &g1, 9, &[]).err(),
+        Some(MoveError::StaticElementChanged {
+            element: m0.elements.iter().position(|e| e.object == 2).unwrap() as u32,
+            object: 9
+        })
+    );
+    let (m2, g2) = mesh_of(&box_with_block(Vec3::ZERO));
+    assert_eq!(
+        start().move_object(&m2, &g2, 9, &[]).err(),
+        Some(MoveError::NoSuchObject(9))
+    );
+    let mut coarse = before.clone();
+    coarse.objects.pop();
+    let (m3, g3) = mesh_of(&coarse);
+    assert!(matches!(
+        start().move_object(&m3, &g3, 2, &[]).err(),
+        Some(MoveError::MeshMismatch { .. })
+    ));
+}
