@@ -193,11 +193,13 @@ pub fn write_report(records: &[BenchRecord], out: &Path, machine: &str) -> anyho
             s("analytic_direct_error")
         );
     }
-    md.push_str("\nOther records (incremental, augmented) in full:\n\n```json\n");
+    md.push_str(
+        "\nOther records (incremental, incremental_object, augmented) in full:\n\n```json\n",
+    );
     for r in records.iter().filter(|r| {
         matches!(
             r.get("kind").and_then(|k| k.as_str()),
-            Some("incremental" | "augmented")
+            Some("incremental" | "incremental_object" | "augmented")
         )
     }) {
         let _ = writeln!(md, "{r}");
