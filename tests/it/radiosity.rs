@@ -139,8 +139,17 @@ fn cornell_box_solution_ply_matches_closed_forms() -> anyhow::Result<()> {
     Ok(())
 }
 
-#[test]
-fn augmented_radiosity_on_the_figure_3_scene() -> anyhow::Result<()> {
+/// The figure-3 scene (Cornell walls real, blocks and light virtual) at
+/// 0.02 m^2 patches, with the hybrid solve the augmented tests use.
+struct Figure3 {
+    s: showcase_proto::Showcase,
+    all: SceneGeometry,
+    real: SceneGeometry,
+    mesh: RadiosityMesh,
+    options: SolveOptions,
+}
+
+fn figure3() -> anyhow::Result<Figure3> {
     let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
     let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
     let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
@@ -159,6 +168,24 @@ fn augmented_radiosity_on_the_figure_3_scene() -> anyhow::Result<()> {
         method: FormFactorMethod::Hybrid,
         ..SolveOptions::default()
     };
+    Ok(Figure3 {
+        s,
+        all,
+        real,
+        mesh,
+        options,
+    })
+}
+
+#[test]
+fn augmented_radiosity_on_the_figure_3_scene() -> anyhow::Result<()> {
+    let Figure3 {
+        s,
+        all,
+        real,
+        mesh,
+        options,
+    } = figure3()?;
     let a = augmented_radiosity(&mesh, &all, &real, &[], &options)?;
     for b in [&a.b0, &a.b1, &a.b2, &a.b3] {
         assert!(b.iter().all(|v| v.is_finite() && v.min_element() >= 0.0));
@@ -281,24 +308,13 @@ fn gathered_one_bounce_maps_reach_the_consistency_target() -> anyhow::Result<()>
     // takes the one-bounce B1 pass with the real interreflection gathered
     // at the vertices; the element B2 of the same pass, averaged to the
     // vertices, misses it at the walls' edges and corners.
-    let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
-    let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
-    let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
-    let mesh = RadiosityMesh::build(
-        &s,
-        &all,
-        &MeshOptions {
-            max_patch_area: 0.02,
-            element_depth: 1,
-            ..MeshOptions::default()
-        },
-    )?;
-    let options = SolveOptions {
-        hemicube: 32,
-        threshold: 1e-2,
-        method: FormFactorMethod::Hybrid,
-        ..SolveOptions::default()
-    };
+    let Figure3 {
+        s,
+        all,
+        real,
+        mesh,
+        options,
+    } = figure3()?;
     let one = augmented_radiosity_with(&mesh, &all, &real, &[], &options, B1Pass::OneBounce)?;
     let unclipped: Vec<bool> = one
         .b0
