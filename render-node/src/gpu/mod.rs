@@ -15,6 +15,7 @@ pub mod face_view;
 pub mod flat_lambert;
 pub mod hemicube;
 pub mod irradiance_map;
+mod shadow_lookup;
 pub mod shadow_views;
 pub mod target;
 pub mod upload;

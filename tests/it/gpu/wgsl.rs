@@ -1,4 +1,6 @@
-//! Every WGSL file of the workspace parses and validates with naga; no GPU needed.
+//! Every WGSL file of the workspace parses and validates with naga (a
+//! shared `.part.wgsl` piece as part of each shader that uses it); no GPU
+//! needed.
 
 use std::path::{Path, PathBuf};
 
@@ -32,9 +34,23 @@ fn every_wgsl_file_validates_with_naga() -> Result<()> {
         "the walk under {} missed flat_lambert.wgsl: {files:?}",
         root.display()
     );
+    // `NAME.part.wgsl` files are shared pieces: a shader that names one
+    // is validated with it appended, as it is compiled (gpu::shadow_lookup).
+    let (parts, shaders): (Vec<&PathBuf>, Vec<&PathBuf>) = files
+        .iter()
+        .partition(|f| f.to_string_lossy().ends_with(".part.wgsl"));
+    let mut used = vec![false; parts.len()];
     let mut failures = Vec::new();
-    for file in &files {
-        let source = std::fs::read_to_string(file)?;
+    for file in shaders {
+        let mut source = std::fs::read_to_string(file)?;
+        for (k, part) in parts.iter().enumerate() {
+            let name = part.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            if source.contains(name) {
+                used[k] = true;
+                source.push('\n');
+                source.push_str(&std::fs::read_to_string(part)?);
+            }
+        }
         let module = match naga::front::wgsl::parse_str(&source) {
             Ok(m) => m,
             Err(e) => {
@@ -49,6 +65,9 @@ fn every_wgsl_file_validates_with_naga() -> Result<()> {
         if let Err(e) = validator.validate(&module) {
             failures.push(format!("{}: {}", file.display(), e.emit_to_string(&source)));
         }
+    }
+    for (part, used) in parts.iter().zip(&used) {
+        ensure!(*used, "no shader names {}", part.display());
     }
     ensure!(
         failures.is_empty(),

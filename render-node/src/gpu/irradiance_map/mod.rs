@@ -106,7 +106,10 @@ fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 impl IrradianceMapPass {
     /// Compile the pipeline for two [`OffscreenTarget`] colour formats.
     pub fn new(device: &wgpu::Device) -> Self {
-        let shader = device.create_shader_module(wgpu::include_wgsl!("irradiance_map.wgsl"));
+        let shader = device.create_shader_module(super::shadow_lookup::with_shadow_lookup!(
+            "irradiance_map",
+            "irradiance_map.wgsl"
+        ));
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance map"),
             entries: &[
