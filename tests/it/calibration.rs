@@ -6,7 +6,7 @@ use glam::{DMat3, DVec3};
 use proptest::prelude::*;
 use showcase_master::calibrate::{
     BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, CalibrateOptions, Calibration,
-    CalibrationError, CalibrationInput, Correspondence, Intrinsics, Method, RIG_CENTER,
+    CalibrationError, CalibrationInput, Correspondence, Intrinsics, Method, RIG_CENTER, RIG_SIZE,
     bench_configuration, calibrate, fiducial_plate, fiducial_rig, heldout_rms,
     projector_in_showcase, rotation_angle_deg, run_calibrate_file, simulate_fiducials,
     synthetic_case, write_bench_report,
@@ -531,6 +531,47 @@ fn finite_calibration(c: &Calibration) -> bool {
         && c.residuals_px.iter().all(|v| v.is_finite())
 }
 
+#[test]
+fn five_of_six_points_on_one_rig_face_are_refused_as_not_unique() {
+    // Seed 182 marks 5 of its first 6 fiducials on one face: without noise
+    // the DLT has a two-dimensional null space (found by the proptest below).
+    let case = synthetic_case(6, 0.0, false, 182);
+    assert_eq!(most_points_on_one_rig_face(&case.fit.points), 5);
+    match calibrate(&case.fit, &lm()) {
+        Err(CalibrationError::Degenerate { reason }) => {
+            assert!(reason.contains("not unique"), "{reason}")
+        }
+        other => panic!("expected a not-unique error, got {other:?}"),
+    }
+    // One more point off that face makes it well posed.
+    let case = synthetic_case(7, 0.0, false, 182);
+    assert!(most_points_on_one_rig_face(&case.fit.points) + 2 <= 7);
+    let c = calibrate(&case.fit, &lm()).expect("7 points solve");
+    assert!(c.rms_px < 1e-6, "{}", c.rms_px);
+}
+
+/// The most fiducials that lie on one face of the calibration rig.
+fn most_points_on_one_rig_face(points: &[Correspondence]) -> usize {
+    let half = 0.5 * RIG_SIZE;
+    let faces = [
+        (1, half.y),
+        (2, half.z),
+        (2, -half.z),
+        (0, half.x),
+        (0, -half.x),
+    ];
+    faces
+        .iter()
+        .map(|&(axis, offset)| {
+            points
+                .iter()
+                .filter(|p| (p.world[axis] - RIG_CENTER[axis] - offset).abs() < 1e-9)
+                .count()
+        })
+        .max()
+        .unwrap_or(0)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -557,9 +598,27 @@ proptest! {
     fn noisy_projector_data_always_solves_with_finite_output(seed in 0u64..1000, noise in 0.0..3.0f64, n in 6usize..30) {
         let case = synthetic_case(n, noise, false, seed);
         let c = calibrate(&case.fit, &lm());
-        prop_assert!(c.is_ok(), "{:?}", c.err());
-        let c = c.unwrap();
-        prop_assert!(finite_calibration(&c));
+        // All but one point on one rig face leave the DLT a two-dimensional
+        // null space (the face's points fix only its homography): without
+        // noise that is exactly degenerate and must be refused. Near-minimal
+        // noisy sets (under 9 points) may fit a reflection or put a point
+        // behind the device, which must be refused too, by name; a scan of
+        // 1000 seeds x 5 noise levels found no failure from 9 points up.
+        let on_one_face = most_points_on_one_rig_face(&case.fit.points);
+        let refused = matches!(
+            c,
+            Err(CalibrationError::Degenerate { .. } | CalibrationError::PointBehindDevice { .. })
+        );
+        if noise == 0.0 && on_one_face + 1 >= n {
+            prop_assert!(matches!(c, Err(CalibrationError::Degenerate { .. })), "{:?}", c);
+        } else if n >= 9 && on_one_face + 2 <= n {
+            prop_assert!(c.is_ok(), "{:?} ({on_one_face} of {n} points on one face)", c.err());
+        } else {
+            prop_assert!(c.is_ok() || refused, "{:?}", c);
+        }
+        if let Ok(c) = c {
+            prop_assert!(finite_calibration(&c));
+        }
     }
 }
 

@@ -114,6 +114,7 @@ impl CalibrateOptions {
 
 /// One fiducial: a known world position and its marked pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Correspondence {
     /// World position in metres.
     pub world: [f64; 3],
@@ -123,6 +124,7 @@ pub struct Correspondence {
 
 /// Known intrinsics: only the pose is solved.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Intrinsics {
     /// K as three rows; must be upper triangular with positive focal lengths.
     pub camera_matrix: Vec<Vec<f64>>,
@@ -131,8 +133,11 @@ pub struct Intrinsics {
     pub dist_coeffs: Option<Vec<f64>>,
 }
 
-/// The input file of `showcase-master calibrate`.
+/// The input file of `showcase-master calibrate`. Unknown keys are
+/// errors: a misspelled `"intrinsics"` must not silently turn a pose-only
+/// solve into a full one.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CalibrationInput {
     /// Name of the device, e.g. `projector-0`.
     pub device: String,

@@ -137,7 +137,17 @@ fn malformed_files_get_errors_that_name_the_file_and_the_fault() {
     let plate = pairs(&simulate_fiducials(&truth, &fiducial_plate(8, 4), 0.0, 4));
     let good = issue_text(truth.width, truth.height, &plate, None);
     let cases = [
-        (good.replace("\"width\": ", "\"wide\": "), "missing field `width`"),
+        (good.replace("\"width\": ", "\"wide\": "), "unknown field `wide`"),
+        // A misspelled key is an error, not a silently ignored one: the
+        // intrinsics would otherwise be solved instead of given.
+        (
+            good.replace("]}\n", r#"], "intrinsic": {"camera_matrix": [[800, 0, 512], [0, 800, 384], [0, 0, 1]]}}"#),
+            "unknown field `intrinsic`",
+        ),
+        (
+            good.replace("]}\n", r#"], "intrinsics": {"camera_matrx": [[800, 0, 512], [0, 800, 384], [0, 0, 1]]}}"#),
+            "unknown field `camera_matrx`",
+        ),
         (good.replace("\"pixel\": [", "\"pixel\": [1.0, "), "points[0].pixel must be [u, v] (2 numbers), got [1.0,"),
         (good.replacen("\"world\": [", "\"world\": [\"a\", ", 2), "points[0].world must be [x, y, z]"),
         // Coplanar points without intrinsics: the error says what to add.
