@@ -67,12 +67,20 @@ pub fn extract_reflectance(
         };
         let e = irradiance.data[i].as_dvec3();
         let direct = intensity.intensity.data[i].as_dvec3();
-        if !(s.lit && s.phi <= phi_max && e.min_element() > floor && direct.min_element() > floor) {
+        let measured = e.is_finite() && direct.is_finite();
+        if !(measured
+            && s.lit
+            && s.phi <= phi_max
+            && e.min_element() > floor
+            && direct.min_element() > floor)
+        {
             continue;
         }
-        let r = i_rad.data[i].as_dvec3() / e;
+        // Finite in f64 is not enough: a huge radiance over a tiny
+        // irradiance overflows the f32 map.
+        let r = (i_rad.data[i].as_dvec3() / e).max(DVec3::ZERO).as_vec3();
         if r.is_finite() {
-            out.data[i] = r.max(DVec3::ZERO).as_vec3();
+            out.data[i] = r;
             valid.data[i] = true;
         }
     }
@@ -161,4 +169,54 @@ pub fn blend_weights(
         height: valid.height,
         data,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_pixel(rad: Vec3, irradiance: Vec3) -> (RgbImage, Image<bool>) {
+        let sample = SurfaceSample {
+            object: 0,
+            triangle: 0,
+            point: DVec3::Z,
+            normal: DVec3::Z,
+            phi: 0.0,
+            uv: None,
+            lit: true,
+        };
+        let intensity = IntensityImage {
+            intensity: Image::new(1, 1, irradiance),
+            surface: Image::new(1, 1, Some(sample)),
+        };
+        let irr = Image::new(1, 1, irradiance);
+        extract_reflectance(
+            &Image::new(1, 1, rad),
+            &irr,
+            &intensity,
+            &ExtractParams::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_ratio_past_f32_range_or_an_infinite_irradiance_is_invalid_not_infinite() {
+        // Found by the capture proptest: 1.9e35 / 3e-7 is finite in f64.
+        let (rho, valid) = one_pixel(Vec3::new(0.0, 1.86e35, 0.0), Vec3::new(1e-8, 3e-7, 1e-7));
+        assert!(
+            !valid.data[0] && rho.data[0] == Vec3::ZERO,
+            "{:?}",
+            rho.data[0]
+        );
+        let (rho, valid) = one_pixel(Vec3::splat(0.5), Vec3::new(1.0, 1.0, f32::INFINITY));
+        assert!(
+            !valid.data[0] && rho.data[0] == Vec3::ZERO,
+            "{:?}",
+            rho.data[0]
+        );
+        // An ordinary pixel still extracts.
+        let (rho, valid) = one_pixel(Vec3::new(0.25, 0.5, 0.1), Vec3::new(0.5, 1.0, 0.5));
+        assert!(valid.data[0]);
+        assert!((rho.data[0] - Vec3::new(0.5, 0.5, 0.2)).abs().max_element() < 1e-6);
+    }
 }
