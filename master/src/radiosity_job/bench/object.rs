@@ -199,6 +199,7 @@ pub fn incremental_object_record(
         "pairs": pairs,
         "pairs_near": stats.pairs_near,
         "entries_recomputed": stats.entries_recomputed,
+        "entries_reciprocal": stats.entries_reciprocal,
         "speedup": full_seconds / inc_seconds.max(1e-9),
         "speedup_without_scene": (full_seconds - scene_seconds)
             / (inc_seconds - scene_seconds).max(1e-9),
