@@ -50,7 +50,7 @@ use super::{FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
 use crate::radiosity::sources::stratified;
-use cull::{Bounds, Places, ball_outside_penumbra, penumbra_planes, radius};
+use cull::{Bounds, Places, ball_outside_penumbra, outside_penumbra, penumbra_planes, radius};
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
@@ -399,6 +399,7 @@ impl<'a> Shooter<'a> {
         let seed = self.row_seed(i);
         let samples = stratified(self.options.visibility_samples, seed);
         let planes = penumbra_planes(&p.vertices, &places.union);
+        let mut hints = [0; 2];
         let mut out = Vec::new();
         for (j, e) in mesh.elements.iter().enumerate() {
             if !self.active[j] || e.patch as usize == i {
@@ -414,7 +415,9 @@ impl<'a> Shooter<'a> {
                 true
             } else {
                 let rj = places.radii[j as usize];
-                if ball_outside_penumbra(&planes, e.center, rj, places.margin) {
+                if ball_outside_penumbra(&planes, e.center, rj, places.margin)
+                    || outside_penumbra(&planes, &e.vertices, places.margin)
+                {
                     continue;
                 }
                 let widen = rp.max(rj);
@@ -426,7 +429,8 @@ impl<'a> Shooter<'a> {
                     continue;
                 }
                 stats.pairs_near += 1;
-                receiver_rays(mesh, i, j, &samples, seed).any(|(x, y)| places.may_change(x, y))
+                receiver_rays(mesh, i, j, &samples, seed)
+                    .any(|(x, y)| places.may_change(x, y, &mut hints))
             };
             if recompute {
                 stats.entries_recomputed += 1;

@@ -144,7 +144,21 @@ impl PreparedTriangle {
 
 /// How the segment `a`-`b` meets `triangles` (Moller-Trumbore with a
 /// margin on both sides).
-pub(super) fn crossing(triangles: &[PreparedTriangle], a: DVec3, b: DVec3) -> Crossing {
+#[cfg(test)]
+fn crossing(triangles: &[PreparedTriangle], a: DVec3, b: DVec3) -> Crossing {
+    crossing_from(triangles, a, b, &mut 0)
+}
+
+/// [`crossing`], trying the triangles from index `first` on (wrapping
+/// round) and leaving there the one hit: neighbouring rays tend to hit the
+/// same triangle, and any triangle hit decides, so the order changes only
+/// the time.
+pub(super) fn crossing_from(
+    triangles: &[PreparedTriangle],
+    a: DVec3,
+    b: DVec3,
+    first: &mut usize,
+) -> Crossing {
     let d = b - a;
     let d_length = d.length();
     let m = CROSSING_MARGIN;
@@ -153,7 +167,9 @@ pub(super) fn crossing(triangles: &[PreparedTriangle], a: DVec3, b: DVec3) -> Cr
     // certainly misses it (its ends are farther than the margin in
     // segment units, and far beyond the ray offsets).
     let off_plane = m * (1.0 + d_length);
-    for t in triangles {
+    let start = if *first < triangles.len() { *first } else { 0 };
+    let (tail, head) = triangles.split_at(start);
+    for (k, t) in head.iter().chain(tail).enumerate() {
         if t.normal != DVec3::ZERO {
             let (da, db) = (t.normal.dot(a - t.v0), t.normal.dot(b - t.v0));
             if (da > off_plane && db > off_plane) || (da < -off_plane && db < -off_plane) {
@@ -180,6 +196,7 @@ pub(super) fn crossing(triangles: &[PreparedTriangle], a: DVec3, b: DVec3) -> Cr
         let v = d.dot(q) * inv;
         let tt = t.e2.dot(q) * inv;
         if u > m && v > m && u + v < 1.0 - m && tt > m && tt < 1.0 - m {
+            *first = (start + k) % triangles.len();
             return Crossing::Hit;
         }
         let miss = u < -m || v < -m || u + v > 1.0 + m || tt < -m || tt > 1.0 + m;
@@ -233,13 +250,15 @@ impl Places {
 
     /// True unless the segment certainly meets both places or certainly
     /// neither (then its visibility is the same before and after).
-    pub(super) fn may_change(&self, a: DVec3, b: DVec3) -> bool {
+    /// `hints` are the triangles to try first in each place (see
+    /// [`crossing_from`]).
+    pub(super) fn may_change(&self, a: DVec3, b: DVec3, hints: &mut [usize; 2]) -> bool {
         if !self.union.meets_segment(a, b) {
             return false;
         }
         let [o, n] = [0, 1].map(|k| {
             if self.boxes[k].meets_segment(a, b) {
-                crossing(&self.triangles[k], a, b)
+                crossing_from(&self.triangles[k], a, b, &mut hints[k])
             } else {
                 Crossing::Miss
             }
@@ -303,8 +322,11 @@ pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f
 /// True when no segment from the shooter of `planes` (see
 /// [`penumbra_planes`]) to a point of the triangle `receiver` can meet the
 /// box: the receiver lies below one of the planes by more than `tolerance`.
-#[cfg(test)]
-fn outside_penumbra(planes: &[(DVec3, f64)], receiver: &[DVec3; 3], tolerance: f64) -> bool {
+pub(super) fn outside_penumbra(
+    planes: &[(DVec3, f64)],
+    receiver: &[DVec3; 3],
+    tolerance: f64,
+) -> bool {
     planes
         .iter()
         .any(|(n, c)| receiver.iter().all(|x| n.dot(*x) < c - tolerance))
@@ -366,6 +388,25 @@ mod tests {
             crossing(&tri, DVec3::new(-1.0, 0.2, 0.5), DVec3::new(2.0, 0.2, 0.5)),
             Crossing::Miss
         );
+    }
+
+    /// The answer does not depend on the triangle tried first.
+    #[test]
+    fn crossing_does_not_depend_on_the_first_triangle() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut p = || DVec3::new(rng.random(), rng.random(), rng.random());
+        let tris: Vec<PreparedTriangle> = (0..6)
+            .map(|_| PreparedTriangle::new([p(), p(), p()]))
+            .collect();
+        for _ in 0..500 {
+            let (a, b) = (2.0 * p() - DVec3::ONE, 2.0 * p());
+            let expected = crossing(&tris, a, b);
+            for start in 0..tris.len() + 1 {
+                let mut first = start;
+                assert_eq!(crossing_from(&tris, a, b, &mut first), expected);
+                assert!(first < tris.len() || expected != Crossing::Hit);
+            }
+        }
     }
 
     /// The penumbra test never rejects a receiver that a segment from the
