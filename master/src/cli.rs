@@ -203,6 +203,11 @@ pub struct BenchArgs {
     /// Render only: skip the CPU references (no accuracy figures; fast at large sizes).
     #[arg(long)]
     pub no_accuracy: bool,
+    /// Radiosity only: make only the records of these kinds (default: all):
+    /// reference, gathered, sweep, scaling, incremental, incremental_object,
+    /// augmented.
+    #[arg(long, value_delimiter = ',')]
+    pub kinds: Vec<String>,
 }
 
 /// Subcommands of `sim`.
@@ -421,8 +426,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 emit_bench(&args, &records)
             }
             BenchTarget::Radiosity => {
-                let records =
-                    crate::radiosity_job::bench_radiosity_at(&shared_data("cornell-box.obj"))?;
+                let records = crate::radiosity_job::bench::bench_radiosity_kinds(
+                    &shared_data("cornell-box.obj"),
+                    &args.kinds,
+                )?;
                 if !args.json {
                     crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
                 }

@@ -638,17 +638,80 @@ pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<
 /// Run the radiosity benchmark on the Cornell box at `cornell` (the OBJ).
 /// Slow (minutes): build in release.
 pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
+    bench_radiosity_kinds(cornell, &[])
+}
+
+/// The `"kind"`s of the records of `bench radiosity`, in the order they
+/// are made.
+pub const RECORD_KINDS: [&str; 7] = [
+    "reference",
+    "gathered",
+    "sweep",
+    "scaling",
+    "incremental",
+    "incremental_object",
+    "augmented",
+];
+
+/// [`bench_radiosity_at`], making only the records whose `"kind"` is in
+/// `kinds` (all of them when `kinds` is empty); the fine reference
+/// solution is solved only when a record that needs it is made. An
+/// unknown kind is an error that lists the known ones.
+pub fn bench_radiosity_kinds(cornell: &Path, kinds: &[String]) -> anyhow::Result<Vec<BenchRecord>> {
+    if let Some(bad) = kinds.iter().find(|k| !RECORD_KINDS.contains(&k.as_str())) {
+        anyhow::bail!(
+            "unknown radiosity record kind {bad:?}; known kinds: {}",
+            RECORD_KINDS.join(", ")
+        );
+    }
+    let wanted = |kind: &str| kinds.is_empty() || kinds.iter().any(|k| k == kind);
     let showcase = load_obj_scene(cornell)?;
-    let reference = measure(&showcase, &reference_config())?;
-    let mut records = vec![json!({
-        "kind": "reference",
-        "method": "raycast",
-        "patches": reference.mesh.patches.len(),
-        "elements": reference.mesh.elements.len(),
-        "threshold": reference_config().solve.threshold,
-        "seconds": reference.seconds,
-        "shots": reference.shots,
-    })];
+    let mut records = Vec::new();
+    if ["reference", "gathered", "sweep", "scaling"]
+        .iter()
+        .any(|k| wanted(k))
+    {
+        bench_against_reference(&showcase, &wanted, &mut records)?;
+    }
+    if wanted("incremental") {
+        for intensity in [0.5, 0.05, 0.005] {
+            records.push(incremental_record(&showcase, intensity)?);
+        }
+    }
+    if wanted("incremental_object") {
+        let shift = Vec3::new(0.03, 0.0, 0.02);
+        let with_cube = cornell_with_small_cube(&showcase, 0.06);
+        for area in [0.02, 0.005] {
+            for (scene, name) in [(&showcase, "short_block"), (&with_cube, "small_cube")] {
+                records.push(incremental_object_record(scene, name, shift, area, 5)?);
+            }
+        }
+    }
+    if wanted("augmented") {
+        records.push(augmented_record(&showcase)?);
+    }
+    Ok(records)
+}
+
+/// The records measured against the fine reference solution (`reference`,
+/// `gathered`, `sweep`, `scaling`), those of them that are `wanted`.
+fn bench_against_reference(
+    showcase: &Showcase,
+    wanted: &dyn Fn(&str) -> bool,
+    records: &mut Vec<BenchRecord>,
+) -> anyhow::Result<()> {
+    let reference = measure(showcase, &reference_config())?;
+    if wanted("reference") {
+        records.push(json!({
+            "kind": "reference",
+            "method": "raycast",
+            "patches": reference.mesh.patches.len(),
+            "elements": reference.mesh.elements.len(),
+            "threshold": reference_config().solve.threshold,
+            "seconds": reference.seconds,
+            "shots": reference.shots,
+        }));
+    }
     let with = |area: f64, hemicube: u32, threshold: f64, method, samples: u32| {
         let mut c = base();
         c.max_patch_area = area;
@@ -659,8 +722,10 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         c
     };
     let (hybrid, raycast) = (FormFactorMethod::Hybrid, FormFactorMethod::RayCast);
-    for _ in 0..3 {
-        records.push(record(&showcase, &reference, &gathered(), "gathered")?);
+    if wanted("gathered") {
+        for _ in 0..3 {
+            records.push(record(showcase, &reference, &gathered(), "gathered")?);
+        }
     }
     let configs = [
         with(0.04, 32, 1e-2, hybrid, 4),
@@ -670,8 +735,13 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         with(0.02, 32, 1e-2, hybrid, 4),
         with(0.02, 32, 1e-2, raycast, 1),
     ];
-    for c in &configs {
-        records.push(record(&showcase, &reference, c, "sweep")?);
+    if wanted("sweep") {
+        for c in &configs {
+            records.push(record(showcase, &reference, c, "sweep")?);
+        }
+    }
+    if !wanted("scaling") {
+        return Ok(());
     }
     let scaling = Config {
         max_patch_area: 0.02,
@@ -679,24 +749,13 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
         refine: false,
         ..with(0.02, 32, 1e-2, raycast, 1)
     };
-    records.push(record(&showcase, &reference, &scaling, "scaling")?);
+    records.push(record(showcase, &reference, &scaling, "scaling")?);
     let mut scaling = gathered();
     if let Some(g) = &mut scaling.gather {
         g.depth = 3;
     }
-    records.push(record(&showcase, &reference, &scaling, "scaling")?);
-    for intensity in [0.5, 0.05, 0.005] {
-        records.push(incremental_record(&showcase, intensity)?);
-    }
-    let shift = Vec3::new(0.03, 0.0, 0.02);
-    let with_cube = cornell_with_small_cube(&showcase, 0.06);
-    for area in [0.02, 0.005] {
-        for (scene, name) in [(&showcase, "short_block"), (&with_cube, "small_cube")] {
-            records.push(incremental_object_record(scene, name, shift, area, 5)?);
-        }
-    }
-    records.push(augmented_record(&showcase)?);
-    Ok(records)
+    records.push(record(showcase, &reference, &scaling, "scaling")?);
+    Ok(())
 }
 
 /// [`bench_radiosity_at`] on [`CORNELL_BOX`] (relative to the working

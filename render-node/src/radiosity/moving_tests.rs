@@ -234,3 +234,94 @@ fn a_move_that_changes_more_than_the_object_is_refused() {
         Some(MoveError::MeshMismatch { .. })
     ));
 }
+
+/// One element per patch and patches of equal size on the walls and the
+/// block: the block's column is taken from its own rows by reciprocity.
+/// The reciprocal entries satisfy `F_iq A_i = F_qi A_q` with the fresh
+/// rows of the moved scene, every other entry equals the fresh one, and
+/// the solution reaches the converged one as closely as a full re-solve
+/// (the reciprocal entries are a different estimate of the same form
+/// factors, so the bound allows the discretisation error: 1.5 times the
+/// full re-solve's error plus 0.002).
+#[test]
+fn reciprocal_column_matches_the_fresh_rows_and_the_converged_solution() {
+    let mesh_flat = |s: &Showcase| {
+        let g = SceneGeometry::build(s, &ObjectFilter::All).unwrap();
+        let m = RadiosityMesh::build(
+            s,
+            &g,
+            &MeshOptions {
+                max_patch_area: 0.04,
+                element_depth: 0,
+                ..MeshOptions::default()
+            },
+        )
+        .unwrap();
+        (m, g)
+    };
+    let (m0, g0) = mesh_flat(&box_with_block(Vec3::ZERO));
+    let (m1, g1) = mesh_flat(&box_with_block(Vec3::new(0.07, 0.0, -0.04)));
+    let o = ray_cast(1e-3);
+    let mut sh = Shooter::new(&m0, &g0, None, &o).unwrap();
+    sh.add_surface_emission();
+    let limit = o.threshold * sh.injected_power();
+    // Every patch shoots, so every static row is patched.
+    sh.run_to_power(0.1 * limit);
+    let (mut moved, stats) = sh.move_object(&m1, &g1, 2, &[]).unwrap();
+    assert!(stats.entries_reciprocal > 0, "{stats:?}");
+
+    let fresh = Shooter::new(&m1, &g1, None, &o).unwrap();
+    let block: Vec<usize> = (0..m1.patches.len())
+        .filter(|&p| m1.patches[p].object == 2)
+        .collect();
+    let rows: Vec<Vec<(u32, f64)>> = (0..m1.patches.len())
+        .map(|p| fresh.form_factor_row(p).unwrap())
+        .collect();
+    let entry =
+        |row: &[(u32, f64)], j: usize| row.iter().find(|e| e.0 as usize == j).map_or(0.0, |e| e.1);
+    // A row that summed above 1 was normalised to sum 1 (every entry
+    // scaled): only rows below are compared entry by entry.
+    let unscaled = |row: &[(u32, f64)]| row.iter().map(|e| e.1).sum::<f64>() < 1.0 - 1e-9;
+    let (mut reciprocal, mut worst_static) = (0, 0.0_f64);
+    assert_eq!(stats.rows_patched, m1.patches.len() - block.len());
+    for i in (0..m1.patches.len()).filter(|p| !block.contains(p)) {
+        let row = moved.form_factor_row(i).unwrap();
+        let a_i = m1.patches[i].area;
+        if !unscaled(&row) || !unscaled(&rows[i]) {
+            continue;
+        }
+        for &(j, f) in &row {
+            let j = j as usize;
+            let q = m1.elements[j].patch as usize;
+            if block.contains(&q) {
+                let a_q = m1.patches[q].area;
+                if a_i <= 2.0 * a_q && unscaled(&rows[q]) {
+                    // The block patch's single element is the patch.
+                    let expected = entry(&rows[q], m1.patches[i].elements[0] as usize) * a_q;
+                    assert!(
+                        (f * a_i - expected).abs() <= 1e-9 * expected.max(1e-12),
+                        "row {i} entry {j}: {f} * {a_i} vs {expected}"
+                    );
+                    reciprocal += 1;
+                }
+            } else {
+                worst_static = worst_static.max((f - entry(&rows[i], j)).abs());
+            }
+        }
+    }
+    assert!(reciprocal > 0);
+    assert!(
+        worst_static < 1e-12,
+        "static entries differ by {worst_static}"
+    );
+
+    moved.run_to_power(limit);
+    let full = solve(&m1, &g1, &[], &o).unwrap();
+    let reference = solve(&m1, &g1, &[], &ray_cast(1e-6)).unwrap();
+    let err = |x: &[DVec3]| relative_error(&m1, x, &m1, &reference.radiosity, 4).unwrap();
+    let (inc_err, full_err) = (err(moved.radiosity()), err(&full.radiosity));
+    assert!(
+        inc_err < 1.5 * full_err + 0.002,
+        "incremental {inc_err}, full {full_err}"
+    );
+}

@@ -66,6 +66,9 @@ pub fn cornell_with_small_cube(cornell: &Showcase, side: f32) -> Showcase {
 /// - `incremental`: the rows corrected, the difference shot
 ///   (`S_i (F' - F)` from every patch that shot), shooting on from there.
 ///
+/// `pairs_near`, `entries_recomputed` and `entries_reciprocal` count the
+/// update's work ([`radiosity::MoveStats`]).
+///
 /// Errors are area-weighted relative RMSE of the interpolated element
 /// values against a fresh solve of the moved scene to 1e-5; `stale_rel_error`
 /// is the unmoved solution's (what a display shows without an update).
@@ -199,6 +202,7 @@ pub fn incremental_object_record(
         "pairs": pairs,
         "pairs_near": stats.pairs_near,
         "entries_recomputed": stats.entries_recomputed,
+        "entries_reciprocal": stats.entries_reciprocal,
         "speedup": full_seconds / inc_seconds.max(1e-9),
         "speedup_without_scene": (full_seconds - scene_seconds)
             / (inc_seconds - scene_seconds).max(1e-9),

@@ -19,28 +19,43 @@
 //! A moved object changes `F_ij` only where `i` or `j` lies on it, or where
 //! a visibility ray between `i` and `j` passes through the object's old or
 //! new place. With ray-cast form factors ([`FormFactorMethod::RayCast`])
-//! a static pair is re-computed only when the segment between the centres,
-//! widened by the larger of the two triangles' radii, meets the bounding
-//! box of the object's old or new place, and then only when one of its own
-//! visibility rays may see a difference: a ray that certainly passes
-//! through both places is blocked before and after, one that certainly
-//! misses both sees the same as before (tested against the object's
-//! triangles with a margin far above the ray offsets; when unsure, the
-//! entry is recomputed). A pair whose rays all see no difference has the
-//! very same value as before. The rows of the
-//! object's own patches are recomputed whole. Re-computed entries use the
-//! same seeds as a fresh solve, so a patched row equals a fresh row of the
-//! moved scene (to round-off). With hemi-cube methods every row that is
-//! needed is recomputed whole (correct, not faster).
+//! the rows of the object's own patches are recomputed whole, and a
+//! static row is patched entry by entry:
+//! - the object's column: by reciprocity from the object's recomputed
+//!   rows (`F_iq A_i = F_qi A_q`) where the object patch has a single
+//!   element and the static patch is at most twice its area, else
+//!   ray-cast (see `Reciprocal`: a reciprocal entry is another estimate
+//!   of the same form factor, equal to the ray-cast one to within the
+//!   form factors' discretisation error);
+//! - a static pair is re-computed only when one of its own visibility
+//!   rays may see a difference. Culling, cheapest first: the receiver
+//!   must lie in the shooter's penumbra of the box around the object's
+//!   old and new place (planes through an edge of one and a corner of the
+//!   other that separate the patch from the box), the segment between the
+//!   centres, widened by the larger of the two triangles' radii, must meet
+//!   the old or new box, and then a ray must not be sure to see the same
+//!   as before: a ray that certainly passes through both places is blocked
+//!   before and after, one that certainly misses both sees the same as
+//!   before (tested against the object's triangles with a margin far
+//!   above the ray offsets; when unsure, the entry is recomputed). A pair
+//!   whose rays all see no difference has the very same value as before.
+//!   Re-computed entries use the same seeds as a fresh solve, so they
+//!   equal a fresh row's entries of the moved scene (to round-off).
+//!
+//! With hemi-cube methods every row that is needed is recomputed whole
+//! (correct, not faster).
 
 use super::ray_cast::{normalise, ray_cast_form_factor, receiver_rays};
 use super::{FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
 use crate::radiosity::sources::stratified;
+use cull::{Bounds, Places, ball_outside_penumbra, outside_penumbra, penumbra_planes, radius};
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
+
+mod cull;
 
 /// Why an object move cannot be applied to a solve.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -80,151 +95,17 @@ pub struct MoveStats {
     pub rows_patched: usize,
     /// Rows recomputed whole (the object's patches, hemi-cube methods).
     pub rows_recomputed: usize,
-    /// Static pairs whose centre segment met a bounding box.
+    /// Static pairs whose rays were tested against the object: those in
+    /// the shooter's penumbra of the object's box whose centre segment,
+    /// widened by the larger triangle radius, met the old or new box.
     pub pairs_near: usize,
-    /// Form-factor entries recomputed in patched rows.
+    /// Form-factor entries recomputed (ray-cast) in patched rows.
     pub entries_recomputed: usize,
+    /// Entries of the object's column in patched rows taken from its own
+    /// rows by reciprocity (single-element object patches).
+    pub entries_reciprocal: usize,
     /// Elements whose B changed by the shot difference.
     pub elements_corrected: usize,
-}
-
-/// An axis-aligned box.
-#[derive(Clone, Copy, Debug)]
-struct Bounds {
-    lo: DVec3,
-    hi: DVec3,
-}
-
-impl Bounds {
-    fn of_object(mesh: &RadiosityMesh, object: u32) -> Option<Self> {
-        let mut it = mesh
-            .elements
-            .iter()
-            .filter(|e| e.object == object)
-            .flat_map(|e| e.vertices);
-        let first = it.next()?;
-        let (lo, hi) = it.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        Some(Self { lo, hi })
-    }
-
-    fn grown(&self, by: f64) -> Self {
-        Self {
-            lo: self.lo - DVec3::splat(by),
-            hi: self.hi + DVec3::splat(by),
-        }
-    }
-
-    /// True when the segment `a`-`b` meets the box (slab test).
-    fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
-        let d = b - a;
-        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
-        for k in 0..3 {
-            let (o, dk, lo, hi) = (a[k], d[k], self.lo[k], self.hi[k]);
-            if dk.abs() < 1e-300 {
-                if o < lo || o > hi {
-                    return false;
-                }
-                continue;
-            }
-            let (mut ta, mut tb) = ((lo - o) / dk, (hi - o) / dk);
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
-            if t0 > t1 {
-                return false;
-            }
-        }
-        true
-    }
-}
-
-/// Where a segment stands against an object's triangles, with a margin
-/// far above round-off and the ray offsets of [`SceneGeometry::visible`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Crossing {
-    /// It certainly passes through a triangle's interior.
-    Hit,
-    /// It certainly misses every triangle.
-    Miss,
-    /// Too close to an edge, an end or a plane to tell.
-    Unsure,
-}
-
-/// Relative margin of [`crossing`] (in barycentric and segment units).
-const CROSSING_MARGIN: f64 = 1e-6;
-
-/// How the segment `a`-`b` meets `triangles` (Moller-Trumbore with a
-/// margin on both sides).
-fn crossing(triangles: &[[DVec3; 3]], a: DVec3, b: DVec3) -> Crossing {
-    let d = b - a;
-    let m = CROSSING_MARGIN;
-    let mut all_miss = true;
-    for [v0, v1, v2] in triangles {
-        let (e1, e2) = (*v1 - *v0, *v2 - *v0);
-        let p = d.cross(e2);
-        let det = e1.dot(p);
-        let scale = e1.length() * e2.length() * d.length();
-        if !(det.abs() > 1e-9 * scale) {
-            // Parallel to the plane (or degenerate): only sure when the
-            // segment is far from the triangle's box.
-            let lo = v0.min(*v1).min(*v2);
-            let hi = v0.max(*v1).max(*v2);
-            let pad = m * (1.0 + (hi - lo).max_element());
-            let bounds = Bounds { lo, hi }.grown(pad);
-            if bounds.meets_segment(a, b) {
-                all_miss = false;
-            }
-            continue;
-        }
-        let inv = 1.0 / det;
-        let s = a - *v0;
-        let u = s.dot(p) * inv;
-        let q = s.cross(e1);
-        let v = d.dot(q) * inv;
-        let t = e2.dot(q) * inv;
-        if u > m && v > m && u + v < 1.0 - m && t > m && t < 1.0 - m {
-            return Crossing::Hit;
-        }
-        let miss = u < -m || v < -m || u + v > 1.0 + m || t < -m || t > 1.0 + m;
-        if !miss {
-            all_miss = false;
-        }
-    }
-    if all_miss {
-        Crossing::Miss
-    } else {
-        Crossing::Unsure
-    }
-}
-
-/// The moved object's old and new place.
-struct Places {
-    /// Bounding boxes (old, new), with a margin.
-    boxes: [Bounds; 2],
-    /// Triangles (old, new).
-    triangles: [Vec<[DVec3; 3]>; 2],
-    /// Each element's largest distance from its centre to a corner.
-    radii: Vec<f64>,
-}
-
-impl Places {
-    /// True unless the segment certainly meets both places or certainly
-    /// neither (then its visibility is the same before and after).
-    fn may_change(&self, a: DVec3, b: DVec3) -> bool {
-        let [o, n] = [0, 1].map(|k| {
-            if self.boxes[k].meets_segment(a, b) {
-                crossing(&self.triangles[k], a, b)
-            } else {
-                Crossing::Miss
-            }
-        });
-        !matches!(
-            (o, n),
-            (Crossing::Hit, Crossing::Hit) | (Crossing::Miss, Crossing::Miss)
-        )
-    }
 }
 
 /// A form-factor row (sorted by element) and the scale it was normalised
@@ -234,14 +115,6 @@ type ScaledRow = (Vec<(u32, f64)>, f64);
 /// A row after the move: the row, its scale, its difference from the old
 /// row, and what it took.
 type UpdatedRow = (Vec<(u32, f64)>, f64, Vec<(u32, f64)>, MoveStats);
-
-/// Largest distance from `center` to a corner.
-fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
-    vertices
-        .iter()
-        .map(|v| (*v - center).length())
-        .fold(0.0, f64::max)
-}
 
 /// The signed difference `new - old` of two rows sorted by element.
 fn row_difference(old: &[(u32, f64)], new: &[(u32, f64)]) -> Vec<(u32, f64)> {
@@ -283,29 +156,34 @@ fn row_difference(old: &[(u32, f64)], new: &[(u32, f64)]) -> Vec<(u32, f64)> {
 /// zero value removes the entry) put in.
 fn merge_changes(row: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f64)> {
     let mut out = Vec::with_capacity(row.len() + changes.len());
-    let mut c = changes.iter().peekable();
-    for &(j, f) in row {
-        while let Some(&&(jc, fc)) = c.peek() {
-            if jc > j {
-                break;
-            }
-            c.next();
-            if jc < j && fc != 0.0 {
-                out.push((jc, fc));
-            }
-        }
-        match changes.binary_search_by_key(&j, |x| x.0) {
-            Ok(k) => {
-                if changes[k].1 != 0.0 {
-                    out.push(changes[k]);
+    let (mut a, mut c) = (row.iter().peekable(), changes.iter().peekable());
+    loop {
+        let next = match (a.peek(), c.peek()) {
+            (Some(&&(j, f)), Some(&&(jc, fc))) => {
+                if jc < j {
+                    c.next();
+                    (jc, fc)
+                } else if jc == j {
+                    a.next();
+                    c.next();
+                    (jc, fc)
+                } else {
+                    a.next();
+                    (j, f)
                 }
             }
-            Err(_) => out.push((j, f)),
-        }
-    }
-    for &(jc, fc) in c {
-        if fc != 0.0 {
-            out.push((jc, fc));
+            (Some(&&x), None) => {
+                a.next();
+                x
+            }
+            (None, Some(&&x)) => {
+                c.next();
+                x
+            }
+            (None, None) => break,
+        };
+        if next.1 != 0.0 {
+            out.push(next);
         }
     }
     out
@@ -369,15 +247,12 @@ impl<'a> Shooter<'a> {
                 .map(|p| p.vertices)
                 .collect()
         };
-        let places = Places {
-            boxes: [old_box.grown(margin), new_box.grown(margin)],
-            triangles: [triangles_of(old_mesh), triangles_of(mesh)],
-            radii: mesh
-                .elements
-                .iter()
-                .map(|e| radius(e.center, &e.vertices))
-                .collect(),
-        };
+        let places = Places::new(
+            [old_box, new_box],
+            margin,
+            [triangles_of(old_mesh), triangles_of(mesh)],
+            mesh,
+        );
 
         // The old rows of every patch that shot or has a cached row.
         let n = old_mesh.patches.len();
@@ -414,30 +289,50 @@ impl<'a> Shooter<'a> {
             raster_fallbacks: self.raster_fallbacks,
         };
         let ray_cast = new.options.method == FormFactorMethod::RayCast;
-        let updated: Vec<Option<UpdatedRow>> = old_rows
-            .par_iter()
+        // Rows recomputed whole: the object's own (also where there was no
+        // old row, when reciprocity needs it), every row for hemi-cubes.
+        let own: Vec<Option<ScaledRow>> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let p = &mesh.patches[i];
+                let on_object = p.object == object;
+                let reciprocal = ray_cast && on_object && p.elements.len() == 1;
+                let needed = old_rows[i].is_some() || (reciprocal && new.patch_active[i]);
+                (needed && (!ray_cast || on_object))
+                    .then(|| new.form_factors(i, new.row_seed(i), None))
+            })
+            .collect();
+        let reciprocal = Reciprocal::new(mesh, object, &own, ray_cast);
+        let updated: Vec<Option<UpdatedRow>> = own
+            .into_par_iter()
+            .zip(old_rows.par_iter())
             .enumerate()
-            .map(|(i, old)| {
-                let (old_row, old_scale) = old.as_ref()?;
-                let seed = new.row_seed(i);
+            .map(|(i, (own, old))| {
                 let mut stats = MoveStats::default();
-                let (row, scale) = if !ray_cast || mesh.patches[i].object == object {
-                    stats.rows_recomputed = 1;
-                    new.form_factors(i, seed, None)
-                } else {
-                    stats.rows_patched = 1;
-                    let changes = new.changed_entries(i, object, &places, &mut stats);
-                    let mut row = if *old_scale == 1.0 {
-                        merge_changes(old_row, &changes)
-                    } else {
-                        let raw: Vec<(u32, f64)> =
-                            old_row.iter().map(|&(j, f)| (j, f / old_scale)).collect();
-                        merge_changes(&raw, &changes)
-                    };
-                    let scale = normalise(&mut row);
-                    (row, scale)
+                let (row, scale) = match own {
+                    Some(recomputed) => {
+                        stats.rows_recomputed = 1;
+                        recomputed
+                    }
+                    None => {
+                        let (old_row, old_scale) = old.as_ref()?;
+                        stats.rows_patched = 1;
+                        let changes =
+                            new.changed_entries(i, object, &places, &reciprocal, &mut stats);
+                        let mut row = if *old_scale == 1.0 {
+                            merge_changes(old_row, &changes)
+                        } else {
+                            let raw: Vec<(u32, f64)> =
+                                old_row.iter().map(|&(j, f)| (j, f / old_scale)).collect();
+                            merge_changes(&raw, &changes)
+                        };
+                        let scale = normalise(&mut row);
+                        (row, scale)
+                    }
                 };
-                let diff = row_difference(old_row, &row);
+                let diff = old
+                    .as_ref()
+                    .map_or_else(Vec::new, |(old_row, _)| row_difference(old_row, &row));
                 Some((row, scale, diff, stats))
             })
             .collect();
@@ -452,6 +347,7 @@ impl<'a> Shooter<'a> {
             stats.rows_recomputed += s.rows_recomputed;
             stats.pairs_near += s.pairs_near;
             stats.entries_recomputed += s.entries_recomputed;
+            stats.entries_reciprocal += s.entries_reciprocal;
             new.rows_computed += s.rows_recomputed;
             let shot = new.shot[i];
             if shot != DVec3::ZERO {
@@ -484,14 +380,17 @@ impl<'a> Shooter<'a> {
     }
 
     /// The entries of ray-cast row `i` (a static patch) that the move of
-    /// `object` (old and new place in `places`) may change, recomputed
-    /// on the moved scene: `(element, raw F)`, sorted, zero where it is
-    /// now zero.
+    /// `object` (old and new place in `places`) may change, on the moved
+    /// scene: `(element, raw F)`, sorted, zero where it is now zero. The
+    /// object's column comes from its own rows by reciprocity where
+    /// `reciprocal` has them, else it is ray-cast like the static entries
+    /// whose rays may see the move.
     fn changed_entries(
         &self,
         i: usize,
         object: u32,
         places: &Places,
+        reciprocal: &Reciprocal,
         stats: &mut MoveStats,
     ) -> Vec<(u32, f64)> {
         let mesh = self.mesh;
@@ -499,6 +398,8 @@ impl<'a> Shooter<'a> {
         let rp = radius(p.center, &p.vertices);
         let seed = self.row_seed(i);
         let samples = stratified(self.options.visibility_samples, seed);
+        let planes = penumbra_planes(&p.vertices, &places.union);
+        let mut hints = [0; 2];
         let mut out = Vec::new();
         for (j, e) in mesh.elements.iter().enumerate() {
             if !self.active[j] || e.patch as usize == i {
@@ -506,9 +407,20 @@ impl<'a> Shooter<'a> {
             }
             let j = j as u32;
             let recompute = if e.object == object {
+                if let Some(f) = reciprocal.entry(mesh, i, j) {
+                    stats.entries_reciprocal += 1;
+                    out.push((j, f));
+                    continue;
+                }
                 true
             } else {
-                let widen = rp.max(places.radii[j as usize]);
+                let rj = places.radii[j as usize];
+                if ball_outside_penumbra(&planes, e.center, rj, places.margin)
+                    || outside_penumbra(&planes, &e.vertices, places.margin)
+                {
+                    continue;
+                }
+                let widen = rp.max(rj);
                 if !places
                     .boxes
                     .iter()
@@ -517,7 +429,8 @@ impl<'a> Shooter<'a> {
                     continue;
                 }
                 stats.pairs_near += 1;
-                receiver_rays(mesh, i, j, &samples, seed).any(|(x, y)| places.may_change(x, y))
+                receiver_rays(mesh, i, j, &samples, seed)
+                    .any(|(x, y)| places.may_change(x, y, &mut hints))
             };
             if recompute {
                 stats.entries_recomputed += 1;
@@ -529,49 +442,64 @@ impl<'a> Shooter<'a> {
     }
 }
 
+/// Reciprocity is used only where the static patch is at most this many
+/// times larger than the object's patch: the reciprocal estimate samples
+/// points on the static patch, the ray-cast one on the object's, and
+/// point sampling is the more accurate on the smaller of the two.
+const RECIPROCAL_AREA_RATIO: f64 = 2.0;
+
+/// The object's column by reciprocity: for an object patch `q` with a
+/// single element (the element is the patch) and its recomputed row,
+/// `F_iq A_i = F_qi A_q` gives the entry of static patch `i`'s row as
+/// `F_iq = (A_q / A_i) sum_{e in i} F_qe` (raw form factors). Both sides
+/// are estimates of the same integral from different sample points, so
+/// the entry differs from a ray-cast one by the discretisation error of
+/// the form factors, not by more (see [`RECIPROCAL_AREA_RATIO`]).
+struct Reciprocal {
+    /// Per element of a single-element object patch: the raw form factor
+    /// from its patch to every patch (`sum_{e in i} F_qe`).
+    to_patch: std::collections::HashMap<u32, Vec<f64>>,
+}
+
+impl Reciprocal {
+    /// The table from the recomputed rows `own` (empty unless `ray_cast`).
+    fn new(mesh: &RadiosityMesh, object: u32, own: &[Option<ScaledRow>], ray_cast: bool) -> Self {
+        let mut to_patch = std::collections::HashMap::new();
+        if ray_cast {
+            for (q, row) in own.iter().enumerate() {
+                let p = &mesh.patches[q];
+                let (Some((row, scale)), true, [e]) =
+                    (row, p.object == object, p.elements.as_slice())
+                else {
+                    continue;
+                };
+                let mut sums = vec![0.0; mesh.patches.len()];
+                for &(j, f) in row {
+                    sums[mesh.elements[j as usize].patch as usize] += f / scale;
+                }
+                to_patch.insert(*e, sums);
+            }
+        }
+        Self { to_patch }
+    }
+
+    /// The raw form factor from static patch `i` to object element `j`,
+    /// `None` where the table has no row for it.
+    fn entry(&self, mesh: &RadiosityMesh, i: usize, j: u32) -> Option<f64> {
+        let sums = self.to_patch.get(&j)?;
+        let q = &mesh.patches[mesh.elements[j as usize].patch as usize];
+        let p_area = mesh.patches[i].area;
+        if !(p_area <= RECIPROCAL_AREA_RATIO * q.area) {
+            return None;
+        }
+        let f = sums[i] * q.area / p_area;
+        Some(if f.is_finite() { f } else { 0.0 })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn segment_box_test_matches_hand_cases() {
-        let b = Bounds {
-            lo: DVec3::ZERO,
-            hi: DVec3::ONE,
-        };
-        let x = DVec3::X;
-        assert!(b.meets_segment(DVec3::new(-1.0, 0.5, 0.5), DVec3::new(2.0, 0.5, 0.5)));
-        assert!(!b.meets_segment(DVec3::new(-1.0, 1.5, 0.5), DVec3::new(2.0, 1.5, 0.5)));
-        // Stops short of the box.
-        assert!(!b.meets_segment(DVec3::new(-2.0, 0.5, 0.5), DVec3::new(-0.1, 0.5, 0.5)));
-        // Axis-parallel, inside the slab on the other axes.
-        assert!(b.meets_segment(0.5 * DVec3::ONE, 0.5 * DVec3::ONE + x));
-        // Diagonal past a corner.
-        assert!(!b.meets_segment(DVec3::new(1.5, -0.5, 0.5), DVec3::new(2.5, 0.5, 0.5)));
-    }
-
-    #[test]
-    fn crossing_is_sure_only_away_from_edges_and_ends() {
-        let tri = [[DVec3::ZERO, DVec3::X, DVec3::Y]];
-        let down = |x: f64, y: f64| crossing(&tri, DVec3::new(x, y, 1.0), DVec3::new(x, y, -1.0));
-        assert_eq!(down(0.2, 0.2), Crossing::Hit);
-        assert_eq!(down(0.7, 0.7), Crossing::Miss);
-        assert_eq!(down(-0.1, 0.2), Crossing::Miss);
-        assert_eq!(down(0.5, 0.5), Crossing::Unsure);
-        assert_eq!(down(0.0, 0.3), Crossing::Unsure);
-        // Ending on the plane, short of it, and in the plane.
-        let at = |z: f64| crossing(&tri, DVec3::new(0.2, 0.2, 1.0), DVec3::new(0.2, 0.2, z));
-        assert_eq!(at(0.0), Crossing::Unsure);
-        assert_eq!(at(0.5), Crossing::Miss);
-        assert_eq!(
-            crossing(&tri, DVec3::new(-1.0, 0.2, 0.0), DVec3::new(2.0, 0.2, 0.0)),
-            Crossing::Unsure
-        );
-        assert_eq!(
-            crossing(&tri, DVec3::new(-1.0, 0.2, 0.5), DVec3::new(2.0, 0.2, 0.5)),
-            Crossing::Miss
-        );
-    }
 
     #[test]
     fn row_merge_and_difference_are_exact() {

@@ -1,0 +1,461 @@
+//! Which static form-factor entries an object move may change: the
+//! object's old and new place (boxes and triangles), a per-shooter
+//! penumbra test that rejects most receivers with a few dot products, and
+//! the exact-with-margin crossing test of single visibility rays.
+
+use crate::radiosity::mesh::RadiosityMesh;
+use glam::DVec3;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Bounds {
+    pub(super) lo: DVec3,
+    pub(super) hi: DVec3,
+}
+
+impl Bounds {
+    /// The box of `object`'s elements in `mesh`, `None` when it has none.
+    pub(super) fn of_object(mesh: &RadiosityMesh, object: u32) -> Option<Self> {
+        let mut it = mesh
+            .elements
+            .iter()
+            .filter(|e| e.object == object)
+            .flat_map(|e| e.vertices);
+        let first = it.next()?;
+        let (lo, hi) = it.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        Some(Self { lo, hi })
+    }
+
+    /// Grown by `by` on every side.
+    pub(super) fn grown(&self, by: f64) -> Self {
+        Self {
+            lo: self.lo - DVec3::splat(by),
+            hi: self.hi + DVec3::splat(by),
+        }
+    }
+
+    /// The smallest box holding both.
+    fn union(&self, other: &Self) -> Self {
+        Self {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    /// The eight corners.
+    fn corners(&self) -> [DVec3; 8] {
+        let (l, h) = (self.lo, self.hi);
+        [0, 1, 2, 3, 4, 5, 6, 7].map(|k| {
+            DVec3::new(
+                if k & 1 == 0 { l.x } else { h.x },
+                if k & 2 == 0 { l.y } else { h.y },
+                if k & 4 == 0 { l.z } else { h.z },
+            )
+        })
+    }
+
+    /// True when the segment `a`-`b` meets the box (slab test).
+    pub(super) fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+        let d = b - a;
+        let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+        for k in 0..3 {
+            let (o, dk, lo, hi) = (a[k], d[k], self.lo[k], self.hi[k]);
+            if dk.abs() < 1e-300 {
+                if o < lo || o > hi {
+                    return false;
+                }
+                continue;
+            }
+            let (mut ta, mut tb) = ((lo - o) / dk, (hi - o) / dk);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+            if t0 > t1 {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+/// The 12 edges of a box, as pairs of [`Bounds::corners`] indices.
+const BOX_EDGES: [(usize, usize); 12] = [
+    (0, 1),
+    (2, 3),
+    (4, 5),
+    (6, 7),
+    (0, 2),
+    (1, 3),
+    (4, 6),
+    (5, 7),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
+];
+
+/// Where a segment stands against an object's triangles, with a margin
+/// far above round-off and the ray offsets of
+/// [`SceneGeometry::visible`](crate::light::SceneGeometry::visible).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Crossing {
+    /// It certainly passes through a triangle's interior.
+    Hit,
+    /// It certainly misses every triangle.
+    Miss,
+    /// Too close to an edge, an end or a plane to tell.
+    Unsure,
+}
+
+/// Relative margin of [`crossing`] (in barycentric and segment units).
+const CROSSING_MARGIN: f64 = 1e-6;
+
+/// A triangle prepared for [`crossing`]: its first corner, edges, the
+/// product of the edge lengths and its box.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PreparedTriangle {
+    /// Unit normal of the plane (zero when degenerate).
+    normal: DVec3,
+    v0: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    edge_product: f64,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl PreparedTriangle {
+    /// `[v0, v1, v2]` prepared.
+    pub(super) fn new([v0, v1, v2]: [DVec3; 3]) -> Self {
+        let (e1, e2) = (v1 - v0, v2 - v0);
+        Self {
+            normal: e1.cross(e2).normalize_or_zero(),
+            v0,
+            e1,
+            e2,
+            edge_product: e1.length() * e2.length(),
+            lo: v0.min(v1).min(v2),
+            hi: v0.max(v1).max(v2),
+        }
+    }
+}
+
+/// How the segment `a`-`b` meets `triangles` (Moller-Trumbore with a
+/// margin on both sides).
+#[cfg(test)]
+fn crossing(triangles: &[PreparedTriangle], a: DVec3, b: DVec3) -> Crossing {
+    crossing_from(triangles, a, b, &mut 0)
+}
+
+/// [`crossing`], trying the triangles from index `first` on (wrapping
+/// round) and leaving there the one hit: neighbouring rays tend to hit the
+/// same triangle, and any triangle hit decides, so the order changes only
+/// the time.
+pub(super) fn crossing_from(
+    triangles: &[PreparedTriangle],
+    a: DVec3,
+    b: DVec3,
+    first: &mut usize,
+) -> Crossing {
+    let d = b - a;
+    let d_length = d.length();
+    let m = CROSSING_MARGIN;
+    let mut all_miss = true;
+    // A segment that stays this far on one side of a triangle's plane
+    // certainly misses it (its ends are farther than the margin in
+    // segment units, and far beyond the ray offsets).
+    let off_plane = m * (1.0 + d_length);
+    let start = if *first < triangles.len() { *first } else { 0 };
+    let (tail, head) = triangles.split_at(start);
+    for (k, t) in head.iter().chain(tail).enumerate() {
+        if t.normal != DVec3::ZERO {
+            let (da, db) = (t.normal.dot(a - t.v0), t.normal.dot(b - t.v0));
+            if (da > off_plane && db > off_plane) || (da < -off_plane && db < -off_plane) {
+                continue;
+            }
+        }
+        let p = d.cross(t.e2);
+        let det = t.e1.dot(p);
+        let scale = t.edge_product * d_length;
+        if !(det.abs() > 1e-9 * scale) {
+            // Parallel to the plane (or degenerate): only sure when the
+            // segment is far from the triangle's box.
+            let pad = m * (1.0 + (t.hi - t.lo).max_element());
+            let bounds = Bounds { lo: t.lo, hi: t.hi }.grown(pad);
+            if bounds.meets_segment(a, b) {
+                all_miss = false;
+            }
+            continue;
+        }
+        let inv = 1.0 / det;
+        let s = a - t.v0;
+        let u = s.dot(p) * inv;
+        let q = s.cross(t.e1);
+        let v = d.dot(q) * inv;
+        let tt = t.e2.dot(q) * inv;
+        if u > m && v > m && u + v < 1.0 - m && tt > m && tt < 1.0 - m {
+            *first = (start + k) % triangles.len();
+            return Crossing::Hit;
+        }
+        let miss = u < -m || v < -m || u + v > 1.0 + m || tt < -m || tt > 1.0 + m;
+        if !miss {
+            all_miss = false;
+        }
+    }
+    if all_miss {
+        Crossing::Miss
+    } else {
+        Crossing::Unsure
+    }
+}
+
+/// The moved object's old and new place.
+pub(super) struct Places {
+    /// Bounding boxes (old, new), with a margin.
+    pub(super) boxes: [Bounds; 2],
+    /// Both boxes in one.
+    pub(super) union: Bounds,
+    /// The margin the boxes were grown by, far above the ray offsets.
+    pub(super) margin: f64,
+    /// Triangles (old, new).
+    pub(super) triangles: [Vec<PreparedTriangle>; 2],
+    /// Each element's largest distance from its centre to a corner.
+    pub(super) radii: Vec<f64>,
+}
+
+impl Places {
+    /// The places of the object's old and new `boxes` (grown here by
+    /// `margin`) and `triangles`, with the element radii of `mesh`.
+    pub(super) fn new(
+        boxes: [Bounds; 2],
+        margin: f64,
+        triangles: [Vec<[DVec3; 3]>; 2],
+        mesh: &RadiosityMesh,
+    ) -> Self {
+        let boxes = boxes.map(|b| b.grown(margin));
+        Self {
+            union: boxes[0].union(&boxes[1]),
+            boxes,
+            margin,
+            triangles: triangles.map(|t| t.into_iter().map(PreparedTriangle::new).collect()),
+            radii: mesh
+                .elements
+                .iter()
+                .map(|e| radius(e.center, &e.vertices))
+                .collect(),
+        }
+    }
+
+    /// True unless the segment certainly meets both places or certainly
+    /// neither (then its visibility is the same before and after).
+    /// `hints` are the triangles to try first in each place (see
+    /// [`crossing_from`]).
+    pub(super) fn may_change(&self, a: DVec3, b: DVec3, hints: &mut [usize; 2]) -> bool {
+        if !self.union.meets_segment(a, b) {
+            return false;
+        }
+        let [o, n] = [0, 1].map(|k| {
+            if self.boxes[k].meets_segment(a, b) {
+                crossing_from(&self.triangles[k], a, b, &mut hints[k])
+            } else {
+                Crossing::Miss
+            }
+        });
+        !matches!(
+            (o, n),
+            (Crossing::Hit, Crossing::Hit) | (Crossing::Miss, Crossing::Miss)
+        )
+    }
+}
+
+/// Largest distance from `center` to a corner.
+pub(super) fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
+    vertices
+        .iter()
+        .map(|v| (*v - center).length())
+        .fold(0.0, f64::max)
+}
+
+/// Planes that bound the region a segment from the triangle `shooter`
+/// through the box `b` can reach: `(n, c)` with unit `n` such that every
+/// point `x` with a segment from a point of `shooter` to `x` that meets
+/// `b` has `n . x >= c`. They are the planes through an edge of one and a
+/// corner of the other (and the axis planes and the triangle's plane)
+/// that have the triangle on their negative and the box on their
+/// positive side: for `y` on the triangle, `b` in the box and
+/// `x = y + s (b - y)` with `s >= 1`, `n . x >= n . b >= c`. Empty when
+/// no plane separates them (the triangle touches or enters the box).
+pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f64)> {
+    let corners = b.corners();
+    let mut candidates = vec![DVec3::X, DVec3::Y, DVec3::Z];
+    candidates.push((shooter[1] - shooter[0]).cross(shooter[2] - shooter[0]));
+    for k in 0..3 {
+        let (a, c) = (shooter[k], shooter[(k + 1) % 3]);
+        candidates.extend(corners.iter().map(|v| (c - a).cross(*v - a)));
+    }
+    for (i, j) in BOX_EDGES {
+        let (a, c) = (corners[i], corners[j]);
+        candidates.extend(shooter.iter().map(|y| (c - a).cross(*y - a)));
+    }
+    let mut planes: Vec<(DVec3, f64)> = Vec::new();
+    for n in candidates {
+        let n = n.normalize_or_zero();
+        if n == DVec3::ZERO || !n.is_finite() {
+            continue;
+        }
+        for n in [n, -n] {
+            let y_max = shooter.iter().map(|y| n.dot(*y)).fold(f64::MIN, f64::max);
+            let b_min = corners.iter().map(|c| n.dot(*c)).fold(f64::MAX, f64::min);
+            let duplicate = planes
+                .iter()
+                .any(|(m, c)| m.dot(n) > 1.0 - 1e-12 && (c - b_min).abs() < 1e-12);
+            if y_max <= b_min && !duplicate {
+                planes.push((n, b_min));
+            }
+        }
+    }
+    planes
+}
+
+/// True when no segment from the shooter of `planes` (see
+/// [`penumbra_planes`]) to a point of the triangle `receiver` can meet the
+/// box: the receiver lies below one of the planes by more than `tolerance`.
+pub(super) fn outside_penumbra(
+    planes: &[(DVec3, f64)],
+    receiver: &[DVec3; 3],
+    tolerance: f64,
+) -> bool {
+    planes
+        .iter()
+        .any(|(n, c)| receiver.iter().all(|x| n.dot(*x) < c - tolerance))
+}
+
+/// [`outside_penumbra`] for a receiver inside the ball `(center, radius)`:
+/// one dot product per plane, a little less strict.
+pub(super) fn ball_outside_penumbra(
+    planes: &[(DVec3, f64)],
+    center: DVec3,
+    radius: f64,
+    tolerance: f64,
+) -> bool {
+    planes
+        .iter()
+        .any(|(n, c)| n.dot(center) + radius < c - tolerance)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn segment_box_test_matches_hand_cases() {
+        let b = Bounds {
+            lo: DVec3::ZERO,
+            hi: DVec3::ONE,
+        };
+        let x = DVec3::X;
+        assert!(b.meets_segment(DVec3::new(-1.0, 0.5, 0.5), DVec3::new(2.0, 0.5, 0.5)));
+        assert!(!b.meets_segment(DVec3::new(-1.0, 1.5, 0.5), DVec3::new(2.0, 1.5, 0.5)));
+        // Stops short of the box.
+        assert!(!b.meets_segment(DVec3::new(-2.0, 0.5, 0.5), DVec3::new(-0.1, 0.5, 0.5)));
+        // Axis-parallel, inside the slab on the other axes.
+        assert!(b.meets_segment(0.5 * DVec3::ONE, 0.5 * DVec3::ONE + x));
+        // Diagonal past a corner.
+        assert!(!b.meets_segment(DVec3::new(1.5, -0.5, 0.5), DVec3::new(2.5, 0.5, 0.5)));
+    }
+
+    #[test]
+    fn crossing_is_sure_only_away_from_edges_and_ends() {
+        let tri = [PreparedTriangle::new([DVec3::ZERO, DVec3::X, DVec3::Y])];
+        let down = |x: f64, y: f64| crossing(&tri, DVec3::new(x, y, 1.0), DVec3::new(x, y, -1.0));
+        assert_eq!(down(0.2, 0.2), Crossing::Hit);
+        assert_eq!(down(0.7, 0.7), Crossing::Miss);
+        assert_eq!(down(-0.1, 0.2), Crossing::Miss);
+        assert_eq!(down(0.5, 0.5), Crossing::Unsure);
+        assert_eq!(down(0.0, 0.3), Crossing::Unsure);
+        // Ending on the plane, short of it, and in the plane.
+        let at = |z: f64| crossing(&tri, DVec3::new(0.2, 0.2, 1.0), DVec3::new(0.2, 0.2, z));
+        assert_eq!(at(0.0), Crossing::Unsure);
+        assert_eq!(at(0.5), Crossing::Miss);
+        assert_eq!(
+            crossing(&tri, DVec3::new(-1.0, 0.2, 0.0), DVec3::new(2.0, 0.2, 0.0)),
+            Crossing::Unsure
+        );
+        assert_eq!(
+            crossing(&tri, DVec3::new(-1.0, 0.2, 0.5), DVec3::new(2.0, 0.2, 0.5)),
+            Crossing::Miss
+        );
+    }
+
+    /// The answer does not depend on the triangle tried first.
+    #[test]
+    fn crossing_does_not_depend_on_the_first_triangle() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut p = || DVec3::new(rng.random(), rng.random(), rng.random());
+        let tris: Vec<PreparedTriangle> = (0..6)
+            .map(|_| PreparedTriangle::new([p(), p(), p()]))
+            .collect();
+        for _ in 0..500 {
+            let (a, b) = (2.0 * p() - DVec3::ONE, 2.0 * p());
+            let expected = crossing(&tris, a, b);
+            for start in 0..tris.len() + 1 {
+                let mut first = start;
+                assert_eq!(crossing_from(&tris, a, b, &mut first), expected);
+                assert!(first < tris.len() || expected != Crossing::Hit);
+            }
+        }
+    }
+
+    /// The penumbra test never rejects a receiver that a segment from the
+    /// shooter through the box reaches (random segments through random
+    /// boxes), and it does reject receivers beside the shooter and off to
+    /// the side of the box.
+    #[test]
+    fn penumbra_planes_never_reject_a_receiver_a_segment_reaches() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let point = |rng: &mut rand_chacha::ChaCha8Rng, s: f64| {
+            DVec3::new(
+                rng.random_range(-s..s),
+                rng.random_range(-s..s),
+                rng.random_range(-s..s),
+            )
+        };
+        let mut rejected = 0;
+        for _ in 0..2000 {
+            let lo = point(&mut rng, 0.3);
+            let b = Bounds {
+                lo,
+                hi: lo + point(&mut rng, 0.2).abs() + DVec3::splat(0.01),
+            };
+            let shooter = [0, 1, 2].map(|_| DVec3::new(0.0, 0.0, -1.5) + point(&mut rng, 0.4));
+            let planes = penumbra_planes(&shooter, &b);
+            // A segment from a shooter point through a box point reaches a
+            // receiver around its far end: never rejected.
+            let w = [
+                rng.random::<f64>(),
+                rng.random::<f64>(),
+                rng.random::<f64>(),
+            ];
+            let sum: f64 = w.iter().sum();
+            let y = (w[0] * shooter[0] + w[1] * shooter[1] + w[2] * shooter[2]) / sum;
+            let through =
+                b.lo + (b.hi - b.lo) * DVec3::new(rng.random(), rng.random(), rng.random());
+            let x = y + rng.random_range(1.0..4.0) * (through - y);
+            let receiver = [x, x + point(&mut rng, 0.05), x + point(&mut rng, 0.05)];
+            assert!(
+                !outside_penumbra(&planes, &receiver, 1e-9),
+                "{shooter:?} through {b:?} reaches {x}"
+            );
+            assert!(!ball_outside_penumbra(&planes, x, 0.0, 1e-9));
+            // A receiver on the shooter's side, far to the side.
+            let beside = [0, 1, 2].map(|k| shooter[k] + DVec3::new(3.0, 0.0, -0.5));
+            if outside_penumbra(&planes, &beside, 1e-9) {
+                rejected += 1;
+            }
+        }
+        assert!(rejected > 1000, "only {rejected} of 2000 rejected");
+    }
+}
