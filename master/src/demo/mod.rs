@@ -427,13 +427,11 @@ fn rendering_stage(
             all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
             seen.add(&r);
         }
-        for (observer, [left, right]) in &outputs.faces {
+        for (f, _, [left, right]) in &outputs.faces {
             let face = calibrated
                 .faces
-                .iter()
-                .enumerate()
-                .find(|(f, _)| views::face_observer(&calibrated, *f) == Some(*observer))
-                .map_or("face".to_string(), |(_, f)| f.name.clone());
+                .get(*f)
+                .map_or("face".to_string(), |f| f.name.clone());
             for (eye, img) in [("left", left), ("right", right)] {
                 let file = format!("{dir_name}/{face}-{eye}.png");
                 views::write_radiance(&args.out.join(&file), img, 1.0)?;

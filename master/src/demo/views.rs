@@ -96,8 +96,10 @@ pub(super) struct Outputs {
     /// one pixel wide on each side), where one pixel cannot be right on
     /// both sides.
     pub projector_edges: Vec<Image<bool>>,
-    /// Per face: `(observer, [left eye, right eye])` radiance.
-    pub faces: Vec<(usize, [RgbImage; 2])>,
+    /// Per face serving an observer: `(face index, observer, [left eye,
+    /// right eye])` radiance (the face index, not the position in this
+    /// list, names the face: a face serving no observer has no entry).
+    pub faces: Vec<(usize, usize, [RgbImage; 2])>,
 }
 
 fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
@@ -116,7 +118,7 @@ pub(super) struct NodeRenderers {
 enum RenderersKind {
     Gpu {
         projectors: Vec<ProjectorRenderer>,
-        faces: Vec<(usize, FaceRenderer)>,
+        faces: Vec<(usize, usize, FaceRenderer)>,
     },
     Cpu,
 }
@@ -141,7 +143,7 @@ impl NodeRenderers {
                     };
                     let mut r = FaceRenderer::new((**ctx).clone(), f, observer, SHADOW_RES);
                     r.set_scene(VERSION, scene.clone())?;
-                    faces.push((observer, r));
+                    faces.push((f, observer, r));
                 }
                 RenderersKind::Gpu { projectors, faces }
             }
@@ -180,11 +182,12 @@ impl NodeRenderers {
                     out.projectors
                         .push(split_rgba(img.width, img.height, &img.rgba, 0, img.width));
                 }
-                for (observer, r) in faces {
+                for (f, observer, r) in faces {
                     let o = r.render(&state, scene)?;
                     let img = o.image.context("the face renderer kept no image")?;
                     let w = img.width / 2;
                     out.faces.push((
+                        *f,
                         *observer,
                         [
                             split_rgba(img.width, img.height, &img.rgba, 0, w),
@@ -212,7 +215,7 @@ impl NodeRenderers {
                         face_image_cpu_with(&frame, &occluders, face, eyes[k], &filled, &cube_maps)
                     };
                     let (l, r) = (draw(0)?, draw(1)?);
-                    out.faces.push((observer, [l.radiance, r.radiance]));
+                    out.faces.push((f, observer, [l.radiance, r.radiance]));
                 }
             }
         }
@@ -348,11 +351,12 @@ pub(super) fn observe(
     let mirror = outputs
         .faces
         .iter()
-        .enumerate()
-        .find(|(_, (o, _))| *o == observer)
-        .map(|(f, (_, [left, _]))| MirrorImage {
-            face: &truth.faces[f],
-            radiance: left,
+        .find(|(_, o, _)| *o == observer)
+        .and_then(|(f, _, [left, _])| {
+            Some(MirrorImage {
+                face: truth.faces.get(*f)?,
+                radiance: left,
+            })
         });
     let cam = eye_camera(truth, state, observer);
     let view = observer_view(&frame, &occluders, &cam, &projected, mirror)?;
