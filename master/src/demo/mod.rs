@@ -3,8 +3,6 @@
 //! interactive cluster, rendering), with `report.json` and `index.html`.
 //! A phase that fails stops the demo with its error and no report.
 
-#[cfg(test)]
-mod budget;
 mod views;
 
 use crate::cli::DemoArgs;
