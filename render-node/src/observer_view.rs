@@ -11,6 +11,15 @@
 //!   mirror plane, is reflected, and meets the screen at the pixel whose
 //!   radiance the face node drew (nearest pixel).
 //!
+//! Besides the figures' usual masks ([`ObserverView::edge`],
+//! [`ObserverView::reachable`]) the view marks what the method cannot
+//! get right by design, for a comparable figure that leaves it out:
+//! pixels next to a change of reachability ([`ObserverView::reach_edge`]),
+//! occlusion shadows of other eyes that the mirror image cannot fill
+//! ([`ObserverView::unfillable`]) and, given the projectors' edge masks,
+//! surfaces lit by a projector pixel that straddles an edge
+//! ([`projector_edge_pixels`]).
+//!
 //! The mirror is taken as an ideal combiner (transmission and reflection
 //! 1), so the composite is comparable with the target without a common
 //! attenuation factor.
@@ -31,7 +40,9 @@
 
 use crate::light::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
 use crate::render::cube_map::{environment, reflect};
-use crate::render::projector::{Occluders, emitted_intensity, target_irradiance};
+use crate::render::projector::{
+    Occluders, emitted_intensity, in_occlusion_shadow, target_irradiance,
+};
 use crate::render::{FrameScene, RenderSetupError};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -88,6 +99,15 @@ pub struct ObserverView {
     /// virtual lights reaching it (silhouette, facet and shadow edges),
     /// where one nearest-pixel sample cannot be right on both sides.
     pub edge: Image<bool>,
+    /// Pixels next to a change of [`Self::reachable`]: reachability is
+    /// decided by the centre ray, but the pixel's radiance averages rays
+    /// across it, some of which meet surfaces no projector reaches.
+    pub reach_edge: Image<bool>,
+    /// Pixels whose first surface is real and lies in another tracked
+    /// eye's occlusion shadow (the projectors leave it dark) where the
+    /// mirror image cannot fill it in: this eye's ray through the mirror
+    /// misses the face's screen, or no face serves this eye.
+    pub unfillable: Image<bool>,
 }
 
 /// The target's first surface on a pixel's ray: object, triangle and the
@@ -139,13 +159,21 @@ pub fn observer_view(
         check_size(&m.face.name, m.radiance, m.face.width, m.face.height)?;
     }
     let (w, h) = (eye.width, eye.height);
-    let pixels: Vec<([Vec3; 3], SurfaceKey, bool)> = (0..h)
+    // The eyes whose occlusion shadows the projectors leave dark: every
+    // tracked eye but this one.
+    let others: Vec<DVec3> = frame
+        .eyes
+        .iter()
+        .copied()
+        .filter(|e| (*e - eye_rays.center()).length() > 1e-9)
+        .collect();
+    let pixels: Vec<([Vec3; 3], SurfaceKey, bool, bool)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
-            let (eye_rays, projectors) = (&eye_rays, &projectors);
+            let (eye_rays, projectors, others) = (&eye_rays, &projectors, &others);
             (0..w).map(move |x| {
                 let Some(ray) = eye_rays.pixel_ray(x, y) else {
-                    return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false);
+                    return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false, false);
                 };
                 // The pixel's own surface (its centre ray) decides what it
                 // shows and its edge key; its radiance is the mean over
@@ -157,6 +185,7 @@ pub fn observer_view(
                     None => (None, None),
                 };
                 let (_, reachable) = real_radiance(frame, &occluders.real_only, projectors, &ray);
+                let unfillable = cannot_fill(frame, occluders, others, mirror.as_ref(), &ray);
                 let (mut real, mut reflected, mut target) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
                 let n = SUBSAMPLES * SUBSAMPLES;
                 for k in 0..n {
@@ -181,6 +210,7 @@ pub fn observer_view(
                     [real.as_vec3(), reflected.as_vec3(), target],
                     key,
                     reachable,
+                    unfillable,
                 )
             })
         })
@@ -196,9 +226,14 @@ pub fn observer_view(
         first_object: Image::new(w, h, None),
         edge: Image::new(w, h, false),
         reachable: Image::new(w, h, false),
+        reach_edge: Image::new(w, h, false),
+        unfillable: Image::new(w, h, false),
     };
     let mut keys = Image::new(w, h, None);
-    for (i, ([real, reflected, target], key, reachable)) in pixels.into_iter().enumerate() {
+    for (i, ([real, reflected, target], key, reachable, unfillable)) in
+        pixels.into_iter().enumerate()
+    {
+        view.unfillable.data[i] = unfillable;
         keys.data[i] = key;
         let seen = key.and_then(|(object, _, _)| frame.showcase.objects.get(object as usize));
         let virtual_ = seen.filter(|o| o.kind == ObjectKind::Virtual);
@@ -229,7 +264,108 @@ pub fn observer_view(
             }
         }
     }
+    view.reach_edge = next_to_change(&view.reachable);
     Ok(view)
+}
+
+/// Pixels with a 3x3 neighbour whose value differs from their own.
+pub fn next_to_change(mask: &Image<bool>) -> Image<bool> {
+    Image::from_fn(mask.width, mask.height, |x, y| {
+        let here = mask.get(x, y).copied().unwrap_or(false);
+        (-1i64..=1).any(|dy| {
+            (-1i64..=1).any(|dx| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                nx >= 0 && ny >= 0 && mask.get(nx as u32, ny as u32).is_some_and(|n| *n != here)
+            })
+        })
+    })
+}
+
+/// True when `ray`'s first surface is real, lies in the occlusion shadow
+/// of one of `other_eyes`, and the mirror image cannot show it (no face,
+/// or the ray through the mirror misses the screen).
+fn cannot_fill(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    other_eyes: &[DVec3],
+    mirror: Option<&MirrorImage<'_>>,
+    ray: &Ray,
+) -> bool {
+    if mirror.is_some_and(|m| mirror_pixel(m.face, ray).is_some()) {
+        return false;
+    }
+    let Some(hit) = occluders.all.closest_hit(ray, 0.0, f64::INFINITY) else {
+        return false;
+    };
+    let real = frame
+        .showcase
+        .objects
+        .get(hit.object as usize)
+        .is_some_and(|o| o.kind == ObjectKind::Real);
+    real && hit.geometric_normal != DVec3::ZERO
+        && in_occlusion_shadow(
+            &occluders.virtual_only,
+            other_eyes,
+            hit.point,
+            facing_origin(hit.geometric_normal, ray),
+        )
+}
+
+/// The eye pixels whose first real surface some projector lights from a
+/// pixel marked in that projector's `edges` (for example
+/// [`crate::render::projector::edge_mask`] of the map it showed: one
+/// projector pixel cannot be right on both sides of a silhouette, shadow
+/// or occlusion-shadow edge). Each entry pairs a projector (its true
+/// device: which pixel physically lights a point) with its edge mask.
+pub fn projector_edge_pixels(
+    occluders: &Occluders,
+    eye: &PinholeDevice,
+    projectors: &[(&Projector, &Image<bool>)],
+) -> Result<Image<bool>, ObserverViewError> {
+    let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
+    let mut rays = Vec::with_capacity(projectors.len());
+    for (p, edges) in projectors {
+        let d = &p.device;
+        if edges.width != d.width || edges.height != d.height {
+            return Err(ObserverViewError::SizeMismatch {
+                what: format!("{} edge mask", p.name),
+                width: edges.width,
+                height: edges.height,
+                dw: d.width,
+                dh: d.height,
+            });
+        }
+        rays.push((DeviceRays::new(d).map_err(RenderSetupError::from)?, *edges));
+    }
+    let (w, h) = (eye.width, eye.height);
+    let data: Vec<bool> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let (eye_rays, rays) = (&eye_rays, &rays);
+            (0..w).map(move |x| {
+                let Some(ray) = eye_rays.pixel_ray(x, y) else {
+                    return false;
+                };
+                let Some(hit) = occluders.real_only.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                    return false;
+                };
+                if hit.geometric_normal == DVec3::ZERO {
+                    return false;
+                }
+                let facing = facing_origin(hit.geometric_normal, &ray);
+                rays.iter().any(|(r, edges)| {
+                    r.sees(&occluders.real_only, hit.point, facing)
+                        && r.pixel_of(hit.point)
+                            .is_some_and(|(px, py)| edges.get(px, py).copied().unwrap_or(false))
+                })
+            })
+        })
+        .collect();
+    Ok(Image {
+        width: w,
+        height: h,
+        data,
+    })
 }
 
 fn check_size(what: &str, image: &RgbImage, dw: u32, dh: u32) -> Result<(), ObserverViewError> {
@@ -390,81 +526,4 @@ fn target_radiance(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::render::face::reflected_pixel;
-    use showcase_proto::{Plane, Rect3};
-
-    /// The demo cabinet's front face (deploy/scenes/showcase.toml).
-    fn face() -> CrtFace {
-        CrtFace {
-            name: "face-0".into(),
-            screen: Rect3 {
-                origin: Vec3::new(0.3125, 0.6696, 0.6402),
-                right: Vec3::new(-0.625, 0.0, 0.0),
-                down: Vec3::new(0.0, -0.25, 0.4330),
-            },
-            mirror: Plane::from_point_normal(
-                Vec3::new(0.0, 0.0, 0.6),
-                Vec3::new(0.0, 0.5, 0.866_025_4),
-            ),
-            width: 64,
-            height: 48,
-            gamma: 2.2,
-        }
-    }
-
-    /// Every CRT pixel is found again along the eye's line of sight through
-    /// its reflected position, whatever the eye: the composite reads the
-    /// face image the way the mirror shows it.
-    #[test]
-    fn the_mirror_shows_each_crt_pixel_on_its_line_of_sight() {
-        let face = face();
-        let radiance = Image::from_fn(face.width, face.height, |x, y| {
-            Vec3::new(x as f32, y as f32, 1.0)
-        });
-        let m = MirrorImage {
-            face: &face,
-            radiance: &radiance,
-        };
-        for eye in [
-            DVec3::new(0.0, 0.45, 1.4),
-            DVec3::new(0.3, 0.6, 1.2),
-            DVec3::new(-0.2, 0.3, 1.6),
-        ] {
-            for (x, y) in [(0, 0), (63, 47), (10, 40), (32, 24), (50, 5)] {
-                let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-                let seen = reflected_pixel(&face, centre);
-                let ray = Ray::new(eye, (seen - eye).normalize());
-                let got = reflected_radiance(&m, &ray);
-                assert_eq!(
-                    got,
-                    Some(DVec3::new(x as f64, y as f64, 1.0)),
-                    "eye {eye}, pixel ({x}, {y})"
-                );
-            }
-        }
-        // The face renderer's projection (mirror_view) draws a world point
-        // at the pixel this lookup finds on the eye's ray to that point.
-        for eye in [DVec3::new(0.0, 0.45, 1.4), DVec3::new(0.3, 0.6, 1.2)] {
-            let view = crate::mirror_view::FaceView::new(&face, eye, 0.01, 10.0).unwrap();
-            for world in [
-                DVec3::new(-0.10, 0.045, 0.10),
-                DVec3::new(0.10, 0.06, -0.10),
-                DVec3::new(0.013, 0.021, 0.017),
-            ] {
-                let px = view.pixel(world, face.width, face.height).unwrap();
-                let ray = Ray::new(eye, (world - eye).normalize());
-                let got = reflected_radiance(&m, &ray);
-                assert_eq!(
-                    got,
-                    Some(DVec3::new(px.x.floor(), px.y.floor(), 1.0)),
-                    "eye {eye}, world {world}: renderer pixel {px}"
-                );
-            }
-        }
-        // A ray that misses the screen's image sees nothing.
-        let ray = Ray::new(DVec3::new(0.0, 0.45, 1.4), DVec3::new(0.0, 1.0, 0.0));
-        assert_eq!(reflected_radiance(&m, &ray), None);
-    }
-}
+mod tests;

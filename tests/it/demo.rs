@@ -91,6 +91,28 @@ fn short_demo_writes_an_honest_report() {
     // consistency, here through both projectors and the mirror).
     let observers = figures["observers"].as_array().unwrap();
     assert_eq!(observers.len(), 2);
+    // The real surfaces where the method can be right by design (off
+    // projector pixels straddling an edge, off reach edges, outside other
+    // eyes' occlusion shadows the face cannot fill) meet issue 6's 1%, and
+    // those exclusions leave most real pixels compared (0.0056 and 0.0092
+    // over 87% and 90% measured).
+    let comparable = figures["interactive_consistency_rel_rmse_real_comparable"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        comparable <= 0.01,
+        "comparable real-surface consistency {comparable}"
+    );
+    for o in observers {
+        let kept = o["comparable_real_fraction"].as_f64().unwrap();
+        assert!(
+            kept >= 0.8,
+            "{}: {kept} of the real pixels compared",
+            o["observer"]
+        );
+        let c = o["consistency_rel_rmse_real_comparable"].as_f64().unwrap();
+        assert!(c.is_finite() && c <= 0.01, "{}: {c}", o["observer"]);
+    }
     for phase in &names {
         assert!(html.contains(phase), "index.html lacks {phase}");
     }

@@ -11,14 +11,19 @@
 
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 use showcase_proto::{FrameState, Showcase};
 use showcase_render::gpu::GpuContext;
+use showcase_render::light::DeviceRays;
 use showcase_render::light::{Image, RgbImage, metrics};
 use showcase_render::node::Renderer;
-use showcase_render::observer_view::{MirrorImage, ObserverView, ProjectedLight, observer_view};
+use showcase_render::observer_view::{
+    MirrorImage, ObserverView, ProjectedLight, observer_view, projector_edge_pixels,
+};
 use showcase_render::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
 use showcase_render::render::face::{eyes_to_fill, face_image_cpu_with};
 use showcase_render::render::face_gpu::FaceRenderer;
+use showcase_render::render::projector::{PixelState, edge_mask};
 use showcase_render::render::projector_gpu::ProjectorRenderer;
 use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 use std::path::Path;
@@ -86,8 +91,15 @@ impl Backend {
 pub(super) struct Outputs {
     /// Per projector: pixel values in `0..=1`.
     pub projectors: Vec<RgbImage>,
-    /// Per face: `(observer, [left eye, right eye])` radiance.
-    pub faces: Vec<(usize, [RgbImage; 2])>,
+    /// Per projector: its edge mask (silhouette, shadow and
+    /// occlusion-shadow edges of the CPU reference map of the same frame,
+    /// one pixel wide on each side), where one pixel cannot be right on
+    /// both sides.
+    pub projector_edges: Vec<Image<bool>>,
+    /// Per face serving an observer: `(face index, observer, [left eye,
+    /// right eye])` radiance (the face index, not the position in this
+    /// list, names the face: a face serving no observer has no entry).
+    pub faces: Vec<(usize, usize, [RgbImage; 2])>,
 }
 
 fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
@@ -106,7 +118,7 @@ pub(super) struct NodeRenderers {
 enum RenderersKind {
     Gpu {
         projectors: Vec<ProjectorRenderer>,
-        faces: Vec<(usize, FaceRenderer)>,
+        faces: Vec<(usize, usize, FaceRenderer)>,
     },
     Cpu,
 }
@@ -131,7 +143,7 @@ impl NodeRenderers {
                     };
                     let mut r = FaceRenderer::new((**ctx).clone(), f, observer, SHADOW_RES);
                     r.set_scene(VERSION, scene.clone())?;
-                    faces.push((observer, r));
+                    faces.push((f, observer, r));
                 }
                 RenderersKind::Gpu { projectors, faces }
             }
@@ -150,8 +162,18 @@ impl NodeRenderers {
         let scene = &self.scene;
         let mut out = Outputs {
             projectors: Vec::new(),
+            projector_edges: Vec::new(),
             faces: Vec::new(),
         };
+        let frame = FrameScene::resolve(scene, &state)?;
+        let occluders = Occluders::new(&frame)?;
+        let mut maps = Vec::new();
+        for p in &scene.projectors {
+            let map = irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
+            out.projector_edges
+                .push(projector_edges(scene, &occluders, p, &map.state)?);
+            maps.push(map);
+        }
         match &mut self.kind {
             RenderersKind::Gpu { projectors, faces } => {
                 for r in projectors {
@@ -160,11 +182,12 @@ impl NodeRenderers {
                     out.projectors
                         .push(split_rgba(img.width, img.height, &img.rgba, 0, img.width));
                 }
-                for (observer, r) in faces {
+                for (f, observer, r) in faces {
                     let o = r.render(&state, scene)?;
                     let img = o.image.context("the face renderer kept no image")?;
                     let w = img.width / 2;
                     out.faces.push((
+                        *f,
                         *observer,
                         [
                             split_rgba(img.width, img.height, &img.rgba, 0, w),
@@ -174,13 +197,7 @@ impl NodeRenderers {
                 }
             }
             RenderersKind::Cpu => {
-                let frame = FrameScene::resolve(scene, &state)?;
-                let occluders = Occluders::new(&frame)?;
-                for p in &scene.projectors {
-                    let map =
-                        irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
-                    out.projectors.push(map.value);
-                }
+                out.projectors = maps.into_iter().map(|m| m.value).collect();
                 // The maps depend on the lights and the real room, not
                 // on the eye: one set serves every face and eye.
                 let cube_maps = cube_maps_cpu(&frame, &occluders, DEFAULT_CUBE_RES)?;
@@ -198,12 +215,54 @@ impl NodeRenderers {
                         face_image_cpu_with(&frame, &occluders, face, eyes[k], &filled, &cube_maps)
                     };
                     let (l, r) = (draw(0)?, draw(1)?);
-                    out.faces.push((observer, [l.radiance, r.radiance]));
+                    out.faces.push((f, observer, [l.radiance, r.radiance]));
                 }
             }
         }
         Ok(out)
     }
+}
+
+/// The edge mask of `projector`'s map (its per-pixel `state`): silhouette,
+/// shadow and occlusion-shadow edges, and blend seams (a change of which
+/// projectors see the pixel centre's surface, where this projector's
+/// share jumps), one pixel wide on each side.
+fn projector_edges(
+    scene: &Showcase,
+    occluders: &Occluders,
+    projector: &showcase_proto::Projector,
+    state: &Image<PixelState>,
+) -> Result<Image<bool>> {
+    let rays = DeviceRays::new(&projector.device)?;
+    let all: Vec<DeviceRays> = scene
+        .projectors
+        .iter()
+        .map(|p| DeviceRays::new(&p.device))
+        .collect::<Result<_, _>>()?;
+    let mut keyed = state.clone();
+    keyed.data.par_iter_mut().enumerate().for_each(|(i, s)| {
+        let (x, y) = (i as u32 % state.width, i as u32 / state.width);
+        let Some(ray) = rays.pixel_ray(x, y) else {
+            return;
+        };
+        let Some(hit) = occluders.real_only.closest_hit(&ray, 0.0, f64::INFINITY) else {
+            return;
+        };
+        let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
+            hit.geometric_normal
+        } else {
+            -hit.geometric_normal
+        };
+        // Which projectors see the point, in bits the light samples leave
+        // free (at most 64 samples, a handful of projectors).
+        let seen = all
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.sees(&occluders.real_only, hit.point, facing))
+            .fold(0u64, |b, (j, _)| b | 1u64.rotate_right(1 + j as u32));
+        s.lit ^= seen;
+    });
+    Ok(edge_mask(&keyed, 1, false))
 }
 
 fn eyes_of(scene: &Showcase, state: &FrameState, observer: usize) -> [DVec3; 2] {
@@ -259,6 +318,18 @@ pub(super) struct ObserverResult {
     /// Covered pixels whose real surface some projector reaches, over
     /// covered pixels.
     pub reachable_fraction: f64,
+    /// [`Self::rel_rmse_real`] over the real-surface pixels the method can
+    /// get right by design: also off the surfaces a projector lights from
+    /// a pixel on one of its edges (issue 6's projector check leaves these
+    /// out too), off the pixels next to a change of reachability, and
+    /// outside other eyes' occlusion shadows that the mirror image cannot
+    /// fill (`None` when none is compared).
+    pub rel_rmse_real_comparable: Option<f64>,
+    /// [`Self::rel_rmse_real_comparable`] per real object (name, value).
+    pub rel_rmse_real_comparable_per_object: Vec<(String, f64)>,
+    /// Pixels of [`Self::rel_rmse_real_comparable`] over those of
+    /// [`Self::rel_rmse_real`].
+    pub comparable_real_fraction: f64,
 }
 
 /// Simulate `observer`'s view of `outputs` in the true scene `truth` (at
@@ -280,11 +351,12 @@ pub(super) fn observe(
     let mirror = outputs
         .faces
         .iter()
-        .enumerate()
-        .find(|(_, (o, _))| *o == observer)
-        .map(|(f, (_, [left, _]))| MirrorImage {
-            face: &truth.faces[f],
-            radiance: left,
+        .find(|(_, o, _)| *o == observer)
+        .and_then(|(f, _, [left, _])| {
+            Some(MirrorImage {
+                face: truth.faces.get(*f)?,
+                radiance: left,
+            })
         });
     let cam = eye_camera(truth, state, observer);
     let view = observer_view(&frame, &occluders, &cam, &projected, mirror)?;
@@ -380,6 +452,53 @@ pub(super) fn observe(
     let rel_rmse_real = part(false, false);
     let rel_rmse_virtual = part(true, false);
     let rel_rmse_reflective = part(true, true);
+    let edges: Vec<(&showcase_proto::Projector, &Image<bool>)> = truth
+        .projectors
+        .iter()
+        .zip(&outputs.projector_edges)
+        .collect();
+    let projector_edges = projector_edge_pixels(&occluders, &cam, &edges)?;
+    let real_mask = |comparable: bool| Image {
+        width: mask.width,
+        height: mask.height,
+        data: (0..mask.data.len())
+            .map(|i| {
+                mask.data[i]
+                    && !view.sees_virtual.data[i]
+                    && (!comparable
+                        || !(projector_edges.data[i]
+                            || view.reach_edge.data[i]
+                            || view.unfillable.data[i]))
+            })
+            .collect(),
+    };
+    let comparable = real_mask(true);
+    let count = |m: &Image<bool>| m.data.iter().filter(|b| **b).count();
+    let comparable_real_fraction =
+        count(&comparable) as f64 / count(&real_mask(false)).max(1) as f64;
+    let rel_rmse_real_comparable =
+        metrics::relative_rmse(&view.composite, &view.target, Some(&comparable)).ok();
+    let rel_rmse_real_comparable_per_object = truth
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.kind == showcase_proto::ObjectKind::Real)
+        .filter_map(|(i, o)| {
+            let part = Image {
+                width: comparable.width,
+                height: comparable.height,
+                data: comparable
+                    .data
+                    .iter()
+                    .zip(&view.first_object.data)
+                    .map(|(m, f)| *m && *f == Some(i as u32))
+                    .collect(),
+            };
+            metrics::relative_rmse(&view.composite, &view.target, Some(&part))
+                .ok()
+                .map(|e| (o.name.clone(), e))
+        })
+        .collect();
     Ok(ObserverResult {
         view,
         exposure,
@@ -390,6 +509,9 @@ pub(super) fn observe(
         rel_rmse_reflective,
         rel_rmse_per_object,
         reachable_fraction: reachable as f64 / covered.max(1) as f64,
+        rel_rmse_real_comparable,
+        rel_rmse_real_comparable_per_object,
+        comparable_real_fraction,
     })
 }
 
