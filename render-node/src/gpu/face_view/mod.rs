@@ -94,10 +94,12 @@ fn storage() -> wgpu::BindingType {
 
 /// The face view shader (also the cube-map pass's).
 pub fn shader(device: &wgpu::Device) -> wgpu::ShaderModule {
-    device.create_shader_module(super::shadow_lookup::with_shadow_lookup!(
-        "face_view",
-        "face_view.wgsl"
-    ))
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("face_view"),
+        source: wgpu::ShaderSource::Wgsl(std::borrow::Cow::Borrowed(
+            super::shadow_lookup::with_shadow_lookup!("face_view.wgsl"),
+        )),
+    })
 }
 
 /// The bind group layout of the face view pass, or with `cube_maps`

@@ -47,9 +47,12 @@ struct ShadowView {
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> lights: array<LightSample>;
-@group(0) @binding(2) var<storage, read> eyes: array<Eye>;
-@group(0) @binding(3) var<storage, read> views: array<ShadowView>;
+// Per-frame arrays: uniform arrays of fixed capacity, or runtime-sized
+// storage arrays when a frame exceeds one (gpu::frame_arrays). 256 views:
+// the shadow maps' array layers are limited to 256 anyway.
+@group(0) @binding(1) var<uniform> lights: array<LightSample, 64>;
+@group(0) @binding(2) var<uniform> eyes: array<Eye, 16>;
+@group(0) @binding(3) var<uniform> views: array<ShadowView, 256>;
 @group(0) @binding(4) var maps: texture_depth_2d_array;
 // Per projector pixel: its share of the target where other projectors
 // overlap (render::blend; 1 without overlap).
