@@ -27,6 +27,34 @@ fn visible(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32
     return true;
 }
 
+// `visible` for a light sample: with shadows on, every sample has the six
+// cube views (projector_gpu::light_inputs), so the cube lookup is taken
+// directly. On llvmpipe both sides of a branch that differs between
+// pixels, and every iteration of such a loop, run for all pixels, so
+// straight code is what is cheap.
+fn visible_from_light(p: vec3<f32>, n: vec3<f32>, s: LightSample) -> bool {
+    return visible_in_cube(p, n, s.position.xyz, s.views.x);
+}
+
+// `visible` for an eye: its views are one view fitted around the virtual
+// objects, or the six cube views when it is (nearly) inside them
+// (shadow_views::fitted_views), or none; no loop (see above).
+fn visible_from_eye(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32) -> bool {
+    if (count == 6u) {
+        return visible_in_cube(p, n, origin, first);
+    }
+    if (count != 1u) {
+        return true;
+    }
+    let v = views[first];
+    let c = v.clip_from_world * vec4<f32>(p, 1.0);
+    let ndc = c.xy / c.w;
+    if (c.w <= 0.0 || abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+        return true;
+    }
+    return nearest_or_nearer(n, p - v.origin.xyz, ndc, first, v.origin.w);
+}
+
 // `visible` for six views that are a cube around `origin`
 // (shadow_views::cube_views: +x, -x, +y, -y, +z, -z): only the face of
 // the major axis can hold p, and its projection is an axis permutation,

@@ -110,7 +110,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
         if (!(cos_t > 0.0)) {
             continue;
         }
-        if ((frame.counts.w & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
+        if ((frame.counts.w & 1u) != 0u && !visible_from_light(p, n, s)) {
             continue;
         }
         e += intensity_towards(s, -dir) * (cos_t / r2);
@@ -138,7 +138,7 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
             continue;
         }
         let eye = eyes[e];
-        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
+        if (dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
             return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
         }
     }

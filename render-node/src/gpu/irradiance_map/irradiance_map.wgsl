@@ -109,7 +109,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     if ((flags & 2u) != 0u) {
         for (var e = 0u; e < frame.counts.y; e++) {
             let eye = eyes[e];
-            if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
+            if (dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
                 occluded = true;
                 break;
             }
@@ -130,7 +130,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             if (!(cos_t > 0.0)) {
                 continue;
             }
-            if ((flags & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
+            if ((flags & 1u) != 0u && !visible_from_light(p, n, s)) {
                 continue;
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);
