@@ -1,4 +1,4 @@
-//! The shadow-map lookups (`visible`, `nearest_or_nearer`,
+//! The shadow-map lookups (`visible_from_light`, `visible_from_eye`,
 //! `intensity_towards`) that the irradiance-map and face-view shaders
 //! share, kept once in `shadow_lookup.part.wgsl` and appended to each shader's
 //! source at compile time (WGSL declarations may come in any order).

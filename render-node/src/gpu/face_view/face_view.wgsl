@@ -93,7 +93,8 @@ fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
     return out;
 }
 
-// visible, nearest_or_nearer, intensity_towards: gpu/shadow_lookup.part.wgsl.
+// visible_from_light, visible_from_eye, intensity_towards:
+// gpu/shadow_lookup.part.wgsl.
 
 // rho / pi * E at p with unit normal n (the side facing the eye).
 fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {

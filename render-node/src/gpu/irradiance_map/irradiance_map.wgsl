@@ -85,7 +85,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-// visible, nearest_or_nearer, intensity_towards: gpu/shadow_lookup.part.wgsl.
+// visible_from_light, visible_from_eye, intensity_towards:
+// gpu/shadow_lookup.part.wgsl.
 
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {
