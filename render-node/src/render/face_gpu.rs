@@ -430,9 +430,13 @@ impl FacePipeline {
         } else {
             self.cubes.kept();
         }
+        // Without virtual objects the phantoms have nothing to hide and no
+        // occlusion shadow to fill (the eyes' views are empty), so they
+        // would draw the clear colour: skip them (the image is the same).
+        let nothing_virtual = virtuals.iter().all(|r| r.is_empty());
         let draws = FaceDraws {
             vertices,
-            phantoms: &phantoms,
+            phantoms: if nothing_virtual { &[] } else { &phantoms },
             virtuals: &virtuals,
         };
         for res in self.eyes.iter().take(eyes.len()) {

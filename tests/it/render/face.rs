@@ -354,3 +354,41 @@ fn face_storage_array_variant_gives_the_uniform_variants_output() -> Result<()> 
     );
     Ok(())
 }
+
+/// Without virtual objects the face shows nothing: the phantoms have
+/// nothing to hide and no occlusion shadow to fill, so the face view skips
+/// drawing them. With every pass forced, both eyes' images must still be
+/// the CPU reference's, which is black everywhere.
+#[test]
+fn face_without_virtual_objects_is_the_black_cpu_reference() -> Result<()> {
+    use showcase_render::render::bench::variant_scene;
+    let Some(ctx) = gpu_or_skip("face_without_virtual_objects_is_the_black_cpu_reference")? else {
+        return Ok(());
+    };
+    let scene = variant_scene(&bench()?, "no_virtual_objects");
+    let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
+    let occ = Occluders::new(&frame)?;
+    let face = bench_face(160, 120);
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let others = other_eyes(&frame, 0);
+    let gpu = FacePipeline::new(&ctx.device, 256).render(
+        &ctx,
+        &frame,
+        &face,
+        &eyes,
+        &others,
+        &PassList::full_face(),
+    )?;
+    for (k, (eye, image)) in eyes.iter().zip(&gpu).enumerate() {
+        let filled = eyes_to_fill(&eyes, k, &others);
+        let cpu = face_image_cpu(&frame, &occ, &face, *eye, &filled)?;
+        ensure!(
+            cpu.radiance.data.iter().all(|c| *c == Vec3::ZERO),
+            "eye {k}: the reference shows something"
+        );
+        ensure!(image.len() == cpu.radiance.data.len(), "eye {k}: size");
+        let lit = image.iter().filter(|p| **p != [0.0; 4]).count();
+        ensure!(lit == 0, "eye {k}: {lit} pixels drawn");
+    }
+    Ok(())
+}
