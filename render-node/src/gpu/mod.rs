@@ -13,6 +13,7 @@
 pub mod cube_map;
 pub mod face_view;
 pub mod flat_lambert;
+pub mod frame_arrays;
 pub mod hemicube;
 pub mod irradiance_map;
 mod shadow_lookup;

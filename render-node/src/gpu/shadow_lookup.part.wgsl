@@ -1,33 +1,44 @@
 // Shadow-map lookups shared by the irradiance-map and face-view passes
-// (gpu::shadow_lookup appends this file to each). A shader that uses it
+// (gpu::shadow_lookup appends this file to each): visible_from_light,
+// visible_from_eye, intensity_towards. A shader that uses it
 // declares `frame` (with counts.z the shadow map size and shadow.xy the
-// views' near and far), `views: array<ShadowView>`, `maps:
+// views' near and far), `views` (an array of ShadowView), `maps:
 // texture_depth_2d_array` and the struct `LightSample`.
 
-// True when the views `first .. first + count` (all from `origin`) see
-// nothing nearer to their origin than `p` (surface normal `n`) along the
-// line to `p`. A point no view covers is visible (eye views cover only
-// the virtual objects).
-fn visible(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32) -> bool {
+// A surface point p (normal n) is visible from a view's origin when the
+// views of that origin see nothing nearer to it than p along the line to
+// p. A point no view covers is visible (eye views cover only the virtual
+// objects).
+
+// Visibility from a light sample: with shadows on, every sample has the six
+// cube views (projector_gpu::light_inputs), so the cube lookup is taken
+// directly. On llvmpipe both sides of a branch that differs between
+// pixels, and every iteration of such a loop, run for all pixels, so
+// straight code is what is cheap.
+fn visible_from_light(p: vec3<f32>, n: vec3<f32>, s: LightSample) -> bool {
+    return visible_in_cube(p, n, s.position.xyz, s.views.x);
+}
+
+// Visibility from an eye: its views are one view fitted around the virtual
+// objects, or the six cube views when it is (nearly) inside them
+// (shadow_views::fitted_views), or none; no loop (see above).
+fn visible_from_eye(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, count: u32) -> bool {
     if (count == 6u) {
         return visible_in_cube(p, n, origin, first);
     }
-    for (var i = first; i < first + count; i++) {
-        let v = views[i];
-        let c = v.clip_from_world * vec4<f32>(p, 1.0);
-        if (c.w <= 0.0) {
-            continue;
-        }
-        let ndc = c.xy / c.w;
-        if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
-            continue;
-        }
-        return nearest_or_nearer(n, p - v.origin.xyz, ndc, i, v.origin.w);
+    if (count != 1u) {
+        return true;
     }
-    return true;
+    let v = views[first];
+    let c = v.clip_from_world * vec4<f32>(p, 1.0);
+    let ndc = c.xy / c.w;
+    if (c.w <= 0.0 || abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
+        return true;
+    }
+    return nearest_or_nearer(n, p - v.origin.xyz, ndc, first, v.origin.w);
 }
 
-// `visible` for six views that are a cube around `origin`
+// Visibility through six views that are a cube around `origin`
 // (shadow_views::cube_views: +x, -x, +y, -y, +z, -z): only the face of
 // the major axis can hold p, and its projection is an axis permutation,
 // so no view needs to be read (shadow_views::cube_coords mirrors this).

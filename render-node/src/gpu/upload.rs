@@ -11,6 +11,9 @@ use bytemuck::{Pod, Zeroable};
 pub struct UploadBuffer {
     label: &'static str,
     usage: wgpu::BufferUsages,
+    /// Smallest size of any allocation (a uniform array binding needs the
+    /// whole declared array).
+    min_bytes: u64,
     buffer: wgpu::Buffer,
     /// Bumped on every reallocation (bind groups naming it must be rebuilt).
     generation: u64,
@@ -22,11 +25,24 @@ const MIN_BYTES: u64 = 256;
 impl UploadBuffer {
     /// An empty buffer of `usage` (plus `COPY_DST`).
     pub fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Self::with_min_size(device, label, usage, MIN_BYTES)
+    }
+
+    /// An empty buffer of `usage` (plus `COPY_DST`) that is never smaller
+    /// than `min_bytes` (rounded up to a multiple of 16).
+    pub fn with_min_size(
+        device: &wgpu::Device,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        min_bytes: u64,
+    ) -> Self {
         let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let min_bytes = min_bytes.max(MIN_BYTES).next_multiple_of(16);
         Self {
             label,
             usage,
-            buffer: Self::allocate(device, label, usage, MIN_BYTES),
+            min_bytes,
+            buffer: Self::allocate(device, label, usage, min_bytes),
             generation: 0,
         }
     }
@@ -71,7 +87,7 @@ impl UploadBuffer {
         };
         let needed = bytes.len() as u64;
         if needed > self.buffer.size() {
-            let size = needed.next_power_of_two().max(MIN_BYTES);
+            let size = needed.next_power_of_two().max(self.min_bytes);
             self.buffer = Self::allocate(device, self.label, self.usage, size);
             self.generation += 1;
         }

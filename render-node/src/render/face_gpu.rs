@@ -20,8 +20,11 @@ use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
 use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
 use crate::gpu::face_view::NO_OWN_EYE;
-use crate::gpu::face_view::{FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass};
-use crate::gpu::irradiance_map::EyeGpu;
+use crate::gpu::face_view::{
+    self, FaceBindGroup, FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass,
+};
+use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
+use crate::gpu::irradiance_map::{EyeGpu, LightSampleGpu};
 use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
 use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVertex};
 use crate::gpu::target::{ColourReadback, read_colours};
@@ -66,8 +69,9 @@ pub struct FacePipeline {
 #[derive(Debug)]
 struct EyeResources {
     frame: UploadBuffer,
-    /// The bind group and the buffer (and cube map) generations it names.
-    bind: Option<([u64; 6], wgpu::BindGroup)>,
+    /// The bind group and the buffer (and cube map) generations and the
+    /// array space it names.
+    bind: Option<(([u64; 6], ArraySpace), FaceBindGroup)>,
     target: OffscreenTarget,
     readback: ColourReadback,
 }
@@ -81,16 +85,25 @@ impl FacePipeline {
 
     /// [`Self::new`] with cube maps of `cube_res` texels per side.
     pub fn with_cube_res(device: &wgpu::Device, shadow_res: u32, cube_res: u32) -> Self {
-        let storage = |label| UploadBuffer::new(device, label, wgpu::BufferUsages::STORAGE);
+        // Bindable as the face shader's uniform arrays (whole capacity)
+        // or as storage (the shadow views pass, long frames).
+        let array = |label, name, element: usize| {
+            let bytes = face_view::capacity(name) * element;
+            UploadBuffer::with_min_size(device, label, ARRAY_USAGE, bytes as u64)
+        };
         Self {
             shadow: ShadowViewsPass::new(device),
             face: FaceViewPass::new(device),
             shadow_res: shadow_res.max(1),
             scene: SceneBuffers::new(device),
-            lights: storage("face lights"),
-            views: storage("face shadow views"),
-            albedos: storage("face albedos"),
-            other_eyes: storage("face other eyes"),
+            lights: array("face lights", "lights", size_of::<LightSampleGpu>()),
+            views: array(
+                "face shadow views",
+                "views",
+                size_of::<crate::gpu::shadow_views::ShadowView>(),
+            ),
+            albedos: array("face albedos", "albedos", size_of::<[f32; 4]>()),
+            other_eyes: array("face other eyes", "eyes", size_of::<EyeGpu>()),
             maps: None,
             shadow_bind: None,
             cubes: CubeMapFrames::new(device, cube_res),
@@ -224,6 +237,7 @@ impl FacePipeline {
         self.lights.write(device, queue, &lights);
         self.albedos.write(device, queue, &albedo);
         self.other_eyes.write(device, queue, &others);
+        let space = face_view::space(lights.len(), views.len(), albedo.len(), others.len());
         let views_generation = self.views.generation();
         if self
             .shadow_bind
@@ -310,14 +324,17 @@ impl FacePipeline {
                 u32::from(shadows) | (u32::from(occluding) << 1),
             );
             res.frame.write(device, queue, &[uniform]);
-            let generations = [
-                res.frame.generation(),
-                self.lights.generation(),
-                views_generation,
-                self.albedos.generation(),
-                self.other_eyes.generation(),
-                cube_generation,
-            ];
+            let generations = (
+                [
+                    res.frame.generation(),
+                    self.lights.generation(),
+                    views_generation,
+                    self.albedos.generation(),
+                    self.other_eyes.generation(),
+                    cube_generation,
+                ],
+                space,
+            );
             if res.bind.as_ref().is_none_or(|(g, _)| *g != generations) {
                 let bind = self.face.bind_group(
                     device,
@@ -329,6 +346,7 @@ impl FacePipeline {
                         albedos: self.albedos.buffer(),
                         other_eyes: self.other_eyes.buffer(),
                         cube_maps: Some(cube_maps.array_view()),
+                        space,
                     },
                 );
                 res.bind = Some((generations, bind));
@@ -399,6 +417,7 @@ impl FacePipeline {
                 albedos: self.albedos.buffer(),
                 other_eyes: self.other_eyes.buffer(),
                 cube_maps: None,
+                space,
             };
             let draws = CubeDraws {
                 vertices,
@@ -411,9 +430,13 @@ impl FacePipeline {
         } else {
             self.cubes.kept();
         }
+        // Without virtual objects the phantoms have nothing to hide and no
+        // occlusion shadow to fill (the eyes' views are empty), so they
+        // would draw the clear colour: skip them (the image is the same).
+        let nothing_virtual = virtuals.iter().all(|r| r.is_empty());
         let draws = FaceDraws {
             vertices,
-            phantoms: &phantoms,
+            phantoms: if nothing_virtual { &[] } else { &phantoms },
             virtuals: &virtuals,
         };
         for res in self.eyes.iter().take(eyes.len()) {

@@ -14,8 +14,10 @@ use super::frame::{FrameScene, Lobe};
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{FrameKey, Pass, PassList, bounding_sphere};
 use super::projector::COS_FLOOR;
+use crate::gpu::frame_arrays::ARRAY_USAGE;
 use crate::gpu::irradiance_map::{
-    EyeGpu, FrameUniform, IrradianceBindings, IrradianceMapPass, LightSampleGpu, state,
+    self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
+    LightSampleGpu, state,
 };
 use crate::gpu::shadow_views::{
     SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views,
@@ -168,8 +170,12 @@ pub struct ProjectorPipeline {
     maps: Option<ShadowMaps>,
     /// The shadow bind group and the views buffer generation it names.
     shadow_bind: Option<(u64, wgpu::BindGroup)>,
-    /// The irradiance bind group and the buffer generations it names.
-    irradiance_bind: Option<([u64; 4], wgpu::BindGroup)>,
+    /// The irradiance bind group and the buffer generations and array
+    /// space it names.
+    irradiance_bind: Option<(
+        ([u64; 4], crate::gpu::frame_arrays::ArraySpace),
+        IrradianceBindGroup,
+    )>,
     targets: Option<ProjectorTargets>,
     /// The blend weights in use and what they were computed from.
     blend: Option<BlendTexture>,
@@ -297,7 +303,12 @@ pub type PassTimes = Vec<(&'static str, f64)>;
 impl ProjectorPipeline {
     /// Compile the passes; shadow maps get `shadow_res` texels per side.
     pub fn new(device: &wgpu::Device, shadow_res: u32) -> Self {
-        let storage = |label| UploadBuffer::new(device, label, wgpu::BufferUsages::STORAGE);
+        // Bindable as the irradiance shader's uniform arrays (whole
+        // capacity) or as storage (the shadow views pass, long frames).
+        let array = |label, bytes: usize| {
+            UploadBuffer::with_min_size(device, label, ARRAY_USAGE, bytes as u64)
+        };
+        let cap = irradiance_map::capacity;
         Self {
             shadow: ShadowViewsPass::new(device),
             irradiance: IrradianceMapPass::new(device),
@@ -308,9 +319,9 @@ impl ProjectorPipeline {
                 "irradiance frame",
                 wgpu::BufferUsages::UNIFORM,
             ),
-            lights: storage("light samples"),
-            eyes: storage("eyes"),
-            views: storage("shadow views"),
+            lights: array("light samples", cap("lights") * size_of::<LightSampleGpu>()),
+            eyes: array("eyes", cap("eyes") * size_of::<EyeGpu>()),
+            views: array("shadow views", cap("views") * size_of::<ShadowView>()),
             maps: None,
             shadow_bind: None,
             irradiance_bind: None,
@@ -436,12 +447,16 @@ impl ProjectorPipeline {
                 self.shadow.bind_group(device, self.views.buffer()),
             ));
         }
-        let generations = [
-            self.frame_uniform.generation(),
-            self.lights.generation(),
-            self.eyes.generation(),
-            views_generation,
-        ];
+        let space = IrradianceMapPass::space(lights.len(), eyes.len(), views.len());
+        let generations = (
+            [
+                self.frame_uniform.generation(),
+                self.lights.generation(),
+                self.eyes.generation(),
+                views_generation,
+            ],
+            space,
+        );
         if self
             .irradiance_bind
             .as_ref()
@@ -456,6 +471,7 @@ impl ProjectorPipeline {
                     views: self.views.buffer(),
                     maps,
                     blend: &blend.view,
+                    space,
                 },
             );
             self.irradiance_bind = Some((generations, bind));

@@ -283,3 +283,112 @@ fn kept_face_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
     ensure!(moved == fresh(&f1)?, "kept light layers changed the output");
     Ok(())
 }
+
+/// The face and cube-map shaders read their per-frame arrays from uniform
+/// arrays of fixed capacity, and from storage arrays when a frame exceeds
+/// one (`gpu::frame_arrays`). A frame at the light-sample capacity and the
+/// same frame with one more, dark, light (so the other variant) must give
+/// bit-identical images. Without light shadow views: 65 cube maps would
+/// exceed the device's array layers.
+#[test]
+fn face_storage_array_variant_gives_the_uniform_variants_output() -> Result<()> {
+    use showcase_proto::{Light, LightSource};
+    use showcase_render::gpu::face_view::{capacity, space};
+    use showcase_render::gpu::frame_arrays::ArraySpace;
+    let Some(ctx) = gpu_or_skip("face_storage_array_variant_gives_the_uniform_variants_output")?
+    else {
+        return Ok(());
+    };
+    let cap = capacity("lights");
+    ensure!(cap >= 2, "light capacity {cap}");
+    let area = LightSource {
+        name: "area".into(),
+        light: Light::Area {
+            corner: Vec3::new(0.2, 0.54, 0.2),
+            edge_u: Vec3::new(0.15, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 0.12),
+            radiance: Vec3::splat(1.5),
+            samples: cap as u32,
+        },
+    };
+    let dark = LightSource {
+        name: "dark".into(),
+        light: Light::Point {
+            position: Vec3::new(0.3, 0.4, 0.3),
+            intensity: Vec3::ZERO,
+        },
+    };
+    let scene = bench()?;
+    let face = bench_face(160, 120);
+    let passes = PassList {
+        passes: vec![Pass::EyeShadowViews, Pass::CubeMaps, Pass::FaceView],
+    };
+    let mut images = Vec::new();
+    for (lights, expected) in [
+        (vec![area.clone()], ArraySpace::Uniform),
+        (vec![area, dark], ArraySpace::Storage),
+    ] {
+        let mut state = bench_frame(&scene, "full", 0);
+        state.lights = lights;
+        let frame = FrameScene::resolve(&scene, &state)?;
+        let others = other_eyes(&frame, 0);
+        let albedos = frame.showcase.objects.len();
+        // One fitted view per other eye.
+        let s = space(frame.samples.len(), others.len(), albedos, others.len());
+        ensure!(
+            s == expected,
+            "{} samples: {s:?}, expected {expected:?}",
+            frame.samples.len()
+        );
+        let eyes = [frame.eyes[0], frame.eyes[1]];
+        images.push(
+            FacePipeline::new(&ctx.device, 256)
+                .render(&ctx, &frame, &face, &eyes, &others, &passes)?,
+        );
+    }
+    let lit = images[0][0].iter().filter(|p| p[0] > 0.0).count();
+    ensure!(lit > 100, "only {lit} lit pixels");
+    ensure!(
+        images[0] == images[1],
+        "the storage variant differs from the uniform one"
+    );
+    Ok(())
+}
+
+/// Without virtual objects the face shows nothing: the phantoms have
+/// nothing to hide and no occlusion shadow to fill, so the face view skips
+/// drawing them. With every pass forced, both eyes' images must still be
+/// the CPU reference's, which is black everywhere.
+#[test]
+fn face_without_virtual_objects_is_the_black_cpu_reference() -> Result<()> {
+    use showcase_render::render::bench::variant_scene;
+    let Some(ctx) = gpu_or_skip("face_without_virtual_objects_is_the_black_cpu_reference")? else {
+        return Ok(());
+    };
+    let scene = variant_scene(&bench()?, "no_virtual_objects");
+    let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
+    let occ = Occluders::new(&frame)?;
+    let face = bench_face(160, 120);
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let others = other_eyes(&frame, 0);
+    let gpu = FacePipeline::new(&ctx.device, 256).render(
+        &ctx,
+        &frame,
+        &face,
+        &eyes,
+        &others,
+        &PassList::full_face(),
+    )?;
+    for (k, (eye, image)) in eyes.iter().zip(&gpu).enumerate() {
+        let filled = eyes_to_fill(&eyes, k, &others);
+        let cpu = face_image_cpu(&frame, &occ, &face, *eye, &filled)?;
+        ensure!(
+            cpu.radiance.data.iter().all(|c| *c == Vec3::ZERO),
+            "eye {k}: the reference shows something"
+        );
+        ensure!(image.len() == cpu.radiance.data.len(), "eye {k}: size");
+        let lit = image.iter().filter(|p| **p != [0.0; 4]).count();
+        ensure!(lit == 0, "eye {k}: {lit} pixels drawn");
+    }
+    Ok(())
+}

@@ -9,7 +9,7 @@ use showcase_render::light::DeviceRays;
 use showcase_render::render::bench::{bench_camera, bench_frame, bench_projector};
 use showcase_render::render::compare::{compare_maps, gpu_map_with_reference_state};
 use showcase_render::render::consistency::direct_light_consistency;
-use showcase_render::render::passes::PassList;
+use showcase_render::render::passes::{Pass, PassList};
 use showcase_render::render::projector_gpu::ProjectorPipeline;
 use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 
@@ -317,5 +317,71 @@ fn observers_heads_place_the_eyes() -> Result<()> {
         .count();
     ensure!(real == 6, "five walls and the bunny are real, got {real}");
     let _ = Pose::default();
+    Ok(())
+}
+
+/// The irradiance shader reads its per-frame arrays from uniform arrays
+/// of fixed capacity, and from storage arrays when a frame exceeds one
+/// (`gpu::frame_arrays`). A frame at the light-sample capacity and the
+/// same frame with one more, dark, light (so the other variant) must give
+/// bit-identical output. Without light shadow views: 65 cube maps would
+/// exceed the device's array layers.
+#[test]
+fn storage_array_variant_gives_the_uniform_variants_output() -> Result<()> {
+    use showcase_render::gpu::frame_arrays::ArraySpace;
+    use showcase_render::gpu::irradiance_map::{IrradianceMapPass, capacity};
+    let Some(ctx) = gpu_or_skip("storage_array_variant_gives_the_uniform_variants_output")? else {
+        return Ok(());
+    };
+    let cap = capacity("lights");
+    ensure!(cap >= 2, "light capacity {cap}");
+    let area = LightSource {
+        name: "area".into(),
+        light: Light::Area {
+            corner: Vec3::new(0.2, 0.54, 0.2),
+            edge_u: Vec3::new(0.15, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 0.12),
+            radiance: Vec3::splat(1.5),
+            samples: cap as u32,
+        },
+    };
+    let dark = LightSource {
+        name: "dark".into(),
+        light: Light::Point {
+            position: Vec3::new(0.3, 0.4, 0.3),
+            intensity: Vec3::ZERO,
+        },
+    };
+    let projector = bench_projector(160, 120);
+    let passes = PassList {
+        passes: vec![Pass::EyeShadowViews, Pass::IrradianceMap],
+    };
+    let mut maps = Vec::new();
+    for (lights, expected) in [
+        (vec![area.clone()], ArraySpace::Uniform),
+        (vec![area, dark], ArraySpace::Storage),
+    ] {
+        let (frame, _) = bench_frame_scene(Some(lights))?;
+        // One fitted view per eye.
+        let views = frame.eyes.len();
+        let space = IrradianceMapPass::space(frame.samples.len(), frame.eyes.len(), views);
+        ensure!(
+            space == expected,
+            "{} samples: {space:?}, expected {expected:?}",
+            frame.samples.len()
+        );
+        let mut pipeline = ProjectorPipeline::new(&ctx.device, 256);
+        maps.push(pipeline.render(&ctx, &frame, &projector, &passes)?);
+    }
+    let lit = maps[0]
+        .irradiance
+        .iter()
+        .filter(|p| p[3] == 1.0 && p[0] > 0.0)
+        .count();
+    ensure!(lit > 1000, "only {lit} lit pixels");
+    ensure!(
+        maps[0] == maps[1],
+        "the storage variant differs from the uniform one"
+    );
     Ok(())
 }

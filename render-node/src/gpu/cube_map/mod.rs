@@ -15,9 +15,7 @@ use std::ops::Range;
 use glam::Vec3;
 
 use super::GpuError;
-use super::face_view::{
-    FaceBindings, FaceFrameUniform, bind_group, bind_group_layout, render_pipeline, shader,
-};
+use super::face_view::{FaceBindGroup, FaceBindings, FaceFrameUniform, Variants};
 use super::shadow_views::cube_views;
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, padded_bytes_per_row};
 use super::upload::UploadBuffer;
@@ -29,8 +27,7 @@ pub const CUBE_NEAR: f32 = 1e-3;
 /// The compiled cube-map pipeline.
 #[derive(Debug)]
 pub struct CubeMapPass {
-    pipeline: wgpu::RenderPipeline,
-    layout: wgpu::BindGroupLayout,
+    variants: Variants,
 }
 
 /// What one cube-map draw renders: the phantoms' ranges of the world
@@ -49,27 +46,15 @@ pub struct CubeDraws<'a> {
 impl CubeMapPass {
     /// Compile the pipeline for [`CubeMaps`]' formats.
     pub fn new(device: &wgpu::Device) -> Self {
-        let shader = shader(device);
-        let layout = bind_group_layout(device, false);
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("cube map"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
         Self {
-            pipeline: render_pipeline(device, &shader, &pipeline_layout, "fs_environment"),
-            layout,
+            variants: Variants::new(device, false, &["fs_environment"]),
         }
     }
 
     /// The bind group of one layer's `bindings` (`cube_maps` unset: the
     /// pass draws them).
-    pub fn bind_group(
-        &self,
-        device: &wgpu::Device,
-        bindings: &FaceBindings<'_>,
-    ) -> wgpu::BindGroup {
-        bind_group(device, &self.layout, bindings)
+    pub fn bind_group(&self, device: &wgpu::Device, bindings: &FaceBindings<'_>) -> FaceBindGroup {
+        self.variants.bind_group(device, bindings)
     }
 
     /// Record one render pass per layer in `layers` (with `binds[i]`, the
@@ -80,12 +65,14 @@ impl CubeMapPass {
         encoder: &mut wgpu::CommandEncoder,
         maps: &CubeMaps,
         layers: Range<u32>,
-        binds: &[wgpu::BindGroup],
+        binds: &[FaceBindGroup],
         draws: &CubeDraws<'_>,
     ) -> u32 {
         let mut drawn = 0;
         for (layer, bind) in layers.zip(binds) {
-            let Some(target) = maps.layer_views.get(layer as usize) else {
+            let (Some(target), Some(pipeline)) =
+                (maps.layer_views.get(layer as usize), bind.pipeline(0))
+            else {
                 continue;
             };
             drawn += 1;
@@ -112,8 +99,8 @@ impl CubeMapPass {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, bind, &[]);
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind.group(), &[]);
             pass.set_vertex_buffer(0, draws.vertices.slice(..));
             for (i, r) in draws.phantoms.iter().enumerate() {
                 if !r.is_empty() {
@@ -409,7 +396,7 @@ impl CubeMapFrames {
         bindings: &FaceBindings<'_>,
         draws: &CubeDraws<'_>,
     ) -> u32 {
-        let binds: Vec<wgpu::BindGroup> = self
+        let binds: Vec<FaceBindGroup> = self
             .uniforms
             .iter()
             .take(maps * 6)

@@ -48,12 +48,15 @@ struct ShadowView {
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> lights: array<LightSample>;
-@group(0) @binding(2) var<storage, read> views: array<ShadowView>;
+// Per-frame arrays: uniform arrays of fixed capacity, or runtime-sized
+// storage arrays when a frame exceeds one (gpu::frame_arrays). 256 views:
+// the shadow maps' array layers are limited to 256 anyway.
+@group(0) @binding(1) var<uniform> lights: array<LightSample, 64>;
+@group(0) @binding(2) var<uniform> views: array<ShadowView, 256>;
 @group(0) @binding(3) var maps: texture_depth_2d_array;
 // Linear RGB albedo per draw, indexed by the draw's instance; w is 0, or
 // 1 + k for a reflective object with cube map k (layers 6k to 6k + 5).
-@group(0) @binding(4) var<storage, read> albedos: array<vec4<f32>>;
+@group(0) @binding(4) var<uniform> albedos: array<vec4<f32>, 256>;
 
 struct Eye {
     position: vec4<f32>,
@@ -62,7 +65,7 @@ struct Eye {
 }
 
 // The other observers' eyes.
-@group(0) @binding(5) var<storage, read> eyes: array<Eye>;
+@group(0) @binding(5) var<uniform> eyes: array<Eye, 16>;
 
 // The cube maps (faces as in shadow_views::cube_views, six layers each).
 // Not bound in the cube-map pass, which draws them.
@@ -90,7 +93,8 @@ fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
     return out;
 }
 
-// visible, nearest_or_nearer, intensity_towards: gpu/shadow_lookup.part.wgsl.
+// visible_from_light, visible_from_eye, intensity_towards:
+// gpu/shadow_lookup.part.wgsl.
 
 // rho / pi * E at p with unit normal n (the side facing the eye).
 fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
@@ -107,7 +111,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
         if (!(cos_t > 0.0)) {
             continue;
         }
-        if ((frame.counts.w & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
+        if ((frame.counts.w & 1u) != 0u && !visible_from_light(p, n, s)) {
             continue;
         }
         e += intensity_towards(s, -dir) * (cos_t / r2);
@@ -135,7 +139,7 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
             continue;
         }
         let eye = eyes[e];
-        if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
+        if (dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
             return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
         }
     }

@@ -4,7 +4,11 @@
 //! ([`super::cube_map`] draws those with this module's shader). CPU
 //! reference: `crate::render::face::face_image_cpu`.
 
+use std::sync::OnceLock;
+
 use bytemuck::{Pod, Zeroable};
+
+use super::frame_arrays::{ArraySpace, uniform_capacity};
 
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
@@ -54,6 +58,8 @@ pub struct FaceBindings<'a> {
     /// The cube maps' array view (six layers per map, at least one
     /// layer); `None` for the cube-map pass, which draws them.
     pub cube_maps: Option<&'a wgpu::TextureView>,
+    /// Where the arrays are read from ([`space`] of their lengths).
+    pub space: ArraySpace,
 }
 
 /// What the pass draws: ranges of one world-space vertex buffer.
@@ -70,9 +76,7 @@ pub struct FaceDraws<'a> {
 /// The compiled face pipelines (phantom depth, virtual shading).
 #[derive(Debug)]
 pub struct FaceViewPass {
-    phantom: wgpu::RenderPipeline,
-    shaded: wgpu::RenderPipeline,
-    layout: wgpu::BindGroupLayout,
+    variants: Variants,
 }
 
 fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
@@ -84,25 +88,138 @@ fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-fn storage() -> wgpu::BindingType {
-    wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Storage { read_only: true },
-        has_dynamic_offset: false,
-        min_binding_size: None,
+/// The WGSL source of the face view (and cube-map) shader (uniform
+/// arrays; see [`ArraySpace::source`]).
+pub const SOURCE: &str = super::shadow_lookup::with_shadow_lookup!("face_view.wgsl");
+
+/// Capacity of the uniform array `name` (`lights`, `views`, `albedos` or
+/// `eyes`) of [`SOURCE`] (0 for another name).
+pub fn capacity(name: &str) -> usize {
+    uniform_capacity(SOURCE, name).unwrap_or(0)
+}
+
+/// The space a frame of `lights` light samples, `views` shadow views,
+/// `albedos` draw instances and `eyes` other eyes reads its arrays from.
+pub fn space(lights: usize, views: usize, albedos: usize, eyes: usize) -> ArraySpace {
+    ArraySpace::for_lengths(
+        SOURCE,
+        &[
+            (lights, "lights"),
+            (views, "views"),
+            (albedos, "albedos"),
+            (eyes, "eyes"),
+        ],
+    )
+}
+
+/// The face view shader (also the cube-map pass's) for `space`.
+pub fn shader(device: &wgpu::Device, space: ArraySpace) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("face_view"),
+        source: wgpu::ShaderSource::Wgsl(space.source(SOURCE)),
+    })
+}
+
+/// The layout and pipelines (one per fragment entry point) of one
+/// [`ArraySpace`].
+#[derive(Debug)]
+struct Variant {
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::RenderPipeline>,
+}
+
+/// The pipelines of fragment entry points of the face view shader in
+/// both array spaces (the storage one compiled when first needed).
+#[derive(Debug)]
+pub(crate) struct Variants {
+    cube_maps: bool,
+    entries: &'static [&'static str],
+    uniform: Variant,
+    storage: OnceLock<Variant>,
+}
+
+/// A bind group with the pipelines of its [`ArraySpace`], one per
+/// fragment entry point of the pass that made it.
+#[derive(Debug)]
+pub struct FaceBindGroup {
+    group: wgpu::BindGroup,
+    pipelines: Vec<wgpu::RenderPipeline>,
+}
+
+impl FaceBindGroup {
+    /// The bind group.
+    pub(crate) fn group(&self) -> &wgpu::BindGroup {
+        &self.group
+    }
+
+    /// The pipeline of the pass's `i`th fragment entry point.
+    pub(crate) fn pipeline(&self, i: usize) -> Option<&wgpu::RenderPipeline> {
+        self.pipelines.get(i)
     }
 }
 
-/// The face view shader (also the cube-map pass's).
-pub fn shader(device: &wgpu::Device) -> wgpu::ShaderModule {
-    device.create_shader_module(super::shadow_lookup::with_shadow_lookup!(
-        "face_view",
-        "face_view.wgsl"
-    ))
+impl Variants {
+    /// Compile the uniform variant of `entries` (with the layout of
+    /// [`bind_group_layout`] for `cube_maps`).
+    pub(crate) fn new(
+        device: &wgpu::Device,
+        cube_maps: bool,
+        entries: &'static [&'static str],
+    ) -> Self {
+        Self {
+            cube_maps,
+            entries,
+            uniform: Self::variant(device, cube_maps, entries, ArraySpace::Uniform),
+            storage: OnceLock::new(),
+        }
+    }
+
+    fn variant(
+        device: &wgpu::Device,
+        cube_maps: bool,
+        entries: &[&str],
+        space: ArraySpace,
+    ) -> Variant {
+        let shader = shader(device, space);
+        let layout = bind_group_layout(device, cube_maps, space);
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(if cube_maps { "face view" } else { "cube map" }),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipelines = entries
+            .iter()
+            .map(|fs| render_pipeline(device, &shader, &pipeline_layout, fs))
+            .collect();
+        Variant { layout, pipelines }
+    }
+
+    /// A bind group of `bindings` in `bindings.space`.
+    pub(crate) fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        bindings: &FaceBindings<'_>,
+    ) -> FaceBindGroup {
+        let variant = match bindings.space {
+            ArraySpace::Uniform => &self.uniform,
+            ArraySpace::Storage => self.storage.get_or_init(|| {
+                Self::variant(device, self.cube_maps, self.entries, ArraySpace::Storage)
+            }),
+        };
+        FaceBindGroup {
+            group: bind_group(device, &variant.layout, bindings),
+            pipelines: variant.pipelines.clone(),
+        }
+    }
 }
 
 /// The bind group layout of the face view pass, or with `cube_maps`
-/// false that of the cube-map pass (no binding 6).
-pub fn bind_group_layout(device: &wgpu::Device, cube_maps: bool) -> wgpu::BindGroupLayout {
+/// false that of the cube-map pass (no binding 6), for `space`.
+pub fn bind_group_layout(
+    device: &wgpu::Device,
+    cube_maps: bool,
+    space: ArraySpace,
+) -> wgpu::BindGroupLayout {
     let mut entries = vec![
         entry(
             0,
@@ -112,8 +229,8 @@ pub fn bind_group_layout(device: &wgpu::Device, cube_maps: bool) -> wgpu::BindGr
                 min_binding_size: None,
             },
         ),
-        entry(1, storage()),
-        entry(2, storage()),
+        entry(1, space.binding_type()),
+        entry(2, space.binding_type()),
         entry(
             3,
             wgpu::BindingType::Texture {
@@ -122,8 +239,8 @@ pub fn bind_group_layout(device: &wgpu::Device, cube_maps: bool) -> wgpu::BindGr
                 multisampled: false,
             },
         ),
-        entry(4, storage()),
-        entry(5, storage()),
+        entry(4, space.binding_type()),
+        entry(5, space.binding_type()),
     ];
     if cube_maps {
         entries.push(entry(
@@ -231,29 +348,15 @@ pub fn render_pipeline(
 impl FaceViewPass {
     /// Compile the pipelines for [`OffscreenTarget`]'s formats.
     pub fn new(device: &wgpu::Device) -> Self {
-        let shader = shader(device);
-        let layout = bind_group_layout(device, true);
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("face view"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let make = |fs: &str| render_pipeline(device, &shader, &pipeline_layout, fs);
         Self {
-            phantom: make("fs_phantom"),
-            shaded: make("fs_virtual"),
-            layout,
+            variants: Variants::new(device, true, &["fs_phantom", "fs_virtual"]),
         }
     }
 
-    /// The bind group of `bindings` (create once per set of buffers);
-    /// `bindings.cube_maps` must be set.
-    pub fn bind_group(
-        &self,
-        device: &wgpu::Device,
-        bindings: &FaceBindings<'_>,
-    ) -> wgpu::BindGroup {
-        bind_group(device, &self.layout, bindings)
+    /// The bind group of `bindings` (create once per set of buffers and
+    /// space); `bindings.cube_maps` must be set.
+    pub fn bind_group(&self, device: &wgpu::Device, bindings: &FaceBindings<'_>) -> FaceBindGroup {
+        self.variants.bind_group(device, bindings)
     }
 
     /// Record the pass into `target`: clear to 0 and depth 1, draw the
@@ -263,7 +366,7 @@ impl FaceViewPass {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         target: &OffscreenTarget,
-        bind_group: &wgpu::BindGroup,
+        bind_group: &FaceBindGroup,
         draws: &FaceDraws<'_>,
     ) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -289,9 +392,12 @@ impl FaceViewPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_bind_group(0, bind_group, &[]);
+        let (Some(phantom), Some(shaded)) = (bind_group.pipeline(0), bind_group.pipeline(1)) else {
+            return;
+        };
+        pass.set_bind_group(0, bind_group.group(), &[]);
         pass.set_vertex_buffer(0, draws.vertices.slice(..));
-        pass.set_pipeline(&self.phantom);
+        pass.set_pipeline(phantom);
         let first_phantom = draws.virtuals.len() as u32;
         for (i, r) in draws.phantoms.iter().enumerate() {
             if !r.is_empty() {
@@ -299,7 +405,7 @@ impl FaceViewPass {
                 pass.draw(r.clone(), instance..instance + 1);
             }
         }
-        pass.set_pipeline(&self.shaded);
+        pass.set_pipeline(shaded);
         for (i, r) in draws.virtuals.iter().enumerate() {
             if !r.is_empty() {
                 pass.draw(r.clone(), i as u32..i as u32 + 1);

@@ -47,9 +47,12 @@ struct ShadowView {
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> lights: array<LightSample>;
-@group(0) @binding(2) var<storage, read> eyes: array<Eye>;
-@group(0) @binding(3) var<storage, read> views: array<ShadowView>;
+// Per-frame arrays: uniform arrays of fixed capacity, or runtime-sized
+// storage arrays when a frame exceeds one (gpu::frame_arrays). 256 views:
+// the shadow maps' array layers are limited to 256 anyway.
+@group(0) @binding(1) var<uniform> lights: array<LightSample, 64>;
+@group(0) @binding(2) var<uniform> eyes: array<Eye, 16>;
+@group(0) @binding(3) var<uniform> views: array<ShadowView, 256>;
 @group(0) @binding(4) var maps: texture_depth_2d_array;
 // Per projector pixel: its share of the target where other projectors
 // overlap (render::blend; 1 without overlap).
@@ -82,7 +85,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-// visible, nearest_or_nearer, intensity_towards: gpu/shadow_lookup.part.wgsl.
+// visible_from_light, visible_from_eye, intensity_towards:
+// gpu/shadow_lookup.part.wgsl.
 
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {
@@ -106,7 +110,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     if ((flags & 2u) != 0u) {
         for (var e = 0u; e < frame.counts.y; e++) {
             let eye = eyes[e];
-            if (dot(n, eye.position.xyz - p) > 0.0 && !visible(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
+            if (dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
                 occluded = true;
                 break;
             }
@@ -127,7 +131,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             if (!(cos_t > 0.0)) {
                 continue;
             }
-            if ((flags & 1u) != 0u && !visible(p, n, s.position.xyz, s.views.x, s.views.y)) {
+            if ((flags & 1u) != 0u && !visible_from_light(p, n, s)) {
                 continue;
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);

@@ -3,9 +3,12 @@
 //! shadow views' distance maps. CPU reference:
 //! `crate::render::projector::irradiance_map_cpu` (units and rules there).
 
+use std::sync::OnceLock;
+
 use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
+use super::frame_arrays::{ArraySpace, uniform_capacity};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -65,11 +68,44 @@ pub mod state {
     pub const MASKED: f32 = 3.0;
 }
 
-/// The compiled irradiance-map pipeline.
+/// The WGSL source of the pass (uniform arrays; see
+/// [`ArraySpace::source`]).
+pub const SOURCE: &str = super::shadow_lookup::with_shadow_lookup!("irradiance_map.wgsl");
+
+/// Capacity of the uniform array `name` (`lights`, `eyes` or `views`) of
+/// [`SOURCE`] (0 for another name).
+pub fn capacity(name: &str) -> usize {
+    uniform_capacity(SOURCE, name).unwrap_or(0)
+}
+
+/// The pipeline and bind group layout of one [`ArraySpace`].
 #[derive(Debug)]
-pub struct IrradianceMapPass {
+struct Variant {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
+}
+
+/// The compiled irradiance-map pipeline: the uniform-array variant, and
+/// the storage-array one, compiled the first time a frame needs it.
+#[derive(Debug)]
+pub struct IrradianceMapPass {
+    uniform: Variant,
+    storage: OnceLock<Variant>,
+}
+
+/// A bind group of the pass with the pipeline of its [`ArraySpace`].
+#[derive(Debug)]
+pub struct IrradianceBindGroup {
+    group: wgpu::BindGroup,
+    pipeline: wgpu::RenderPipeline,
+    space: ArraySpace,
+}
+
+impl IrradianceBindGroup {
+    /// Where the shader reads its per-frame arrays from.
+    pub fn space(&self) -> ArraySpace {
+        self.space
+    }
 }
 
 /// The buffers and maps the pass reads, uploaded (see
@@ -88,17 +124,16 @@ pub struct IrradianceBindings<'a> {
     pub maps: &'a ShadowMaps,
     /// The projector's blend weights (`R32Float`, projector-sized).
     pub blend: &'a wgpu::TextureView,
+    /// Where the arrays are read from ([`IrradianceMapPass::space`] of
+    /// their lengths).
+    pub space: ArraySpace,
 }
 
-fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+fn array_entry(binding: u32, space: ArraySpace) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
+        ty: space.binding_type(),
         count: None,
     }
 }
@@ -106,10 +141,26 @@ fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 impl IrradianceMapPass {
     /// Compile the pipeline for two [`OffscreenTarget`] colour formats.
     pub fn new(device: &wgpu::Device) -> Self {
-        let shader = device.create_shader_module(super::shadow_lookup::with_shadow_lookup!(
-            "irradiance_map",
-            "irradiance_map.wgsl"
-        ));
+        Self {
+            uniform: Self::variant(device, ArraySpace::Uniform),
+            storage: OnceLock::new(),
+        }
+    }
+
+    /// The space a frame of `lights` light samples, `eyes` eyes and
+    /// `views` shadow views reads its arrays from.
+    pub fn space(lights: usize, eyes: usize, views: usize) -> ArraySpace {
+        ArraySpace::for_lengths(
+            SOURCE,
+            &[(lights, "lights"), (eyes, "eyes"), (views, "views")],
+        )
+    }
+
+    fn variant(device: &wgpu::Device, space: ArraySpace) -> Variant {
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("irradiance_map"),
+            source: wgpu::ShaderSource::Wgsl(space.source(SOURCE)),
+        });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance map"),
             entries: &[
@@ -123,9 +174,9 @@ impl IrradianceMapPass {
                     },
                     count: None,
                 },
-                storage_entry(1),
-                storage_entry(2),
-                storage_entry(3),
+                array_entry(1, space),
+                array_entry(2, space),
+                array_entry(3, space),
                 wgpu::BindGroupLayoutEntry {
                     binding: 4,
                     visibility: wgpu::ShaderStages::FRAGMENT,
@@ -190,18 +241,25 @@ impl IrradianceMapPass {
             multiview_mask: None,
             cache: None,
         });
-        Self { pipeline, layout }
+        Variant { pipeline, layout }
     }
 
-    /// The bind group of `bindings` (create once per set of buffers).
+    /// The bind group of `bindings` (create once per set of buffers and
+    /// space); compiles the storage variant the first time it is needed.
     pub fn bind_group(
         &self,
         device: &wgpu::Device,
         bindings: &IrradianceBindings<'_>,
-    ) -> wgpu::BindGroup {
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
+    ) -> IrradianceBindGroup {
+        let variant = match bindings.space {
+            ArraySpace::Uniform => &self.uniform,
+            ArraySpace::Storage => self
+                .storage
+                .get_or_init(|| Self::variant(device, ArraySpace::Storage)),
+        };
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("irradiance map"),
-            layout: &self.layout,
+            layout: &variant.layout,
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
@@ -228,7 +286,12 @@ impl IrradianceMapPass {
                     resource: wgpu::BindingResource::TextureView(bindings.blend),
                 },
             ],
-        })
+        });
+        IrradianceBindGroup {
+            group,
+            pipeline: variant.pipeline.clone(),
+            space: bindings.space,
+        }
     }
 
     /// Record the pass: clear both targets to 0 and depth to 1, draw the
@@ -241,7 +304,7 @@ impl IrradianceMapPass {
         encoder: &mut wgpu::CommandEncoder,
         irradiance: &OffscreenTarget,
         value: &OffscreenTarget,
-        bind_group: &wgpu::BindGroup,
+        bind_group: &IrradianceBindGroup,
         vertices: &wgpu::Buffer,
         vertex_count: u32,
     ) -> Result<(), GpuError> {
@@ -283,8 +346,8 @@ impl IrradianceMapPass {
             multiview_mask: None,
         });
         if vertex_count > 0 {
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, bind_group, &[]);
+            pass.set_pipeline(&bind_group.pipeline);
+            pass.set_bind_group(0, &bind_group.group, &[]);
             pass.set_vertex_buffer(0, vertices.slice(..));
             pass.draw(0..vertex_count, 0..1);
         }
