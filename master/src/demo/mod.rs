@@ -3,6 +3,7 @@
 //! interactive cluster, rendering), with `report.json` and `index.html`.
 //! A phase that fails stops the demo with its error and no report.
 
+mod rendering;
 mod views;
 
 use crate::cli::DemoArgs;
@@ -150,7 +151,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     report.ran("interactive", t, interactive.detail);
     report.figures.extend(interactive.figures);
     let t = Instant::now();
-    let rendering = rendering_stage(&truth, &scene, args, &mut report.gallery)?;
+    let rendering = rendering::rendering_stage(&truth, &scene, args, &mut report.gallery)?;
     report.ran("rendering", t, rendering.detail);
     report.figures.extend(rendering.figures);
 
@@ -327,188 +328,6 @@ fn calibration_stage(scene: &mut showcase_proto::Showcase) -> Result<StageOutcom
     })
 }
 
-/// Frames of the walk the rendering stage draws: a quarter, half and
-/// three quarters of the way.
-fn rendered_frames(frames: u64) -> Vec<u64> {
-    let mut v: Vec<u64> = [1, 2, 3].iter().map(|q| q * frames / 4).collect();
-    v.dedup();
-    v
-}
-
-/// Every output of the cabinet rendered by the node renderers at a few
-/// frames of the walk (calibrated devices, demo resolution), and what each
-/// observer sees of them through the simulated cabinet (true devices)
-/// next to its target, with CIEDE2000 heat maps.
-fn rendering_stage(
-    truth: &showcase_proto::Showcase,
-    calibrated: &showcase_proto::Showcase,
-    args: &DemoArgs,
-    gallery: &mut Vec<GalleryRow>,
-) -> Result<StageOutcome> {
-    use crate::cluster::commands::walk_tracking;
-    use crate::cluster::{Show, Tracking};
-    use showcase_proto::config::TrackingSource;
-
-    let frames = rendered_frames(args.frames);
-    let truth = views::at_demo_resolution(truth)?;
-    let calibrated = std::sync::Arc::new(views::at_demo_resolution(calibrated)?);
-    // The frame states the cluster sent: the same scripted walk, replayed.
-    let tracker =
-        crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;
-    let mut show = Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64);
-    let last = frames.last().copied().unwrap_or(0);
-    let mut states = Vec::new();
-    for f in 0..=last {
-        let (state, _) = show.frame_state(f, 0.0, &truth, 1);
-        if frames.contains(&f) {
-            states.push(state);
-        }
-    }
-    let backend = views::Backend::open();
-    let mut renderers = views::NodeRenderers::new(&backend, calibrated.clone())?;
-    eprintln!(
-        "[demo] rendering: {} frames x {} outputs with {}...",
-        states.len(),
-        calibrated.projectors.len() + calibrated.faces.len(),
-        backend.describe()
-    );
-    let observers = truth.observers.len();
-    let mut all_de = Vec::new();
-    let mut per_observer: Vec<Seen> = vec![Seen::default(); observers];
-    let mut render_s = Vec::new();
-    let pb = progress("rendering", Some(states.len() as u64));
-    for state in &states {
-        pb.set_message(format!("frame {}", state.frame));
-        let dir_name = format!("frames/frame-{:04}", state.frame);
-        let dir = args.out.join(&dir_name);
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create {}", dir.display()))?;
-        let t = Instant::now();
-        let outputs = renderers.render(state)?;
-        render_s.push(t.elapsed().as_secs_f64());
-        let mut nodes = Vec::new();
-        for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
-            let file = format!("{dir_name}/{}.png", p.name);
-            views::write_values(&args.out.join(&file), img)?;
-            nodes.push((format!("{} (pixel values)", p.name), file));
-        }
-        let mut rows = Vec::new();
-        for (o, seen) in per_observer.iter_mut().enumerate() {
-            let r = views::observe(&truth, state, &outputs, o)?;
-            let name = &truth.observers[o].name;
-            let mut images = Vec::new();
-            for (what, img) in [
-                ("target", &r.view.target),
-                ("composite", &r.view.composite),
-                ("through-mirror", &r.view.reflected),
-            ] {
-                let file = format!("{dir_name}/{name}-{what}.png");
-                views::write_radiance(&args.out.join(&file), img, r.exposure)?;
-                images.push((format!("{name}: {what}"), file));
-            }
-            let file = format!("{dir_name}/{name}-delta-e.png");
-            views::write_heat_map(
-                &args.out.join(&file),
-                r.view.target.width,
-                r.view.target.height,
-                &r.delta_e,
-            )?;
-            let median = views::quantile(&r.delta_e, 0.5).unwrap_or(f64::NAN);
-            images.push((
-                format!("{name}: CIEDE2000 (median {median:.2}; black 0, red >= 10)"),
-                file,
-            ));
-            rows.push(GalleryRow {
-                title: format!("frame {}: {name} (rel RMSE {:.3})", state.frame, r.rel_rmse),
-                images,
-            });
-            all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            seen.add(&r);
-        }
-        for (f, _, [left, right]) in &outputs.faces {
-            let face = calibrated
-                .faces
-                .get(*f)
-                .map_or("face".to_string(), |f| f.name.clone());
-            for (eye, img) in [("left", left), ("right", right)] {
-                let file = format!("{dir_name}/{face}-{eye}.png");
-                views::write_radiance(&args.out.join(&file), img, 1.0)?;
-                nodes.push((format!("{face}: {eye} eye"), file));
-            }
-        }
-        gallery.push(GalleryRow {
-            title: format!("frame {}: node outputs", state.frame),
-            images: nodes,
-        });
-        gallery.extend(rows);
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
-    let mut figures = serde_json::Map::new();
-    let median = views::quantile(&all_de, 0.5);
-    let p95 = views::quantile(&all_de, 0.95);
-    figures.insert("delta_e2000_median".into(), serde_json::json!(median));
-    figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
-    let worst = per_observer.iter().map(|p| p.rel).fold(0.0f64, f64::max);
-    figures.insert(
-        "interactive_consistency_rel_rmse".into(),
-        serde_json::json!(worst),
-    );
-    figures.insert(
-        "observers".into(),
-        serde_json::json!(
-            per_observer
-                .iter()
-                .enumerate()
-                .map(|(o, seen)| serde_json::json!({
-                    "observer": truth.observers[o].name,
-                    "delta_e2000_median": views::quantile(&seen.delta_e, 0.5),
-                    "delta_e2000_p95": views::quantile(&seen.delta_e, 0.95),
-                    "consistency_rel_rmse": seen.rel,
-                    "consistency_rel_rmse_real": seen.rel_real,
-                    "consistency_rel_rmse_virtual": seen.rel_virtual,
-                    "consistency_rel_rmse_reflective": seen.rel_reflective,
-                    "consistency_rel_rmse_per_object": seen.per_object,
-                    "projector_reach_fraction": seen.reach,
-                    "consistency_rel_rmse_real_comparable": seen.rel_real_comparable,
-                    "consistency_rel_rmse_real_comparable_per_object": seen.per_object_comparable,
-                    "comparable_real_fraction": seen.comparable_fraction,
-                }))
-                .collect::<Vec<_>>()
-        ),
-    );
-    // Not the headline: the real-surface figure over the pixels the method
-    // can get right by design (see `views::ObserverResult`), for the
-    // real-surface error budget.
-    let comparable = per_observer
-        .iter()
-        .filter_map(|p| p.rel_real_comparable)
-        .reduce(f64::max);
-    figures.insert(
-        "interactive_consistency_rel_rmse_real_comparable".into(),
-        serde_json::json!(comparable),
-    );
-    figures.insert("renderer".into(), serde_json::json!(backend.describe()));
-    render_s.sort_by(f64::total_cmp);
-    Ok(StageOutcome {
-        detail: format!(
-            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {worst:.3} (off edges, where a projector reaches), real surfaces where the method can be right {:.4}; images in {}/frames",
-            calibrated.projectors.len(),
-            calibrated.faces.len(),
-            backend.describe(),
-            render_s
-                .get(render_s.len() / 2)
-                .copied()
-                .unwrap_or(f64::NAN),
-            median.unwrap_or(f64::NAN),
-            p95.unwrap_or(f64::NAN),
-            comparable.unwrap_or(f64::NAN),
-            args.out.display()
-        ),
-        figures,
-    })
-}
-
 struct StageOutcome {
     detail: String,
     figures: serde_json::Map<String, serde_json::Value>,
@@ -660,66 +479,4 @@ fn html_escape(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
-}
-
-/// What one observer saw over the rendered frames: every CIEDE2000 value
-/// and the worst of each figure.
-#[derive(Clone, Debug)]
-struct Seen {
-    delta_e: Vec<f64>,
-    rel: f64,
-    rel_real: Option<f64>,
-    rel_virtual: Option<f64>,
-    rel_reflective: Option<f64>,
-    per_object: std::collections::BTreeMap<String, f64>,
-    reach: f64,
-    rel_real_comparable: Option<f64>,
-    per_object_comparable: std::collections::BTreeMap<String, f64>,
-    comparable_fraction: f64,
-}
-
-impl Default for Seen {
-    fn default() -> Self {
-        Self {
-            delta_e: Vec::new(),
-            rel: 0.0,
-            rel_real: None,
-            rel_virtual: None,
-            rel_reflective: None,
-            per_object: std::collections::BTreeMap::new(),
-            reach: 1.0,
-            rel_real_comparable: None,
-            per_object_comparable: std::collections::BTreeMap::new(),
-            comparable_fraction: 1.0,
-        }
-    }
-}
-
-impl Seen {
-    fn add(&mut self, r: &views::ObserverResult) {
-        let worst = |a: Option<f64>, b: Option<f64>| match (a, b) {
-            (Some(a), Some(b)) => Some(a.max(b)),
-            (a, b) => a.or(b),
-        };
-        self.delta_e
-            .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-        self.rel = self.rel.max(r.rel_rmse);
-        self.rel_real = worst(self.rel_real, r.rel_rmse_real);
-        self.rel_virtual = worst(self.rel_virtual, r.rel_rmse_virtual);
-        self.rel_reflective = worst(self.rel_reflective, r.rel_rmse_reflective);
-        for (name, e) in &r.rel_rmse_per_object {
-            let w = self.per_object.entry(name.clone()).or_insert(0.0);
-            *w = w.max(*e);
-        }
-        self.reach = self.reach.min(r.reachable_fraction);
-        self.rel_real_comparable = worst(self.rel_real_comparable, r.rel_rmse_real_comparable);
-        for (name, e) in &r.rel_rmse_real_comparable_per_object {
-            let w = self
-                .per_object_comparable
-                .entry(name.clone())
-                .or_insert(0.0);
-            *w = w.max(*e);
-        }
-        self.comparable_fraction = self.comparable_fraction.min(r.comparable_real_fraction);
-    }
 }
