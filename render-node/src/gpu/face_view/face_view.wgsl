@@ -134,16 +134,18 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
     }
     let p = in.world;
     let n = facing(in);
+    // Shade once, after the loop: a return inside it would make llvmpipe
+    // run `shade` (all light lookups) once per eye for every pixel, since
+    // both sides of a branch that differs between pixels run for all.
+    var occluded = false;
     for (var e = 0u; e < frame.counts.y; e++) {
-        if (e == frame.own.x) {
-            continue;
-        }
         let eye = eyes[e];
-        if (dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y)) {
-            return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
-        }
+        occluded = occluded || (e != frame.own.x && dot(n, eye.position.xyz - p) > 0.0 && !visible_from_eye(p, n, eye.position.xyz, eye.views.x, eye.views.y));
     }
-    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    if (!occluded) {
+        return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    }
+    return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
 }
 
 
