@@ -429,26 +429,7 @@ pub(super) fn observe(
         };
         metrics::relative_rmse(&view.composite, &view.target, Some(&part)).ok()
     };
-    let rel_rmse_per_object = truth
-        .objects
-        .iter()
-        .enumerate()
-        .filter_map(|(i, o)| {
-            let part = Image {
-                width: mask.width,
-                height: mask.height,
-                data: mask
-                    .data
-                    .iter()
-                    .zip(&view.first_object.data)
-                    .map(|(m, f)| *m && *f == Some(i as u32))
-                    .collect(),
-            };
-            metrics::relative_rmse(&view.composite, &view.target, Some(&part))
-                .ok()
-                .map(|e| (o.name.clone(), e))
-        })
-        .collect();
+    let rel_rmse_per_object = per_object_rel_rmse(truth, &view, &mask, false);
     let rel_rmse_real = part(false, false);
     let rel_rmse_virtual = part(true, false);
     let rel_rmse_reflective = part(true, true);
@@ -478,27 +459,7 @@ pub(super) fn observe(
         count(&comparable) as f64 / count(&real_mask(false)).max(1) as f64;
     let rel_rmse_real_comparable =
         metrics::relative_rmse(&view.composite, &view.target, Some(&comparable)).ok();
-    let rel_rmse_real_comparable_per_object = truth
-        .objects
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| o.kind == showcase_proto::ObjectKind::Real)
-        .filter_map(|(i, o)| {
-            let part = Image {
-                width: comparable.width,
-                height: comparable.height,
-                data: comparable
-                    .data
-                    .iter()
-                    .zip(&view.first_object.data)
-                    .map(|(m, f)| *m && *f == Some(i as u32))
-                    .collect(),
-            };
-            metrics::relative_rmse(&view.composite, &view.target, Some(&part))
-                .ok()
-                .map(|e| (o.name.clone(), e))
-        })
-        .collect();
+    let rel_rmse_real_comparable_per_object = per_object_rel_rmse(truth, &view, &comparable, true);
     Ok(ObserverResult {
         view,
         exposure,
@@ -513,6 +474,39 @@ pub(super) fn observe(
         rel_rmse_real_comparable_per_object,
         comparable_real_fraction,
     })
+}
+
+/// Relative RMSE of `view`'s composite against its target per object of
+/// `truth` (by name; only real objects when `real_only`), over the pixels
+/// of `mask` whose first surface is that object; objects with no such
+/// pixel are left out.
+fn per_object_rel_rmse(
+    truth: &Showcase,
+    view: &ObserverView,
+    mask: &Image<bool>,
+    real_only: bool,
+) -> Vec<(String, f64)> {
+    truth
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| !real_only || o.kind == showcase_proto::ObjectKind::Real)
+        .filter_map(|(i, o)| {
+            let part = Image {
+                width: mask.width,
+                height: mask.height,
+                data: mask
+                    .data
+                    .iter()
+                    .zip(&view.first_object.data)
+                    .map(|(m, f)| *m && *f == Some(i as u32))
+                    .collect(),
+            };
+            metrics::relative_rmse(&view.composite, &view.target, Some(&part))
+                .ok()
+                .map(|e| (o.name.clone(), e))
+        })
+        .collect()
 }
 
 /// `q`-quantile of the finite values.
