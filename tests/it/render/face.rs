@@ -292,7 +292,6 @@ fn kept_face_shadow_layers_give_the_output_of_a_fresh_pipeline() -> Result<()> {
 /// exceed the device's array layers.
 #[test]
 fn face_storage_array_variant_gives_the_uniform_variants_output() -> Result<()> {
-    use showcase_proto::{Light, LightSource};
     use showcase_render::gpu::face_view::{capacity, space};
     use showcase_render::gpu::frame_arrays::ArraySpace;
     let Some(ctx) = gpu_or_skip("face_storage_array_variant_gives_the_uniform_variants_output")?
@@ -301,33 +300,17 @@ fn face_storage_array_variant_gives_the_uniform_variants_output() -> Result<()> 
     };
     let cap = capacity("lights");
     ensure!(cap >= 2, "light capacity {cap}");
-    let area = LightSource {
-        name: "area".into(),
-        light: Light::Area {
-            corner: Vec3::new(0.2, 0.54, 0.2),
-            edge_u: Vec3::new(0.15, 0.0, 0.0),
-            edge_v: Vec3::new(0.0, 0.0, 0.12),
-            radiance: Vec3::splat(1.5),
-            samples: cap as u32,
-        },
-    };
-    let dark = LightSource {
-        name: "dark".into(),
-        light: Light::Point {
-            position: Vec3::new(0.3, 0.4, 0.3),
-            intensity: Vec3::ZERO,
-        },
-    };
     let scene = bench()?;
     let face = bench_face(160, 120);
     let passes = PassList {
         passes: vec![Pass::EyeShadowViews, Pass::CubeMaps, Pass::FaceView],
     };
     let mut images = Vec::new();
-    for (lights, expected) in [
-        (vec![area.clone()], ArraySpace::Uniform),
-        (vec![area, dark], ArraySpace::Storage),
-    ] {
+    let sets = super::scenes::light_sets_at_and_over_capacity(cap);
+    for (lights, expected) in sets
+        .into_iter()
+        .zip([ArraySpace::Uniform, ArraySpace::Storage])
+    {
         let mut state = bench_frame(&scene, "full", 0);
         state.lights = lights;
         let frame = FrameScene::resolve(&scene, &state)?;

@@ -335,32 +335,16 @@ fn storage_array_variant_gives_the_uniform_variants_output() -> Result<()> {
     };
     let cap = capacity("lights");
     ensure!(cap >= 2, "light capacity {cap}");
-    let area = LightSource {
-        name: "area".into(),
-        light: Light::Area {
-            corner: Vec3::new(0.2, 0.54, 0.2),
-            edge_u: Vec3::new(0.15, 0.0, 0.0),
-            edge_v: Vec3::new(0.0, 0.0, 0.12),
-            radiance: Vec3::splat(1.5),
-            samples: cap as u32,
-        },
-    };
-    let dark = LightSource {
-        name: "dark".into(),
-        light: Light::Point {
-            position: Vec3::new(0.3, 0.4, 0.3),
-            intensity: Vec3::ZERO,
-        },
-    };
     let projector = bench_projector(160, 120);
     let passes = PassList {
         passes: vec![Pass::EyeShadowViews, Pass::IrradianceMap],
     };
     let mut maps = Vec::new();
-    for (lights, expected) in [
-        (vec![area.clone()], ArraySpace::Uniform),
-        (vec![area, dark], ArraySpace::Storage),
-    ] {
+    let sets = super::scenes::light_sets_at_and_over_capacity(cap);
+    for (lights, expected) in sets
+        .into_iter()
+        .zip([ArraySpace::Uniform, ArraySpace::Storage])
+    {
         let (frame, _) = bench_frame_scene(Some(lights))?;
         // One fitted view per eye.
         let views = frame.eyes.len();

@@ -142,3 +142,22 @@ pub(super) fn point(position: Vec3, intensity: f32) -> LightSource {
         },
     }
 }
+
+/// The light sets of the storage-variant tests: an area light with
+/// `samples` samples (the shader's light capacity, so the uniform variant)
+/// and the same plus one dark point light (one sample over, so the storage
+/// variant), which must render identically.
+pub(super) fn light_sets_at_and_over_capacity(samples: usize) -> [Vec<LightSource>; 2] {
+    let area = LightSource {
+        name: "area".into(),
+        light: Light::Area {
+            corner: Vec3::new(0.2, 0.54, 0.2),
+            edge_u: Vec3::new(0.15, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 0.12),
+            radiance: Vec3::splat(1.5),
+            samples: samples as u32,
+        },
+    };
+    let dark = point(Vec3::new(0.3, 0.4, 0.3), 0.0);
+    [vec![area.clone()], vec![area, dark]]
+}
