@@ -5,7 +5,9 @@
 //! The radiance map already measures the exitance `B = I_rad` of every
 //! surface the camera sees, so the indirect irradiance of a seen point `x`
 //! is a gather of measured exitance: `E_ind(x) = 1/N sum_j B(y_j)` over `N`
-//! cosine-distributed rays from `x` hitting `y_j`. Where `y_j` is hidden
+//! cosine-distributed rays from `x` hitting `y_j`, stratified (a jittered
+//! grid over the hemisphere's unit square, as the sim's first bounce: the
+//! gather's noise is most of the capture's error at demo sizes). Where `y_j` is hidden
 //! from the camera (behind something, or a sliver that no pixel centre
 //! lands on, such as the strip of a wall next to a corner), its exitance is
 //! predicted from the current estimate,
@@ -23,7 +25,7 @@
 
 use super::{ReflectanceError, check_size};
 use crate::light::{DeviceRays, Image, IntensityLight, Ray, RgbImage, SceneGeometry};
-use crate::sim::pixel_seed;
+use crate::sim::{cosine_direction, pixel_seed, stratified_point};
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -214,8 +216,9 @@ pub fn indirect_irradiance(
             };
             let mut rng = ChaCha8Rng::seed_from_u64(pixel_seed(params.seed, i as u64));
             let mut g = Gather::default();
-            for _ in 0..n {
-                let dir = cosine(facing, &mut rng);
+            for s in 0..n {
+                let u = stratified_point(s, n, (rng.random(), rng.random()));
+                let dir = cosine_direction(facing, u);
                 let (object, e_dir, y, yf, ys) = match trace(point, facing, dir) {
                     Found::Nothing => continue,
                     Found::Seen(b) => {
@@ -236,7 +239,7 @@ pub fn indirect_irradiance(
                 };
                 let hh = &mut g.hidden[k];
                 hh.e_dir += finite(e_dir);
-                let dir2 = cosine(ys, &mut rng);
+                let dir2 = cosine_direction(ys, (rng.random(), rng.random()));
                 if !(dir2.dot(yf) > 0.0) {
                     continue;
                 }
@@ -365,12 +368,4 @@ fn finite(v: DVec3) -> DVec3 {
 
 fn mean((sum, count): (DVec3, f64), fallback: DVec3) -> DVec3 {
     if count > 0.0 { sum / count } else { fallback }
-}
-
-fn cosine(n: DVec3, rng: &mut ChaCha8Rng) -> DVec3 {
-    let (u1, u2): (f64, f64) = (rng.random(), rng.random());
-    let r = u1.sqrt();
-    let phi = std::f64::consts::TAU * u2;
-    let (t, b) = n.any_orthonormal_pair();
-    (r * phi.cos() * t + r * phi.sin() * b + (1.0 - u1).max(0.0).sqrt() * n).normalize_or_zero()
 }

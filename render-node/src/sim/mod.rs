@@ -13,7 +13,9 @@ pub mod world;
 
 pub use devices::{SimCamera, SimConfig, SimProjector, SimShowcase, wheel_weights};
 pub use pfm::{PfmError, decode_pfm, encode_pfm, encode_pfm_grey, read_pfm, write_pfm};
-pub use world::{ProjectorLight, SimWorld, TransportImage, pixel_seed};
+pub use world::{
+    ProjectorLight, SimWorld, TransportImage, cosine_direction, pixel_seed, stratified_point,
+};
 
 use crate::light::{DeviceError, DeviceRays, GeometryError, Image, ObjectFilter, RgbImage};
 use showcase_proto::{CameraResponse, PinholeDevice, Showcase};

@@ -321,18 +321,9 @@ impl SimWorld {
             // is stratified: an n x n jittered grid over the cosine
             // hemisphere's unit square (n = floor(sqrt(spp))), the paths
             // past n^2 unstratified.
-            let n = (spp as f64).sqrt().floor().max(1.0) as u32;
             for s in 0..spp {
                 emitter_direct += self.sample_emitters(hit.point, &frame, rng);
-                let (j1, j2): (f64, f64) = (rng.random(), rng.random());
-                let first = if s < n * n {
-                    (
-                        (f64::from(s % n) + j1) / f64::from(n),
-                        (f64::from(s / n) + j2) / f64::from(n),
-                    )
-                } else {
-                    (j1, j2)
-                };
+                let first = stratified_point(s, spp, (rng.random(), rng.random()));
                 indirect += self.trace_path(hit.point, frame, rho, projector, first, rng);
             }
         }
@@ -464,9 +455,25 @@ impl SurfaceFrame {
     }
 }
 
+/// Point `s` of `count` of a jittered stratified pattern over the unit
+/// square: with `m = floor(sqrt(count))`, points `0..m^2` each fall in
+/// their own cell of an `m x m` grid, offset within it by `jitter` (two
+/// uniform numbers in `[0, 1)`); points past `m^2` are `jitter` itself.
+pub fn stratified_point(s: u32, count: u32, (j1, j2): (f64, f64)) -> (f64, f64) {
+    let m = f64::from(count.max(1)).sqrt().floor().max(1.0) as u32;
+    if s < m * m {
+        (
+            (f64::from(s % m) + j1) / f64::from(m),
+            (f64::from(s / m) + j2) / f64::from(m),
+        )
+    } else {
+        (j1, j2)
+    }
+}
+
 /// The cosine-weighted direction around unit `n` that the point
 /// `(u1, u2)` of the unit square maps to.
-fn cosine_direction(n: DVec3, (u1, u2): (f64, f64)) -> DVec3 {
+pub fn cosine_direction(n: DVec3, (u1, u2): (f64, f64)) -> DVec3 {
     let r = u1.sqrt();
     let phi = std::f64::consts::TAU * u2;
     let (t, b) = n.any_orthonormal_pair();
@@ -491,6 +498,31 @@ mod tests {
     use super::*;
     use glam::Vec3;
     use showcase_proto::{Mesh, Object, ObjectKind, PinholeDevice, Transform};
+
+    #[test]
+    fn stratified_points_fill_one_cell_each_then_fall_back_to_the_jitter() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for count in [1u32, 2, 9, 10, 128] {
+            let m = (count as f64).sqrt().floor() as u32;
+            let mut cells = vec![0u32; (m * m) as usize];
+            for s in 0..count {
+                let j = (rng.random(), rng.random());
+                let (u, v) = stratified_point(s, count, j);
+                assert!(
+                    (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v),
+                    "{u} {v}"
+                );
+                if s < m * m {
+                    let (cx, cy) = ((u * m as f64) as u32, (v * m as f64) as u32);
+                    assert_eq!((cx, cy), (s % m, s / m), "point {s} of {count}");
+                    cells[(cy * m + cx) as usize] += 1;
+                } else {
+                    assert_eq!((u, v), j, "point {s} of {count} past the grid");
+                }
+            }
+            assert!(cells.iter().all(|&c| c == 1), "{count}: {cells:?}");
+        }
+    }
 
     /// A floor and a wall meeting at a corner, the wall emitting.
     fn corner() -> Showcase {
