@@ -1,7 +1,8 @@
 //! Cube-map reflections (paper section 5.3): the CPU cube map against the
 //! analytic radiance of a lit wall, a flat mirror against the analytic
 //! mirror image (CPU and GPU), a reflective sphere before one coloured
-//! wall, the GPU cube faces against the CPU reference on the bench scene,
+//! wall, the GPU cube faces (radiance and distance) against the CPU
+//! reference on the bench scene,
 //! and the pass list: skipped without reflective objects (bit-identical
 //! output), kept while lights and geometry stay put.
 
@@ -17,8 +18,8 @@ use showcase_render::render::bench::{
 };
 use showcase_render::render::compare::EDGE_RADIUS_PX;
 use showcase_render::render::cube_map::{
-    CUBE_FACES, cube_map_cpu, cube_maps_cpu, reflect, reflective_centres, texel_direction,
-    world_to_face,
+    CUBE_FACES, NO_SURFACE_DISTANCE, cube_map_cpu, cube_maps_cpu, reflect, reflective_centres,
+    texel_direction, world_to_face,
 };
 use showcase_render::render::face::{face_image_cpu_with, reflected_pixel};
 use showcase_render::render::face_gpu::{FacePipeline, other_eyes};
@@ -406,6 +407,27 @@ fn gpu_cube_faces_match_the_cpu_reference() -> Result<()> {
             .filter(|&i| state.data[i].masked && !edges.data[i])
             .all(|i| g.data[i] == Vec3::ZERO);
         ensure!(empty, "face {f}: texels without a real surface are not 0");
+        // The distance channel: the rasterised surface's distance is the
+        // traced one (f32 interpolation) off silhouettes, and the clear
+        // value, as the reference, where nothing real is seen.
+        let distance = &cpu[0].distance[f];
+        let mut worst = 0.0f64;
+        for i in (0..g.data.len()).filter(|&i| !edges.data[i]) {
+            let (got, want) = (gpu[0][f][i][3], distance.data[i]);
+            if state.data[i].masked {
+                ensure!(
+                    got == NO_SURFACE_DISTANCE && want == NO_SURFACE_DISTANCE,
+                    "face {f} texel {i}: distance {got} vs {want} where nothing is seen"
+                );
+            } else {
+                worst = worst.max(f64::from((got - want).abs() / want));
+            }
+        }
+        eprintln!("face {f}: distance relative error off edges at most {worst:.2e}");
+        ensure!(
+            worst <= 1e-4,
+            "face {f}: distance off by {worst} (relative)"
+        );
     }
     Ok(())
 }

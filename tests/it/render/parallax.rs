@@ -13,24 +13,31 @@ use glam::{DVec2, DVec3, Vec3};
 use showcase_proto::{Material, Mesh, ObjectKind, Showcase};
 use showcase_render::light::metrics::relative_rmse;
 use showcase_render::light::{Image, Ray};
-use showcase_render::render::bench::uv_sphere;
+use showcase_render::render::bench::{bench_face, uv_sphere};
+use showcase_render::render::compare::EDGE_RADIUS_PX;
 use showcase_render::render::cube_map::{
-    CUBE_FACES, CubeMap, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS, cube_map_cpu, environment,
-    reflect, reflective_centres, texel_direction, world_to_face,
+    CUBE_FACES, CubeMap, NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS,
+    cube_map_cpu, environment, reflect, reflective_centres, texel_direction, world_to_face,
 };
+use showcase_render::render::face::face_image_cpu_with;
+use showcase_render::render::face_gpu::FacePipeline;
+use showcase_render::render::passes::PassList;
 use showcase_render::render::projector::edge_mask;
 use showcase_render::render::{FrameScene, Occluders};
 
-use super::projector::GPU_CPU_REL_RMSE;
+use super::gpu_or_skip;
+use super::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};
 use super::scenes::point;
 
-/// Half the room's side (metres): the walls are `ROOM` from its centre.
-const ROOM: f32 = 0.3;
+/// The room's corners (metres): the bench face's observers look at its
+/// mirror sphere (`bench_face`), the eye is inside it.
+const LO: DVec3 = DVec3::new(-0.1, 0.14, -0.65);
+const HI: DVec3 = DVec3::new(0.5, 0.74, 0.55);
 /// The mirror sphere: centre and radius, low and off-centre so that the
 /// floor and two walls are close.
-const SPHERE: DVec3 = DVec3::new(0.08, -0.17, 0.05);
+const SPHERE: DVec3 = DVec3::new(0.28, 0.27, 0.3);
 const RADIUS: f32 = 0.1;
-const EYE: DVec3 = DVec3::new(-0.05, 0.1, -0.27);
+const EYE: DVec3 = DVec3::new(0.28, 0.27, -0.55);
 /// Cube map resolution of the tests.
 const RES: u32 = 128;
 
@@ -43,7 +50,7 @@ fn quad(corner: Vec3, u: Vec3, v: Vec3) -> Mesh {
     }
 }
 
-/// A closed cube room of six real walls, each its own colour, lit by a
+/// A closed box room of six real walls, each its own colour, lit by a
 /// point light under the ceiling, with ambient light, and a virtual mirror
 /// sphere (albedo 1) at [`SPHERE`].
 fn room() -> Showcase {
@@ -51,47 +58,18 @@ fn room() -> Showcase {
         ambient: Vec3::splat(0.05),
         ..Showcase::default()
     };
-    let r = ROOM;
+    let (lo, size) = (LO.as_vec3(), (HI - LO).as_vec3());
+    let (x, y, z) = (size.x * Vec3::X, size.y * Vec3::Y, size.z * Vec3::Z);
     let walls = [
-        (
-            Vec3::new(-r, -r, -r),
-            Vec3::X,
-            Vec3::Z,
-            Vec3::new(0.8, 0.8, 0.8),
-        ),
-        (
-            Vec3::new(-r, r, -r),
-            Vec3::X,
-            Vec3::Z,
-            Vec3::new(0.6, 0.6, 0.7),
-        ),
-        (
-            Vec3::new(-r, -r, -r),
-            Vec3::Y,
-            Vec3::Z,
-            Vec3::new(0.8, 0.2, 0.2),
-        ),
-        (
-            Vec3::new(r, -r, -r),
-            Vec3::Y,
-            Vec3::Z,
-            Vec3::new(0.2, 0.8, 0.2),
-        ),
-        (
-            Vec3::new(-r, -r, -r),
-            Vec3::X,
-            Vec3::Y,
-            Vec3::new(0.3, 0.3, 0.8),
-        ),
-        (
-            Vec3::new(-r, -r, r),
-            Vec3::X,
-            Vec3::Y,
-            Vec3::new(0.8, 0.7, 0.2),
-        ),
+        (lo, x, z, Vec3::new(0.8, 0.8, 0.8)),
+        (lo + y, x, z, Vec3::new(0.6, 0.6, 0.7)),
+        (lo, y, z, Vec3::new(0.8, 0.2, 0.2)),
+        (lo + x, y, z, Vec3::new(0.2, 0.8, 0.2)),
+        (lo, x, y, Vec3::new(0.3, 0.3, 0.8)),
+        (lo + z, x, y, Vec3::new(0.8, 0.7, 0.2)),
     ];
     for (i, (corner, u, v, albedo)) in walls.into_iter().enumerate() {
-        let id = s.add_mesh(quad(corner, 2.0 * r * u, 2.0 * r * v));
+        let id = s.add_mesh(quad(corner, u, v));
         s.objects.push(showcase_proto::Object {
             name: format!("wall {i}"),
             mesh: id,
@@ -113,7 +91,7 @@ fn room() -> Showcase {
             ..showcase_proto::Transform::IDENTITY
         },
     });
-    s.lights = vec![point(Vec3::new(-0.1, 0.12, 0.0), 0.4)];
+    s.lights = vec![point(Vec3::new(0.1, 0.56, 0.25), 0.4)];
     s
 }
 
@@ -136,13 +114,12 @@ fn angle(a: DVec3, b: DVec3) -> f64 {
 #[test]
 fn cube_texels_hold_the_distance_to_the_room() -> Result<()> {
     let (_, _, map) = room_map()?;
-    let r = f64::from(ROOM);
     for face in 0..CUBE_FACES {
         for (x, y) in [(0, 0), (5, 90), (64, 64), (127, 127), (100, 3)] {
             let d = texel_direction(face, x, y, RES);
             // The nearest wall plane along d (the room is convex).
             let t = (0..3)
-                .map(|k| (d[k].signum() * r - SPHERE[k]) / d[k])
+                .map(|k| (if d[k] > 0.0 { HI[k] } else { LO[k] } - SPHERE[k]) / d[k])
                 .fold(f64::INFINITY, f64::min);
             let got = f64::from(*map.distance[face].get(x, y).unwrap());
             ensure!(
@@ -268,6 +245,93 @@ fn corrected_lookup_lands_on_the_traced_surface_point() -> Result<()> {
     ensure!(
         rel_ours * 5.0 < rel_theirs,
         "corrected {rel_ours} vs single-centre {rel_theirs}"
+    );
+    Ok(())
+}
+
+#[test]
+fn the_shader_runs_the_same_steps_as_the_cpu_reference() {
+    let source = showcase_render::gpu::face_view::SOURCE;
+    for line in [
+        format!("const PARALLAX_LINEAR_STEPS: u32 = {PARALLAX_LINEAR_STEPS}u;"),
+        format!("const PARALLAX_SECANT_STEPS: u32 = {PARALLAX_SECANT_STEPS}u;"),
+        format!("const NO_SURFACE_DISTANCE: f32 = {NO_SURFACE_DISTANCE:.1e};"),
+    ] {
+        assert!(source.contains(&line), "face_view.wgsl lacks `{line}`");
+    }
+}
+
+#[test]
+fn gpu_room_reflections_match_the_cpu_reference() -> Result<()> {
+    let (frame, occ, map) = room_map()?;
+    let face = bench_face(320, 240);
+    let cpu = face_image_cpu_with(&frame, &occ, &face, EYE, &[], std::slice::from_ref(&map))?;
+    let sphere = frame.showcase.objects.len() as u32 - 1;
+    let on_sphere: Vec<bool> = cpu
+        .state
+        .data
+        .iter()
+        .map(|s| s.object == Some(sphere))
+        .collect();
+    let n = on_sphere.iter().filter(|b| **b).count();
+    ensure!(n > 3000, "the sphere covers {n} pixels");
+    let Some(ctx) = gpu_or_skip("gpu_room_reflections_match_the_cpu_reference")? else {
+        return Ok(());
+    };
+    let mut pipeline = FacePipeline::with_cube_res(&ctx.device, 1024, RES);
+    let gpu = pipeline.render(
+        &ctx,
+        &frame,
+        &face,
+        &[EYE],
+        &[],
+        &PassList::for_face(&frame, 0),
+    )?;
+    // The GPU's distance channel holds the room's distances.
+    let cubes = pipeline.read_cube_maps(&ctx)?;
+    ensure!(cubes.len() == 1, "{} maps", cubes.len());
+    for (f, (texels, distance)) in cubes[0].iter().zip(&map.distance).enumerate() {
+        let worst = texels
+            .iter()
+            .zip(&distance.data)
+            .map(|(g, c)| f64::from((g[3] - c).abs() / c))
+            .fold(0.0, f64::max);
+        ensure!(
+            worst <= 1e-3,
+            "face {f}: distance off by {worst} (relative)"
+        );
+    }
+    // The reflections: as every pass against its reference, relative RMSE
+    // at most 1 % off edges (EDGE_RADIUS_PX of a state change, here also
+    // the reflected environment's edges) and at most 0.1 % outliers.
+    let g = Image {
+        width: face.width,
+        height: face.height,
+        data: gpu[0].iter().map(|p| Vec3::from_slice(&p[..3])).collect(),
+    };
+    let edges = edge_mask(&cpu.state, EDGE_RADIUS_PX, false);
+    let off = Image {
+        width: face.width,
+        height: face.height,
+        data: (0..on_sphere.len())
+            .map(|i| on_sphere[i] && !edges.data[i])
+            .collect::<Vec<bool>>(),
+    };
+    let n_off = off.data.iter().filter(|b| **b).count();
+    ensure!(n_off * 4 > n, "{n_off} of {n} sphere pixels off edges");
+    let rel = relative_rmse(&g, &cpu.radiance, Some(&off))?;
+    let outliers = (0..g.data.len())
+        .filter(|&i| off.data[i])
+        .filter(|&i| {
+            let r = cpu.radiance.data[i];
+            (g.data[i] - r).abs().max_element() > 0.01 * r.max_element().max(1e-6)
+        })
+        .count();
+    eprintln!("room sphere: GPU vs CPU rel RMSE {rel:.5} over {n_off} pixels, {outliers} outliers");
+    ensure!(rel <= GPU_CPU_REL_RMSE, "rel RMSE {rel}");
+    ensure!(
+        outliers as f64 <= OFF_EDGE_OUTLIERS * n_off as f64 + 1.0,
+        "{outliers} outliers"
     );
     Ok(())
 }
