@@ -222,8 +222,10 @@ impl CubeMap {
     /// a)`, `a = i / (steps + 1)` (`s` the stored distance along `r`, so
     /// that the search is centred on the single-centre estimate), then
     /// [`PARALLAX_SECANT_STEPS`] secant steps on `q(t) = |x - c| / D(x -
-    /// c) - 1`. `r` itself where the search finds no surface (the
-    /// environment at infinity, or a zero or non-finite input).
+    /// c) - 1`. Where nothing real is stored, [`NO_SURFACE_DISTANCE`]
+    /// acts as a sphere at infinity and the direction is `r` up to `|p -
+    /// c| / NO_SURFACE_DISTANCE`; `r` itself where the search finds no
+    /// surface (or for a zero or non-finite input).
     pub fn reflection_direction(&self, p: DVec3, r: DVec3) -> DVec3 {
         let o = p - self.centre;
         if !o.is_finite() || !r.is_finite() || r == DVec3::ZERO {
@@ -529,6 +531,68 @@ mod tests {
             };
             let v = map.sample(DVec3::new(x, y, z));
             proptest::prop_assert!(v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 5.0);
+        }
+    }
+
+    /// A map at the origin of the plane `z = 1` alone (radiance 0).
+    fn plane_map(res: u32) -> CubeMap {
+        let faces = (0..CUBE_FACES).map(|_| Image::new(res, res, Vec3::ZERO));
+        let distance = (0..CUBE_FACES)
+            .map(|f| {
+                Image::from_fn(res, res, |x, y| {
+                    let d = texel_direction(f, x, y, res);
+                    if d.z > 0.0 {
+                        (1.0 / d.z) as f32
+                    } else {
+                        NO_SURFACE_DISTANCE
+                    }
+                })
+            })
+            .collect();
+        CubeMap {
+            object: 0,
+            centre: DVec3::ZERO,
+            res,
+            faces: faces.collect(),
+            distance,
+            state: vec![Image::new(res, res, PixelState::default()); CUBE_FACES],
+        }
+    }
+
+    #[test]
+    fn corrected_lookup_finds_the_plane_point_and_infinity_past_it() {
+        let map = plane_map(64);
+        let p = DVec3::new(0.2, -0.1, 0.3);
+        for r in [
+            DVec3::new(0.3, 0.2, 1.0),
+            DVec3::new(-0.9, 0.4, 0.5),
+            DVec3::Z,
+        ] {
+            let r = r.normalize();
+            let hit = p + r * ((1.0 - p.z) / r.z);
+            let got = map.reflection_direction(p, r);
+            // Well inside one texel (at most 2 / 64 rad).
+            let angle = got.normalize().dot(hit.normalize()).clamp(-1.0, 1.0).acos();
+            assert!(angle < 0.1 * 2.0 / 64.0, "{r}: {got} vs {hit}: {angle}");
+        }
+        // Away from the plane nothing is stored: the sentinel distance is
+        // the environment at infinity, seen along r.
+        let r = DVec3::new(0.3, 0.2, -1.0).normalize();
+        let got = map.reflection_direction(p, r).normalize();
+        assert!((got - r).length() < 1e-6, "{got} vs {r}");
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn corrected_lookup_is_finite_for_any_point(
+            p in proptest::array::uniform3(proptest::num::f64::ANY),
+            r in proptest::array::uniform3(-1.0f64..1.0),
+        ) {
+            let map = plane_map(4);
+            let (p, r) = (DVec3::from_array(p), DVec3::from_array(r));
+            let d = map.reflection_direction(p, r);
+            proptest::prop_assert!(d.is_finite() || d == r);
+            proptest::prop_assert!(map.reflection(p, r).is_finite());
         }
     }
 
