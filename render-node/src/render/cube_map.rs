@@ -23,7 +23,8 @@
 //! distance from the centre equals the stored distance along `x - c`,
 //! with [`PARALLAX_LINEAR_STEPS`] steps of a linear search and
 //! [`PARALLAX_SECANT_STEPS`] secant steps (fixed counts, as on the GPU),
-//! and the radiance is read along `x - c`. For a planar surface the ratio
+//! and the radiance is read along `x - c` (0 where the search ends on a
+//! silhouette seen from the centre). For a planar surface the ratio
 //! `|x - c| / D(x - c)` is linear in `t`, so one secant step lands on it
 //! up to the distances' interpolation error. Radiance and distance are
 //! sampled bilinearly between texel centres, clamped at the face's edges
@@ -52,6 +53,12 @@ pub const NO_SURFACE_DISTANCE: f32 = 1.0e6;
 /// Linear-search steps of the distance-corrected lookup (module docs);
 /// `face_view.wgsl` has the same constant.
 pub const PARALLAX_LINEAR_STEPS: u32 = 8;
+
+/// Relative mismatch `|x - c| / D(x - c) - 1` above which the lookup's end
+/// point is not on a stored surface but on a jump of the stored distance
+/// (a silhouette seen from the centre); `face_view.wgsl` has the same
+/// constant.
+pub const PARALLAX_SURFACE_TOLERANCE: f64 = 0.05;
 
 /// Secant steps of the distance-corrected lookup after the linear search;
 /// `face_view.wgsl` has the same constant.
@@ -220,12 +227,18 @@ impl CubeMap {
     /// `x - c` for the point `x = p + t r` at the stored distance, found by
     /// [`PARALLAX_LINEAR_STEPS`] linear-search steps over `t = s a / (1 -
     /// a)`, `a = i / (steps + 1)` (`s` the stored distance along `r`, so
-    /// that the search is centred on the single-centre estimate), then
+    /// that the search is centred on the single-centre estimate, or along
+    /// the bisector of `p - c` and `r` where that is nearer), then
     /// [`PARALLAX_SECANT_STEPS`] secant steps on `q(t) = |x - c| / D(x -
     /// c) - 1`. Where nothing real is stored, [`NO_SURFACE_DISTANCE`]
     /// acts as a sphere at infinity and the direction is `r` up to `|p -
     /// c| / NO_SURFACE_DISTANCE`; `r` itself where the search finds no
-    /// surface (or for a zero or non-finite input).
+    /// surface (or for a zero or non-finite input). Zero (radiance 0)
+    /// where the search ends on a jump of the stored distance rather than
+    /// on a surface (`|x - c| / D(x - c)` off 1 by more than
+    /// [`PARALLAX_SURFACE_TOLERANCE`]): the ray passes a silhouette seen
+    /// from the centre, such as an open room's edge, behind which the map
+    /// knows nothing; it is taken to escape.
     pub fn reflection_direction(&self, p: DVec3, r: DVec3) -> DVec3 {
         let o = p - self.centre;
         if !o.is_finite() || !r.is_finite() || r == DVec3::ZERO {
@@ -236,7 +249,12 @@ impl CubeMap {
             let x = o + t * r;
             x.length() / self.distance_along(x)
         };
-        let scale = self.distance_along(r);
+        // The search's scale: the stored distance along r, or along the
+        // bisector of o and r where that is nearer (r from the centre may
+        // pass an edge that the ray from p meets).
+        let scale = self
+            .distance_along(r)
+            .min(self.distance_along(o.normalize_or_zero() + r));
         let (mut t_under, mut q_under) = (0.0, ratio(0.0));
         let (mut t_over, mut q_over) = (0.0, 0.0);
         let mut found = false;
@@ -275,11 +293,17 @@ impl CubeMap {
             }
         }
         let x = o + secant(t_under, q_under, t_over, q_over) * r;
-        if x.is_finite() && x != DVec3::ZERO {
-            x
-        } else {
-            r
+        if !(x.is_finite() && x != DVec3::ZERO) {
+            return r;
         }
+        // The search ends on a jump of the stored distance instead of a
+        // surface: the ray passes a silhouette seen from the centre
+        // (behind it the map knows nothing): nothing real is seen.
+        let q = x.length() / self.distance_along(x);
+        if (q - 1.0).abs() > PARALLAX_SURFACE_TOLERANCE {
+            return DVec3::ZERO;
+        }
+        x
     }
 
     /// Radiance a mirror at `p` reflecting along unit `r` shows: the map

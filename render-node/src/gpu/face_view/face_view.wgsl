@@ -155,10 +155,12 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
 
 // Distance a cube texel holds where it meets no real surface, and the
 // step counts of the distance-corrected lookup: render::cube_map's
-// NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS and PARALLAX_SECANT_STEPS.
+// NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS and
+// PARALLAX_SURFACE_TOLERANCE.
 const NO_SURFACE_DISTANCE: f32 = 1.0e6;
 const PARALLAX_LINEAR_STEPS: u32 = 8u;
 const PARALLAX_SECANT_STEPS: u32 = 4u;
+const PARALLAX_SURFACE_TOLERANCE: f32 = 0.05;
 
 // The four texels of cube map `k` a bilinear lookup along `d` reads
 // (d's face, cube_coords; clamped at the face's edges) and the weights.
@@ -231,13 +233,18 @@ fn cube_secant(t_under: f32, q_under: f32, t_over: f32, q_over: f32) -> f32 {
 // The direction from the centre of cube map `k` along which a mirror at
 // `p` reflecting along unit `r` sees the stored environment: the point
 // x = p + t r at the stored distance, by a linear search over t = s a /
-// (1 - a), a = i / (steps + 1), s the stored distance along r, then
-// secant steps; r where no surface is found
-// (render::cube_map::CubeMap::reflection_direction). Fixed step counts
+// (1 - a), a = i / (steps + 1), s the stored distance along r (or along
+// the bisector of p - c and r where nearer), then
+// secant steps; r where no surface is found, 0 where the search ends on a
+// silhouette (render::cube_map::CubeMap::reflection_direction). Fixed step counts
 // and selects: no branch differs between pixels.
 fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
     let o = p - albedos[frame.cube.z + k].xyz;
-    let scale = cube_distance(k, r);
+    // The stored distance along r, or along the bisector of o and r where
+    // that is nearer.
+    let o_len = length(o);
+    let o_dir = select(vec3<f32>(0.0), o / o_len, o_len > 0.0);
+    let scale = min(cube_distance(k, r), cube_distance(k, o_dir + r));
     var t_under = 0.0;
     var q_under = cube_ratio(k, o, r, 0.0);
     var t_over = 0.0;
@@ -267,7 +274,11 @@ fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
     }
     let x = o + cube_secant(t_under, q_under, t_over, q_over) * r;
     let usable = found && all(abs(x) < vec3<f32>(3.0e38)) && any(x != vec3<f32>(0.0));
-    return select(r, x, usable);
+    // Ending on a jump of the stored distance (a silhouette seen from the
+    // centre) instead of a surface: nothing real is seen (0, an invalid
+    // direction for cube_bilinear).
+    let on_surface = abs(length(x) / cube_distance(k, x) - 1.0) <= PARALLAX_SURFACE_TOLERANCE;
+    return select(r, select(vec3<f32>(0.0), x, on_surface), usable);
 }
 
 @fragment
