@@ -4,7 +4,8 @@
 //! (`environment`, what the demo's target does); the corrected lookup
 //! must land on the traced surface point within the map's resolution and
 //! match its radiance, far better than the single-centre lookup along the
-//! reflected direction. The GPU face view must agree with the CPU
+//! reflected direction; with one wall removed, rays leaving through the
+//! opening are black, as traced. The GPU face view must agree with the CPU
 //! reference on the same scene, and its cube maps' distance channel with
 //! the CPU's distances.
 
