@@ -30,8 +30,9 @@
 //! for, [`target_irradiance`]). A reflective virtual object is a mirror
 //! tinted by its albedo, as the face view draws it
 //! ([`crate::render::cube_map`]), but its reflection is traced exactly
-//! from each surface point into the real environment: the cube map seen
-//! from one centre is the approximation the target judges.
+//! from each surface point into the real environment: the cube map and
+//! its distance-corrected lookup (texel resolution, what the map's centre
+//! cannot see) are the approximation the target judges.
 //!
 //! Pure: no IO, no GPU.
 
@@ -511,8 +512,8 @@ fn target_radiance(
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let l = if object.material.reflective && object.kind == ObjectKind::Virtual {
         // A mirror tinted by its albedo (render::cube_map's model), traced
-        // exactly from the surface point: the cube map's single centre is
-        // the approximation under test.
+        // exactly from the surface point: the cube map's distance-corrected
+        // lookup is the approximation under test.
         let dir = reflect(ray.direction, facing);
         let from = hit.point + facing * 1e-6;
         rho * environment(frame, occluders, from, dir).0.as_dvec3()

@@ -10,6 +10,7 @@ mod bench;
 mod cube_map;
 mod face;
 mod golden;
+mod parallax;
 mod passes;
 pub(crate) mod projector;
 pub(crate) mod scenes;

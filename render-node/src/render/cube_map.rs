@@ -2,7 +2,8 @@
 //! reflective virtual object, six 90-degree faces of the *real*
 //! environment seen from the centre of the object's bounding box. A texel
 //! holds the radiance `rho / pi * E` of the first real surface along its
-//! centre's direction, `rho` the surface's albedo (its procedural texture
+//! centre's direction, and that surface's distance from the centre
+//! ([`NO_SURFACE_DISTANCE`] where there is none), `rho` the surface's albedo (its procedural texture
 //! where it has one) and `E` the virtual lights' irradiance with shadow
 //! types 4 and 5 (phantoms and virtual objects occlude the lights) plus
 //! the ambient term: the same direct-light model as the face view's
@@ -13,10 +14,22 @@
 //! Faces follow [`crate::gpu::shadow_views::cube_views`] (+x, -x, +y, -y,
 //! +z, -z, each `look_to_rh`), rows from the top, so the GPU pass draws
 //! them with those views. A reflective surface of albedo `rho_m` seen
-//! along `d` with normal `n` shows `rho_m * C(reflect(d, n))` (a mirror
-//! tinted by its albedo, no diffuse term), where `C` is the map sampled
-//! bilinearly between texel centres, clamped at the face's edges (no
-//! filtering across faces) by [`CubeMap::sample`]; the GPU does the same.
+//! along `d` with normal `n` at point `p` shows `rho_m * C(p, reflect(d,
+//! n))` (a mirror tinted by its albedo, no diffuse term). `C` is the
+//! *distance-corrected* lookup of distance impostors (Szirmay-Kalos et al.
+//! 2005, "Approximate ray-tracing on the GPU with distance impostors";
+//! beyond the paper, whose lookup along `r` is exact at the centre only):
+//! [`CubeMap::reflection_direction`] finds the point `x = p + t r` whose
+//! distance from the centre equals the stored distance along `x - c`,
+//! with [`PARALLAX_LINEAR_STEPS`] steps of a linear search and
+//! [`PARALLAX_SECANT_STEPS`] secant steps (fixed counts, as on the GPU),
+//! and the radiance is read along `x - c` (0 where the search ends on a
+//! silhouette seen from the centre). For a planar surface the ratio
+//! `|x - c| / D(x - c)` is linear in `t`, so one secant step lands on it
+//! up to the distances' interpolation error. Radiance and distance are
+//! sampled bilinearly between texel centres, clamped at the face's edges
+//! (no filtering across faces) by [`CubeMap::sample`] and
+//! [`CubeMap::distance_along`]; the GPU (`face_view.wgsl`) does the same.
 
 use super::RenderSetupError;
 use super::frame::FrameScene;
@@ -31,6 +44,25 @@ pub const DEFAULT_CUBE_RES: u32 = 128;
 
 /// Faces of a cube map.
 pub const CUBE_FACES: usize = 6;
+
+/// Distance (metres) a texel holds where its direction meets no real
+/// surface: far beyond any showcase, so that the lookup treats it as the
+/// environment at infinity (the GPU pass clears to it).
+pub const NO_SURFACE_DISTANCE: f32 = 1.0e6;
+
+/// Linear-search steps of the distance-corrected lookup (module docs);
+/// `face_view.wgsl` has the same constant.
+pub const PARALLAX_LINEAR_STEPS: u32 = 8;
+
+/// Relative mismatch `|x - c| / D(x - c) - 1` above which the lookup's end
+/// point is not on a stored surface but on a jump of the stored distance
+/// (a silhouette seen from the centre); `face_view.wgsl` has the same
+/// constant.
+pub const PARALLAX_SURFACE_TOLERANCE: f64 = 0.05;
+
+/// Secant steps of the distance-corrected lookup after the linear search;
+/// `face_view.wgsl` has the same constant.
+pub const PARALLAX_SECANT_STEPS: u32 = 4;
 
 /// The world direction (not normalised) of the point `(right, up,
 /// forward)` in `face`'s view: the inverse of
@@ -96,10 +128,53 @@ pub struct CubeMap {
     pub res: u32,
     /// Radiance per face ([`CUBE_FACES`] of them, module docs' order).
     pub faces: Vec<RgbImage>,
+    /// Distance (metres) from `centre` to the first real surface along
+    /// each texel's direction, per face ([`NO_SURFACE_DISTANCE`] where
+    /// there is none).
+    pub distance: Vec<Image<f32>>,
     /// What each texel sees: `object` and `primitive` of the real surface
     /// (`masked` where there is none), `lit` the light samples reaching
     /// it. Neighbours that differ mark silhouette and shadow edges.
     pub state: Vec<Image<PixelState>>,
+}
+
+/// Where a bilinear lookup along a direction reads: the face, the four
+/// texels (`x0, y0, x1, y1`, clamped to the face) and the weights.
+#[derive(Clone, Copy, Debug)]
+struct Bilinear {
+    face: usize,
+    x: [u32; 2],
+    y: [u32; 2],
+    t: DVec2,
+}
+
+impl Bilinear {
+    /// The texels around direction `d` at `res` texels per side; `None`
+    /// for a zero or non-finite `d`.
+    fn new(d: DVec3, res: u32) -> Option<Self> {
+        if !d.is_finite() || d == DVec3::ZERO {
+            return None;
+        }
+        let (face, c) = world_to_face(d);
+        if !(c.z > 0.0) {
+            return None;
+        }
+        let ndc = DVec2::new(c.x, c.y) / c.z;
+        let res = f64::from(res.max(1));
+        let f = DVec2::new(
+            (ndc.x * 0.5 + 0.5) * res - 0.5,
+            (0.5 - ndc.y * 0.5) * res - 0.5,
+        );
+        let f0 = f.floor();
+        let max = res - 1.0;
+        let at = |v: f64| v.clamp(0.0, max) as u32;
+        Some(Self {
+            face,
+            x: [at(f0.x), at(f0.x + 1.0)],
+            y: [at(f0.y), at(f0.y + 1.0)],
+            t: f - f0,
+        })
+    }
 }
 
 impl CubeMap {
@@ -107,28 +182,134 @@ impl CubeMap {
     /// four nearest texel centres of `d`'s face, clamped at the face's
     /// edges (0 for a zero or non-finite `d`).
     pub fn sample(&self, d: DVec3) -> Vec3 {
-        if !d.is_finite() || d == DVec3::ZERO {
+        let Some(b) = Bilinear::new(d, self.res) else {
             return Vec3::ZERO;
-        }
-        let (face, c) = world_to_face(d);
-        let ndc = DVec2::new(c.x, c.y) / c.z;
-        let res = f64::from(self.res);
-        let fx = (ndc.x * 0.5 + 0.5) * res - 0.5;
-        let fy = (0.5 - ndc.y * 0.5) * res - 0.5;
-        let (x0, y0) = (fx.floor(), fy.floor());
-        let (tx, ty) = ((fx - x0) as f32, (fy - y0) as f32);
-        let max = res - 1.0;
-        let at = |x: f64, y: f64| {
-            let (x, y) = (x.clamp(0.0, max) as u32, y.clamp(0.0, max) as u32);
-            self.faces[face].get(x, y).copied().unwrap_or(Vec3::ZERO)
+        };
+        let at = |i: usize, j: usize| {
+            self.faces
+                .get(b.face)
+                .and_then(|f| f.get(b.x[i], b.y[j]))
+                .copied()
+                .unwrap_or(Vec3::ZERO)
         };
         // `a + (b - a) t` is exactly `a` when the texels are equal (glam's
         // `lerp`, `a (1 - t) + b t`, can round past both).
-        let mix = |a: Vec3, b: Vec3, t: f32| a + (b - a) * t;
-        let top = mix(at(x0, y0), at(x0 + 1.0, y0), tx);
-        let bottom = mix(at(x0, y0 + 1.0), at(x0 + 1.0, y0 + 1.0), tx);
-        let v = mix(top, bottom, ty);
+        let mix = |a: Vec3, b: Vec3, t: f64| a + (b - a) * t as f32;
+        let top = mix(at(0, 0), at(1, 0), b.t.x);
+        let bottom = mix(at(0, 1), at(1, 1), b.t.x);
+        let v = mix(top, bottom, b.t.y);
         if v.is_finite() { v } else { Vec3::ZERO }
+    }
+
+    /// Distance from the centre to the real surface along direction `d`,
+    /// bilinear like [`Self::sample`]; [`NO_SURFACE_DISTANCE`] for a zero
+    /// or non-finite `d`.
+    pub fn distance_along(&self, d: DVec3) -> f64 {
+        let none = f64::from(NO_SURFACE_DISTANCE);
+        let Some(b) = Bilinear::new(d, self.res) else {
+            return none;
+        };
+        let at = |i: usize, j: usize| {
+            self.distance
+                .get(b.face)
+                .and_then(|f| f.get(b.x[i], b.y[j]))
+                .map_or(none, |v| f64::from(*v))
+        };
+        let mix = |a: f64, b: f64, t: f64| a + (b - a) * t;
+        let top = mix(at(0, 0), at(1, 0), b.t.x);
+        let bottom = mix(at(0, 1), at(1, 1), b.t.x);
+        let v = mix(top, bottom, b.t.y);
+        if v.is_finite() && v > 0.0 { v } else { none }
+    }
+
+    /// The direction from the centre along which a mirror at `p`
+    /// reflecting along unit `r` sees the stored environment (module docs):
+    /// `x - c` for the point `x = p + t r` at the stored distance, found by
+    /// [`PARALLAX_LINEAR_STEPS`] linear-search steps over `t = s a / (1 -
+    /// a)`, `a = i / (steps + 1)` (`s` the stored distance along `r`, so
+    /// that the search is centred on the single-centre estimate, or along
+    /// the bisector of `p - c` and `r` where that is nearer), then
+    /// [`PARALLAX_SECANT_STEPS`] secant steps on `q(t) = |x - c| / D(x -
+    /// c) - 1`. Where nothing real is stored, [`NO_SURFACE_DISTANCE`]
+    /// acts as a sphere at infinity and the direction is `r` up to `|p -
+    /// c| / NO_SURFACE_DISTANCE`; `r` itself where the search finds no
+    /// surface (or for a zero or non-finite input). Zero (radiance 0)
+    /// where the search ends on a jump of the stored distance rather than
+    /// on a surface (`|x - c| / D(x - c)` off 1 by more than
+    /// [`PARALLAX_SURFACE_TOLERANCE`]): the ray passes a silhouette seen
+    /// from the centre, such as an open room's edge, behind which the map
+    /// knows nothing; it is taken to escape.
+    pub fn reflection_direction(&self, p: DVec3, r: DVec3) -> DVec3 {
+        let o = p - self.centre;
+        if !o.is_finite() || !r.is_finite() || r == DVec3::ZERO {
+            return r;
+        }
+        // q + 1 at parameter t: the point's distance over the stored one.
+        let ratio = |t: f64| {
+            let x = o + t * r;
+            x.length() / self.distance_along(x)
+        };
+        // The search's scale: the stored distance along r, or along the
+        // bisector of o and r where that is nearer (r from the centre may
+        // pass an edge that the ray from p meets).
+        let scale = self
+            .distance_along(r)
+            .min(self.distance_along(o.normalize_or_zero() + r));
+        let (mut t_under, mut q_under) = (0.0, ratio(0.0));
+        let (mut t_over, mut q_over) = (0.0, 0.0);
+        let mut found = false;
+        let steps = f64::from(PARALLAX_LINEAR_STEPS + 1);
+        for i in 1..=PARALLAX_LINEAR_STEPS {
+            let a = f64::from(i) / steps;
+            let t = scale * a / (1.0 - a);
+            let q = ratio(t);
+            let over = !found && q >= 1.0;
+            if over {
+                (t_over, q_over) = (t, q);
+            } else if !found {
+                (t_under, q_under) = (t, q);
+            }
+            found = found || over;
+        }
+        if !found {
+            return r;
+        }
+        let secant = |t_under: f64, q_under: f64, t_over: f64, q_over: f64| {
+            let w = (1.0 - q_under) / (q_over - q_under);
+            let w = if w.is_finite() {
+                w.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            t_under + (t_over - t_under) * w
+        };
+        for _ in 0..PARALLAX_SECANT_STEPS {
+            let t = secant(t_under, q_under, t_over, q_over);
+            let q = ratio(t);
+            if q < 1.0 {
+                (t_under, q_under) = (t, q);
+            } else {
+                (t_over, q_over) = (t, q);
+            }
+        }
+        let x = o + secant(t_under, q_under, t_over, q_over) * r;
+        if !(x.is_finite() && x != DVec3::ZERO) {
+            return r;
+        }
+        // The search ends on a jump of the stored distance instead of a
+        // surface: the ray passes a silhouette seen from the centre
+        // (behind it the map knows nothing): nothing real is seen.
+        let q = x.length() / self.distance_along(x);
+        if (q - 1.0).abs() > PARALLAX_SURFACE_TOLERANCE {
+            return DVec3::ZERO;
+        }
+        x
+    }
+
+    /// Radiance a mirror at `p` reflecting along unit `r` shows: the map
+    /// along [`Self::reflection_direction`].
+    pub fn reflection(&self, p: DVec3, r: DVec3) -> Vec3 {
+        self.sample(self.reflection_direction(p, r))
     }
 }
 
@@ -174,33 +355,34 @@ pub fn cube_map_cpu(
     }
     let res = res.max(1);
     let mut faces = Vec::with_capacity(CUBE_FACES);
+    let mut distance = Vec::with_capacity(CUBE_FACES);
     let mut state = Vec::with_capacity(CUBE_FACES);
+    fn image<T>(res: u32, data: Vec<T>) -> Image<T> {
+        Image {
+            width: res,
+            height: res,
+            data,
+        }
+    }
     for face in 0..CUBE_FACES {
-        let texels: Vec<(Vec3, PixelState)> = (0..res)
+        let texels: Vec<EnvironmentHit> = (0..res)
             .into_par_iter()
             .flat_map_iter(|y| {
                 (0..res).map(move |x| {
-                    environment(frame, occluders, centre, texel_direction(face, x, y, res))
+                    environment_hit(frame, occluders, centre, texel_direction(face, x, y, res))
                 })
             })
             .collect();
-        let (radiance, st): (Vec<Vec3>, Vec<PixelState>) = texels.into_iter().unzip();
-        faces.push(Image {
-            width: res,
-            height: res,
-            data: radiance,
-        });
-        state.push(Image {
-            width: res,
-            height: res,
-            data: st,
-        });
+        faces.push(image(res, texels.iter().map(|t| t.radiance).collect()));
+        distance.push(image(res, texels.iter().map(|t| t.distance).collect()));
+        state.push(image(res, texels.into_iter().map(|t| t.state).collect()));
     }
     Ok(CubeMap {
         object,
         centre,
         res,
         faces,
+        distance,
         state,
     })
 }
@@ -225,6 +407,29 @@ pub fn environment(
     from: DVec3,
     dir: DVec3,
 ) -> (Vec3, PixelState) {
+    let hit = environment_hit(frame, occluders, from, dir);
+    (hit.radiance, hit.state)
+}
+
+/// What a texel holds: [`environment`]'s radiance and state, and the
+/// surface's distance along the ray.
+struct EnvironmentHit {
+    radiance: Vec3,
+    distance: f32,
+    state: PixelState,
+}
+
+fn environment_hit(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    from: DVec3,
+    dir: DVec3,
+) -> EnvironmentHit {
+    let none = |state| EnvironmentHit {
+        radiance: Vec3::ZERO,
+        distance: NO_SURFACE_DISTANCE,
+        state,
+    };
     let masked = PixelState {
         masked: true,
         ..PixelState::default()
@@ -233,14 +438,18 @@ pub fn environment(
         .real_only
         .closest_hit(&Ray::new(from, dir), 0.0, f64::INFINITY)
     else {
-        return (Vec3::ZERO, masked);
+        return none(masked);
     };
     let Some(o) = frame.showcase.objects.get(hit.object as usize) else {
-        return (Vec3::ZERO, masked);
+        return none(masked);
     };
     let object = Some(hit.object);
+    let distance = (hit.point - from).length() as f32;
     if hit.geometric_normal == DVec3::ZERO {
-        return (Vec3::ZERO, PixelState { object, ..masked });
+        return EnvironmentHit {
+            distance,
+            ..none(PixelState { object, ..masked })
+        };
     }
     let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
         hit.geometric_normal
@@ -253,98 +462,25 @@ pub fn environment(
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
         .as_dvec3();
     let l = rho / std::f64::consts::PI * e;
-    (
-        if l.is_finite() {
+    EnvironmentHit {
+        radiance: if l.is_finite() {
             l.as_vec3()
         } else {
             Vec3::ZERO
         },
-        PixelState {
+        distance: if distance.is_finite() {
+            distance
+        } else {
+            NO_SURFACE_DISTANCE
+        },
+        state: PixelState {
             object,
             primitive: Some(hit.primitive),
             lit,
             ..PixelState::default()
         },
-    )
+    }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn face_coordinates_round_trip() {
-        for face in 0..CUBE_FACES {
-            for (x, y) in [(0, 0), (3, 7), (7, 0), (5, 5)] {
-                let d = texel_direction(face, x, y, 8);
-                let (f, c) = world_to_face(d);
-                assert_eq!(f, face, "{face} {x} {y} -> {d}");
-                let ndc = DVec2::new(c.x, c.y) / c.z;
-                let tx = ((ndc.x * 0.5 + 0.5) * 8.0).floor() as u32;
-                let ty = ((0.5 - ndc.y * 0.5) * 8.0).floor() as u32;
-                assert_eq!((tx, ty), (x, y), "face {face}");
-            }
-        }
-    }
-
-    #[test]
-    fn faces_match_the_shadow_cube_views() {
-        // The texel's direction projects into the same texel through the
-        // GPU pass's view matrices.
-        let views = crate::gpu::shadow_views::cube_views(glam::Vec3::ZERO, 0.01, 10.0, 8);
-        for (face, v) in views.iter().enumerate() {
-            let m = glam::Mat4::from_cols_array_2d(&v.clip_from_world);
-            let d = texel_direction(face, 2, 5, 8).as_vec3();
-            let c = m * d.extend(1.0);
-            let ndc = glam::Vec2::new(c.x, c.y) / c.w;
-            let tx = ((ndc.x * 0.5 + 0.5) * 8.0).floor() as u32;
-            let ty = ((0.5 - ndc.y * 0.5) * 8.0).floor() as u32;
-            assert!(c.w > 0.0 && (tx, ty) == (2, 5), "face {face}: {ndc}");
-        }
-    }
-
-    #[test]
-    fn sampling_interpolates_between_texel_centres_and_clamps() {
-        let mut faces = vec![Image::new(2, 2, Vec3::ZERO); CUBE_FACES];
-        faces[4].data = vec![Vec3::ZERO, Vec3::ONE, Vec3::ZERO, Vec3::ONE];
-        let map = CubeMap {
-            object: 0,
-            centre: DVec3::ZERO,
-            res: 2,
-            faces,
-            state: vec![Image::new(2, 2, PixelState::default()); CUBE_FACES],
-        };
-        // +z face: right is -x. Straight ahead lies between the columns.
-        assert!((map.sample(DVec3::Z).x - 0.5).abs() < 1e-6);
-        // Beyond the outer texel centres the value is clamped.
-        assert_eq!(map.sample(DVec3::new(0.9, 0.0, 1.0)).x, 0.0);
-        assert_eq!(map.sample(DVec3::new(-0.9, 0.0, 1.0)).x, 1.0);
-        assert_eq!(map.sample(DVec3::ZERO), Vec3::ZERO);
-        assert_eq!(map.sample(DVec3::NAN), Vec3::ZERO);
-    }
-
-    proptest::proptest! {
-        #[test]
-        fn sampling_any_direction_is_finite(
-            x in proptest::num::f64::ANY,
-            y in proptest::num::f64::ANY,
-            z in proptest::num::f64::ANY,
-        ) {
-            let map = CubeMap {
-                object: 0,
-                centre: DVec3::ZERO,
-                res: 3,
-                faces: (0..CUBE_FACES).map(|f| Image::new(3, 3, Vec3::splat(f as f32))).collect(),
-                state: vec![Image::new(3, 3, PixelState::default()); CUBE_FACES],
-            };
-            let v = map.sample(DVec3::new(x, y, z));
-            proptest::prop_assert!(v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 5.0);
-        }
-    }
-
-    #[test]
-    fn reflection_mirrors_the_normal_component() {
-        let r = reflect(DVec3::new(1.0, -1.0, 0.0), DVec3::Y);
-        assert_eq!(r, DVec3::new(1.0, 1.0, 0.0));
-    }
-}
+mod tests;

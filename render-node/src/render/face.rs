@@ -14,8 +14,10 @@
 //! occlusion shadows, paper section 5.4; the GPU does per fragment what
 //! the paper's stencil pass does). A reflective virtual object shows its
 //! cube map of the real environment instead of its diffuse shading
-//! (paper section 5.3, [`super::cube_map`]): `rho * C(reflect(d, n))` for
-//! the eye's ray direction `d` and the flat normal `n` facing the eye.
+//! (paper section 5.3, [`super::cube_map`]): `rho * C(p, reflect(d, n))`
+//! for the surface point `p`, the eye's ray direction `d` and the flat
+//! normal `n` facing the eye, `C` the distance-corrected lookup
+//! ([`CubeMap::reflection_direction`]).
 //!
 //! Pixel `(u, v)` of the CRT is drawn at its centre: the eye's ray goes
 //! through the pixel centre's *reflected* position (`mirror_view`), so a
@@ -158,7 +160,7 @@ fn face_pixel(
         ..PixelState::default()
     };
     if let Some(map) = cube_maps.iter().find(|m| m.object == hit.object as usize) {
-        let r = reflect(dir, facing);
+        let r = map.reflection_direction(hit.point, reflect(dir, facing));
         let rho = o.material.albedo_at(hit.uv.unwrap_or(Vec2::ZERO));
         let l = rho * map.sample(r);
         // Edges of the reflected environment are edges of this view.
@@ -184,8 +186,8 @@ fn face_pixel(
     )
 }
 
-/// A digest of the states of the four texels a reflected sample blends
-/// (their objects and lit samples), standing in for `lit` of a
+/// A digest of the states of the four texels a reflected sample along
+/// `d` from the map's centre blends (their objects and lit samples), standing in for `lit` of a
 /// reflective pixel: where it changes between neighbouring pixels, the
 /// reflection crosses a silhouette or shadow edge of the environment.
 fn reflected_state(map: &CubeMap, d: DVec3) -> u64 {

@@ -126,8 +126,9 @@ impl FacePipeline {
     }
 
     /// Read the cube maps back (after a draw that ran
-    /// [`Pass::CubeMaps`]): per map, its six faces of `res * res` RGBA
-    /// texels (`crate::render::cube_map` order), maps in object order.
+    /// [`Pass::CubeMaps`]): per map, its six faces of `res * res` texels
+    /// (linear RGB radiance, distance from the centre; `crate::render::cube_map`
+    /// order), maps in object order.
     pub fn read_cube_maps(
         &self,
         ctx: &GpuContext,
@@ -225,8 +226,15 @@ impl FacePipeline {
                 }
             }
         }
-        // Instances: virtual objects first, then phantoms.
+        // Instances: virtual objects first, then phantoms; after them
+        // the cube maps' centres (the distance-corrected lookup's origin).
         albedo.extend(phantom_albedo);
+        let first_centre = albedo.len() as u32;
+        albedo.extend(
+            centres
+                .iter()
+                .map(|(_, c)| c.as_vec3().extend(0.0).to_array()),
+        );
 
         let maps_changed =
             ensure_maps(&mut self.maps, device, self.shadow_res, views.len() as u32)?;
@@ -257,7 +265,7 @@ impl FacePipeline {
                 ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
                 counts: [lights.len() as u32, others, shadow_res, flags],
                 shadow: [SHADOW_NEAR, far, 0.0, 0.0],
-                cube: [cube_res, centres.len() as u32, 0, 0],
+                cube: [cube_res, centres.len() as u32, first_centre, 0],
                 own: [own, 0, 0, 0],
             };
         // The maps show the lights, every object's geometry (phantoms,

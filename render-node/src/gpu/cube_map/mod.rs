@@ -2,7 +2,9 @@
 //! with their albedo, lit by the virtual lights with the light shadow
 //! views and the ambient term) drawn from the centre of each reflective
 //! virtual object into six 90-degree layers of one colour array texture
-//! ([`CubeMaps`]), which the face view samples along reflected rays. The
+//! ([`CubeMaps`]), with each texel's distance from the centre in alpha
+//! ([`NO_SURFACE_DISTANCE`] where nothing real is seen), which the face
+//! view looks up distance-corrected along reflected rays. The
 //! shader is the face view's (`vs_main`, `fs_environment`), so a cube
 //! texel is shaded exactly as the face view shades a surface; each layer
 //! has its own uniform whose eye is the map's centre and whose
@@ -20,6 +22,7 @@ use super::shadow_views::cube_views;
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, padded_bytes_per_row};
 use super::upload::UploadBuffer;
 use crate::node::renderer::Fnv64;
+use crate::render::cube_map::NO_SURFACE_DISTANCE;
 
 /// Near plane of the cube faces (metres from the centre).
 pub const CUBE_NEAR: f32 = 1e-3;
@@ -58,7 +61,8 @@ impl CubeMapPass {
     }
 
     /// Record one render pass per layer in `layers` (with `binds[i]`, the
-    /// bind group of layer `layers.start + i`): clear to 0 and depth 1,
+    /// bind group of layer `layers.start + i`): clear to radiance 0 at
+    /// distance [`NO_SURFACE_DISTANCE`] and depth 1,
     /// draw the phantoms. Returns the layers drawn.
     pub fn encode(
         &self,
@@ -83,7 +87,10 @@ impl CubeMapPass {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            a: f64::from(NO_SURFACE_DISTANCE),
+                            ..wgpu::Color::TRANSPARENT
+                        }),
                         store: wgpu::StoreOp::Store,
                     },
                 })],
@@ -113,7 +120,8 @@ impl CubeMapPass {
     }
 }
 
-/// The cube maps: `res x res` linear RGBA f32 layers, six per map (at
+/// The cube maps: `res x res` linear RGB radiance and distance (alpha)
+/// f32 layers, six per map (at
 /// least one layer, so that the face view's binding exists without
 /// maps), and one depth buffer the layers share.
 #[derive(Debug)]
@@ -205,8 +213,8 @@ impl CubeMaps {
     }
 
     /// Read every layer back (waits for submitted work): per layer,
-    /// `res * res` RGBA texels row-major from the top-left; non-finite
-    /// values become 0.
+    /// `res * res` texels (linear RGB radiance, distance) row-major from
+    /// the top-left; non-finite values become 0.
     pub fn read(
         &self,
         device: &wgpu::Device,

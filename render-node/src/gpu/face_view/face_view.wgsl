@@ -6,10 +6,12 @@
 // plus ambient. Occluding occlusion shadows: a phantom point inside the
 // occlusion shadow of any other tracked eye (another observer's, or this
 // observer's other eye; a virtual object between it and that eye, from
-// the eye shadow views) is drawn as the lit real surface instead of black. Reflective virtual objects (albedo w > 0)
-// show their cube map of the real environment, albedo * C(reflect(d, n)),
-// C sampled bilinearly within a face (render::cube_map). The cube-map
-// pass draws the phantoms into the maps with this module's vs_main and
+// the eye shadow views) is drawn as the lit real surface instead of black.
+// Reflective virtual objects (albedo w > 0) show their cube map of the
+// real environment, albedo * C(p, reflect(d, n)), C the distance-corrected
+// lookup (the maps hold each texel's distance in alpha) sampled
+// bilinearly within a face (render::cube_map). The cube-map pass draws
+// the phantoms into the maps with this module's vs_main and
 // fs_environment (gpu::cube_map). CPU reference: render::face.
 
 struct Frame {
@@ -24,7 +26,8 @@ struct Frame {
     counts: vec4<u32>,
     // near and far plane of the shadow views.
     shadow: vec4<f32>,
-    // cube map texels per side.
+    // cube map texels per side, cube maps, the entry of `albedos` holding
+    // map 0's centre (map k's at that + k).
     cube: vec4<u32>,
     // x: this eye's own entry in `eyes` (skipped), 0xffffffff for none.
     own: vec4<u32>,
@@ -56,6 +59,7 @@ struct ShadowView {
 @group(0) @binding(3) var maps: texture_depth_2d_array;
 // Linear RGB albedo per draw, indexed by the draw's instance; w is 0, or
 // 1 + k for a reflective object with cube map k (layers 6k to 6k + 5).
+// After the draws: xyz of each cube map's centre (frame.cube.z on).
 @group(0) @binding(4) var<uniform> albedos: array<vec4<f32>, 256>;
 
 struct Eye {
@@ -149,10 +153,26 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
 }
 
 
-// Radiance of cube map `k` along `d`: bilinear between the texel centres
-// of d's face (cube_coords), clamped at the face's edges
-// (render::cube_map::CubeMap::sample).
-fn cube_sample(k: u32, d: vec3<f32>) -> vec3<f32> {
+// Distance a cube texel holds where it meets no real surface, and the
+// step counts of the distance-corrected lookup: render::cube_map's
+// NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS and
+// PARALLAX_SURFACE_TOLERANCE.
+const NO_SURFACE_DISTANCE: f32 = 1.0e6;
+const PARALLAX_LINEAR_STEPS: u32 = 8u;
+const PARALLAX_SECANT_STEPS: u32 = 4u;
+const PARALLAX_SURFACE_TOLERANCE: f32 = 0.05;
+
+// The four texels of cube map `k` a bilinear lookup along `d` reads
+// (d's face, cube_coords; clamped at the face's edges) and the weights.
+struct CubeTexels {
+    layer: u32,
+    p0: vec2<u32>,
+    p1: vec2<u32>,
+    t: vec2<f32>,
+    valid: bool,
+}
+
+fn cube_texels(k: u32, d: vec3<f32>) -> CubeTexels {
     let a = abs(d);
     var face = 5u;
     var c = vec3<f32>(d.x, d.y, -d.z);
@@ -166,23 +186,99 @@ fn cube_sample(k: u32, d: vec3<f32>) -> vec3<f32> {
         face = 4u;
         c = vec3<f32>(-d.x, d.y, d.z);
     }
-    if (!(c.z > 0.0)) {
-        return vec3<f32>(0.0);
-    }
+    var out: CubeTexels;
+    out.valid = c.z > 0.0;
     let res = f32(frame.cube.x);
-    let ndc = c.xy / c.z;
+    let ndc = select(vec2<f32>(0.0), c.xy / c.z, out.valid);
     let f = vec2<f32>((ndc.x * 0.5 + 0.5) * res - 0.5, (0.5 - ndc.y * 0.5) * res - 0.5);
     let f0 = floor(f);
-    let t = f - f0;
+    out.t = f - f0;
     let hi = vec2<f32>(res - 1.0);
-    let p0 = vec2<u32>(clamp(f0, vec2<f32>(0.0), hi));
-    let p1 = vec2<u32>(clamp(f0 + 1.0, vec2<f32>(0.0), hi));
-    let layer = 6u * k + face;
-    let c00 = textureLoad(cube_maps, p0, layer, 0).rgb;
-    let c10 = textureLoad(cube_maps, vec2<u32>(p1.x, p0.y), layer, 0).rgb;
-    let c01 = textureLoad(cube_maps, vec2<u32>(p0.x, p1.y), layer, 0).rgb;
-    let c11 = textureLoad(cube_maps, p1, layer, 0).rgb;
-    return mix(mix(c00, c10, t.x), mix(c01, c11, t.x), t.y);
+    out.p0 = vec2<u32>(clamp(f0, vec2<f32>(0.0), hi));
+    out.p1 = vec2<u32>(clamp(f0 + 1.0, vec2<f32>(0.0), hi));
+    out.layer = 6u * k + face;
+    return out;
+}
+
+// Radiance (rgb) and distance (a) of cube map `k` along `d`: bilinear
+// between the texel centres of d's face, clamped at the face's edges
+// (render::cube_map::CubeMap::sample and distance_along).
+fn cube_bilinear(k: u32, d: vec3<f32>) -> vec4<f32> {
+    let b = cube_texels(k, d);
+    let c00 = textureLoad(cube_maps, b.p0, b.layer, 0);
+    let c10 = textureLoad(cube_maps, vec2<u32>(b.p1.x, b.p0.y), b.layer, 0);
+    let c01 = textureLoad(cube_maps, vec2<u32>(b.p0.x, b.p1.y), b.layer, 0);
+    let c11 = textureLoad(cube_maps, b.p1, b.layer, 0);
+    let v = mix(mix(c00, c10, b.t.x), mix(c01, c11, b.t.x), b.t.y);
+    return select(vec4<f32>(0.0, 0.0, 0.0, NO_SURFACE_DISTANCE), v, b.valid);
+}
+
+fn cube_distance(k: u32, d: vec3<f32>) -> f32 {
+    let v = cube_bilinear(k, d).a;
+    return select(NO_SURFACE_DISTANCE, v, v > 0.0 && v < 3.0e38);
+}
+
+// |x - c| over the stored distance along x - c, x - c = o + t r.
+fn cube_ratio(k: u32, o: vec3<f32>, r: vec3<f32>, t: f32) -> f32 {
+    let x = o + t * r;
+    return length(x) / cube_distance(k, x);
+}
+
+fn cube_secant(t_under: f32, q_under: f32, t_over: f32, q_over: f32) -> f32 {
+    let w = (1.0 - q_under) / (q_over - q_under);
+    let finite = abs(w) < 3.0e38;
+    return t_under + (t_over - t_under) * select(0.0, clamp(w, 0.0, 1.0), finite);
+}
+
+// The direction from the centre of cube map `k` along which a mirror at
+// `p` reflecting along unit `r` sees the stored environment: the point
+// x = p + t r at the stored distance, by a linear search over t = s a /
+// (1 - a), a = i / (steps + 1), s the stored distance along r (or along
+// the bisector of p - c and r where nearer), then
+// secant steps; r where no surface is found, 0 where the search ends on a
+// silhouette (render::cube_map::CubeMap::reflection_direction). Fixed step counts
+// and selects: no branch differs between pixels.
+fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
+    let o = p - albedos[frame.cube.z + k].xyz;
+    // The stored distance along r, or along the bisector of o and r where
+    // that is nearer.
+    let o_len = length(o);
+    let o_dir = select(vec3<f32>(0.0), o / o_len, o_len > 0.0);
+    let scale = min(cube_distance(k, r), cube_distance(k, o_dir + r));
+    var t_under = 0.0;
+    var q_under = cube_ratio(k, o, r, 0.0);
+    var t_over = 0.0;
+    var q_over = 0.0;
+    var found = false;
+    let steps = f32(PARALLAX_LINEAR_STEPS + 1u);
+    for (var i = 1u; i <= PARALLAX_LINEAR_STEPS; i++) {
+        let a = f32(i) / steps;
+        let t = scale * a / (1.0 - a);
+        let q = cube_ratio(k, o, r, t);
+        let over = !found && q >= 1.0;
+        t_over = select(t_over, t, over);
+        q_over = select(q_over, q, over);
+        let under = !found && !over;
+        t_under = select(t_under, t, under);
+        q_under = select(q_under, q, under);
+        found = found || over;
+    }
+    for (var j = 0u; j < PARALLAX_SECANT_STEPS; j++) {
+        let t = cube_secant(t_under, q_under, t_over, q_over);
+        let q = cube_ratio(k, o, r, t);
+        let under = q < 1.0;
+        t_under = select(t_under, t, under);
+        q_under = select(q_under, q, under);
+        t_over = select(t, t_over, under);
+        q_over = select(q, q_over, under);
+    }
+    let x = o + cube_secant(t_under, q_under, t_over, q_over) * r;
+    let usable = found && all(abs(x) < vec3<f32>(3.0e38)) && any(x != vec3<f32>(0.0));
+    // Ending on a jump of the stored distance (a silhouette seen from the
+    // centre) instead of a surface: nothing real is seen (0, an invalid
+    // direction for cube_bilinear).
+    let on_surface = abs(length(x) / cube_distance(k, x) - 1.0) <= PARALLAX_SURFACE_TOLERANCE;
+    return select(r, select(vec3<f32>(0.0), x, on_surface), usable);
 }
 
 @fragment
@@ -190,15 +286,19 @@ fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
     let a = albedos[in.object];
     if (a.w > 0.5) {
         let d = normalize(in.world - frame.eye.xyz);
-        let r = reflect(d, facing(in));
-        return vec4<f32>(a.rgb * cube_sample(u32(a.w - 0.5), r), 1.0);
+        let k = u32(a.w - 0.5);
+        let r = cube_reflection_direction(k, in.world, reflect(d, facing(in)));
+        return vec4<f32>(a.rgb * cube_bilinear(k, r).rgb, 1.0);
     }
     return vec4<f32>(shade(in.world, facing(in), a.rgb), 1.0);
 }
 
 // The cube-map pass: a phantom's radiance rho / pi * E seen from the
-// map's centre (frame.eye), virtual lights with shadows and ambient.
+// map's centre (frame.eye), virtual lights with shadows and ambient, and
+// its distance from the centre in alpha (the clear value is
+// NO_SURFACE_DISTANCE).
 @fragment
 fn fs_environment(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(shade(in.world, facing(in), albedos[in.object].rgb), 1.0);
+    let n = facing(in);
+    return vec4<f32>(shade(in.world, n, albedos[in.object].rgb), length(in.world - frame.eye.xyz));
 }

@@ -28,7 +28,8 @@ pub struct FaceFrameUniform {
     pub counts: [u32; 4],
     /// near and far plane of the shadow views (depth back to distance).
     pub shadow: [f32; 4],
-    /// x: cube map texels per side.
+    /// x: cube map texels per side, y: cube maps, z: the entry of the
+    /// albedos buffer holding cube map 0's centre (map `k`'s at `z + k`).
     pub cube: [u32; 4],
     /// x: this eye's own entry in the eyes buffer, skipped by the
     /// occluding occlusion shadows ([`NO_OWN_EYE`] for none).
@@ -51,7 +52,8 @@ pub struct FaceBindings<'a> {
     /// The distance maps.
     pub maps: &'a ShadowMaps,
     /// Linear RGB albedo per draw instance: the virtual objects, then the
-    /// phantoms (`[f32; 4]` each, at least one).
+    /// phantoms (`[f32; 4]` each, at least one); then the cube maps'
+    /// centres (xyz, from [`FaceFrameUniform::cube`]`[2]`).
     pub albedos: &'a wgpu::Buffer,
     /// The other observers' eyes as [`super::irradiance_map::EyeGpu`]s (at least one element).
     pub other_eyes: &'a wgpu::Buffer,
