@@ -204,6 +204,7 @@ impl FacePipeline {
         };
         let mut phantoms = Vec::new();
         let mut virtuals = Vec::new();
+        let mut mirrors = Vec::new();
         let mut albedo = Vec::new();
         let mut phantom_albedo = Vec::new();
         for (oi, r) in self.scene.ranges() {
@@ -222,6 +223,7 @@ impl FacePipeline {
                 }
                 ObjectKind::Virtual => {
                     virtuals.push(r.clone());
+                    mirrors.push(map.is_some());
                     albedo.push(a);
                 }
             }
@@ -446,6 +448,7 @@ impl FacePipeline {
             vertices,
             phantoms: if nothing_virtual { &[] } else { &phantoms },
             virtuals: &virtuals,
+            mirrors: &mirrors,
         };
         for res in self.eyes.iter().take(eyes.len()) {
             if let Some((_, bind)) = &res.bind {

@@ -281,16 +281,24 @@ fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
     return select(r, select(vec3<f32>(0.0), x, on_surface), usable);
 }
 
+// A diffuse virtual object, shaded by the virtual lights. Mirrors have
+// their own entry point, chosen per draw: llvmpipe would run the
+// reflection lookup for every pixel of a branch on the albedo's w.
 @fragment
 fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
     let a = albedos[in.object];
-    if (a.w > 0.5) {
-        let d = normalize(in.world - frame.eye.xyz);
-        let k = u32(a.w - 0.5);
-        let r = cube_reflection_direction(k, in.world, reflect(d, facing(in)));
-        return vec4<f32>(a.rgb * cube_bilinear(k, r).rgb, 1.0);
-    }
     return vec4<f32>(shade(in.world, facing(in), a.rgb), 1.0);
+}
+
+// A reflective virtual object: its albedo times its cube map (w: 1 + the
+// map's index) along the distance-corrected reflected ray.
+@fragment
+fn fs_virtual_mirror(in: VertexOut) -> @location(0) vec4<f32> {
+    let a = albedos[in.object];
+    let d = normalize(in.world - frame.eye.xyz);
+    let k = u32(max(a.w - 0.5, 0.0));
+    let r = cube_reflection_direction(k, in.world, reflect(d, facing(in)));
+    return vec4<f32>(a.rgb * cube_bilinear(k, r).rgb, 1.0);
 }
 
 // The cube-map pass: a phantom's radiance rho / pi * E seen from the

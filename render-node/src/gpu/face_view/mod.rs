@@ -73,6 +73,10 @@ pub struct FaceDraws<'a> {
     pub phantoms: &'a [std::ops::Range<u32>],
     /// Vertex range of each virtual object (instances from 0).
     pub virtuals: &'a [std::ops::Range<u32>],
+    /// Whether each virtual object (as `virtuals`) is a mirror with a cube
+    /// map (albedo w > 0), drawn by the mirror pipeline; missing entries
+    /// are diffuse.
+    pub mirrors: &'a [bool],
 }
 
 /// The compiled face pipelines (phantom depth, virtual shading).
@@ -351,7 +355,11 @@ impl FaceViewPass {
     /// Compile the pipelines for [`OffscreenTarget`]'s formats.
     pub fn new(device: &wgpu::Device) -> Self {
         Self {
-            variants: Variants::new(device, true, &["fs_phantom", "fs_virtual"]),
+            variants: Variants::new(
+                device,
+                true,
+                &["fs_phantom", "fs_virtual", "fs_virtual_mirror"],
+            ),
         }
     }
 
@@ -394,7 +402,11 @@ impl FaceViewPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        let (Some(phantom), Some(shaded)) = (bind_group.pipeline(0), bind_group.pipeline(1)) else {
+        let (Some(phantom), Some(shaded), Some(mirror)) = (
+            bind_group.pipeline(0),
+            bind_group.pipeline(1),
+            bind_group.pipeline(2),
+        ) else {
             return;
         };
         pass.set_bind_group(0, bind_group.group(), &[]);
@@ -407,10 +419,12 @@ impl FaceViewPass {
                 pass.draw(r.clone(), instance..instance + 1);
             }
         }
-        pass.set_pipeline(shaded);
-        for (i, r) in draws.virtuals.iter().enumerate() {
-            if !r.is_empty() {
-                pass.draw(r.clone(), i as u32..i as u32 + 1);
+        for (pipeline, mirrors) in [(shaded, false), (mirror, true)] {
+            pass.set_pipeline(pipeline);
+            for (i, r) in draws.virtuals.iter().enumerate() {
+                if !r.is_empty() && draws.mirrors.get(i).copied().unwrap_or(false) == mirrors {
+                    pass.draw(r.clone(), i as u32..i as u32 + 1);
+                }
             }
         }
     }
