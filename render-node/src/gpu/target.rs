@@ -262,6 +262,33 @@ pub fn read_colours(
     device: &wgpu::Device,
     readbacks: &[&ColourReadback],
 ) -> Result<Vec<Vec<[f32; 4]>>, GpuError> {
+    let mut out: Vec<Vec<[f32; 4]>> = readbacks
+        .iter()
+        .map(|r| Vec::with_capacity(r.width as usize * r.height as usize))
+        .collect();
+    visit_colours(device, readbacks, |i, row| {
+        let pixels = &mut out[i];
+        let from = pixels.len();
+        pixels.extend_from_slice(row);
+        for v in pixels[from..].iter_mut().flatten() {
+            if !v.is_finite() {
+                *v = 0.0;
+            }
+        }
+    })?;
+    Ok(out)
+}
+
+/// Map `readbacks` (their copies submitted), wait once, and hand each
+/// row of each, top to bottom, to `visit` (readback index, pixels as
+/// stored: non-finite values are not replaced), without copying the
+/// image; so a caller that needs only part of a target (a count over its
+/// alpha) pays for no more.
+pub fn visit_colours(
+    device: &wgpu::Device,
+    readbacks: &[&ColourReadback],
+    mut visit: impl FnMut(usize, &[[f32; 4]]),
+) -> Result<(), GpuError> {
     let (tx, rx) = std::sync::mpsc::channel();
     for (i, r) in readbacks.iter().enumerate() {
         let tx = tx.clone();
@@ -278,26 +305,34 @@ pub fn read_colours(
             failed = Some(GpuError::Map(e.to_string()));
         }
     }
-    let mut out = Vec::with_capacity(readbacks.len());
-    for r in readbacks {
-        if failed.is_none() {
-            let mut pixels = Vec::with_capacity(r.width as usize * r.height as usize);
-            match r.buffer.get_mapped_range(..) {
-                Ok(view) => {
-                    let row = r.width as usize * 16;
-                    for y in 0..r.height as usize {
-                        let start = y * r.padded as usize;
-                        pixels.extend(view[start..start + row].chunks_exact(16).map(|px| {
-                            std::array::from_fn(|c| {
-                                let v = f32_at(px, 4 * c);
-                                if v.is_finite() { v } else { 0.0 }
-                            })
-                        }));
+    let mut unaligned = Vec::new();
+    for (i, r) in readbacks.iter().enumerate() {
+        if failed.is_some() {
+            break;
+        }
+        match r.buffer.get_mapped_range(..) {
+            Ok(view) => {
+                let row = r.width as usize * 16;
+                for y in 0..r.height as usize {
+                    let start = y * r.padded as usize;
+                    let bytes = &view[start..start + row];
+                    // Rows start at multiples of 256 bytes of a mapping, so
+                    // the cast succeeds; the per-value read is the fallback.
+                    match bytemuck::try_cast_slice::<u8, [f32; 4]>(bytes) {
+                        Ok(px) => visit(i, px),
+                        Err(_) => {
+                            unaligned.clear();
+                            unaligned.extend(
+                                bytes
+                                    .chunks_exact(16)
+                                    .map(|px| std::array::from_fn(|c| f32_at(px, 4 * c))),
+                            );
+                            visit(i, &unaligned);
+                        }
                     }
                 }
-                Err(e) => failed = Some(GpuError::Map(e.to_string())),
             }
-            out.push(pixels);
+            Err(e) => failed = Some(GpuError::Map(e.to_string())),
         }
     }
     for r in readbacks {
@@ -306,7 +341,7 @@ pub fn read_colours(
     }
     match failed {
         Some(e) => Err(e),
-        None => Ok(out),
+        None => Ok(()),
     }
 }
 
