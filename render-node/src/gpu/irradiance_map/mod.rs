@@ -12,6 +12,8 @@ use super::frame_arrays::{ArraySpace, uniform_capacity};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
+pub mod floor;
+
 /// Mirrors WGSL `struct Frame` in `irradiance_map.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
