@@ -422,6 +422,10 @@ impl ProjectorPipeline {
         self.lights.write(device, queue, &lights);
         self.eyes.write(device, queue, &eyes);
         let response = &projector.response;
+        let key = blend_key(frame, projector);
+        // Weights other than 1 exist only where projectors overlap
+        // (BlendTexture::new); without them the shader skips the fetch.
+        let blending = key.projector.is_some() && key.projectors.len() > 1;
         let uniform = FrameUniform {
             clip_from_world: projector
                 .device
@@ -440,7 +444,7 @@ impl ProjectorPipeline {
                 lights.len() as u32,
                 eyes.len() as u32,
                 self.shadow_res,
-                u32::from(shadows) | (u32::from(occlusion) << 1),
+                u32::from(shadows) | (u32::from(occlusion) << 1) | (u32::from(blending) << 2),
             ],
             shadow: [near, far, 0.0, 0.0],
         };
@@ -448,7 +452,6 @@ impl ProjectorPipeline {
         if maps_changed {
             self.irradiance_bind = None;
         }
-        let key = blend_key(frame, projector);
         let (w, h) = (projector.device.width, projector.device.height);
         if self.blend.as_ref().is_none_or(|b| b.key != key) {
             self.blend = Some(BlendTexture::new(ctx, frame, projector, key)?);

@@ -47,9 +47,8 @@ pub enum FloorKind {
     /// A full-screen triangle with a fragment shader that writes constants.
     FullScreen,
     /// A full-screen triangle whose fragment shader makes this many texel
-    /// fetches (the first from the blend weights, the rest from the
-    /// shadow maps, at addresses that move with the pixel as the real
-    /// lookups do) and writes their sum.
+    /// fetches from the shadow maps (at addresses that move with the pixel
+    /// as the real lookups do) and writes their sum.
     Fetches(u32),
 }
 
@@ -84,18 +83,14 @@ pub fn floor_source(kind: FloorKind, targets: u32) -> String {
              \x20   let f = frag.xy / vec2<f32>(bsize);\n",
         );
         for j in 0..k {
-            if j == 0 {
-                s.push_str("    sum += textureLoad(blend, min(px, bsize - 1u), 0).r;\n");
-            } else {
-                // Each lookup reads its own layer at a point that moves
-                // with the pixel, scaled and mirrored differently per
-                // lookup (as different views project a surface).
-                let scale = 0.4 + 0.1 * f64::from(j % 5);
-                let (a, b) = if j % 2 == 0 { ("x", "y") } else { ("y", "x") };
-                s.push_str(&format!(
-                    "    sum += textureLoad(maps, min(vec2<u32>(vec2<f32>(f.{a}, f.{b}) * {scale:?} * vec2<f32>(res)), res - 1u), {j}u % layers, 0);\n"
-                ));
-            }
+            // Each lookup reads its own layer at a point that moves with
+            // the pixel, scaled and mirrored differently per lookup (as
+            // different views project a surface).
+            let scale = 0.4 + 0.1 * f64::from(j % 5);
+            let (a, b) = if j % 2 == 0 { ("x", "y") } else { ("y", "x") };
+            s.push_str(&format!(
+                "    sum += textureLoad(maps, min(vec2<u32>(vec2<f32>(f.{a}, f.{b}) * {scale:?} * vec2<f32>(res)), res - 1u), {j}u % layers, 0);\n"
+            ));
         }
     }
     s.push_str("    var out: Out;\n");

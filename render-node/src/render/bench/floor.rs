@@ -75,11 +75,12 @@ pub struct FloorRecord {
 
 /// Texel fetches the projector's irradiance-map shader makes per lit
 /// surface pixel of `frame` (irradiance_map.wgsl with
-/// shadow_lookup.part.wgsl): the blend weight, one shadow-map texel per
-/// light sample (its cube face), one per eye (its fitted view or cube
-/// face).
+/// shadow_lookup.part.wgsl): one shadow-map texel per light sample (its
+/// cube face), one per eye (its fitted view or cube face), and the blend
+/// weight when the scene has projectors that may overlap.
 pub fn projector_fetches(frame: &FrameScene) -> u32 {
-    1 + frame.samples.len() as u32 + frame.eyes.len() as u32
+    let blend = u32::from(frame.showcase.projectors.len() > 1);
+    blend + frame.samples.len() as u32 + frame.eyes.len() as u32
 }
 
 /// Texel fetches of the face view's phantom pixel of one eye (face_view.wgsl
