@@ -207,8 +207,9 @@ pub struct BenchArgs {
     /// JSON record (key `floor`) per stripped pass: the irradiance pass
     /// with a constant fragment, a full-screen triangle with a constant
     /// fragment, the same plus the texel fetches the real shaders make per
-    /// pixel (projector and stereo face), and the six light shadow views
-    /// (all objects, occluders only, cleared only).
+    /// pixel (projector and stereo face), the six light shadow views (all
+    /// objects, occluders only, cleared only) and the readback (copies
+    /// only, one target, both targets).
     #[arg(long)]
     pub floor: bool,
     /// Radiosity only: make only the records of these kinds (default: all):
