@@ -203,6 +203,15 @@ pub struct BenchArgs {
     /// Render only: skip the CPU references (no accuracy figures; fast at large sizes).
     #[arg(long)]
     pub no_accuracy: bool,
+    /// Render only: measure the adapter's floor instead of the passes: one
+    /// JSON record (key `floor`) per stripped pass: the irradiance pass
+    /// with a constant fragment, a full-screen triangle with a constant
+    /// fragment, the same plus the texel fetches the real shaders make per
+    /// pixel (projector and stereo face), the six light shadow views (all
+    /// objects, occluders only, cleared only) and the readback (copies
+    /// only, one target, both targets).
+    #[arg(long)]
+    pub floor: bool,
     /// Radiosity only: make only the records of these kinds (default: all):
     /// reference, gathered, sweep, scaling, incremental, incremental_object,
     /// augmented.
@@ -483,6 +492,11 @@ pub fn run(cli: Cli) -> Result<()> {
                     opts.shadow_res = r;
                 }
                 opts.accuracy = !args.no_accuracy;
+                if args.floor {
+                    let records =
+                        showcase_render::render::bench::floor::bench_floor(&ctx, &scene, &opts)?;
+                    return emit_bench(&args, &records);
+                }
                 let records = bench_render(&ctx, &scene, &opts)?;
                 emit_bench(&args, &records)
             }

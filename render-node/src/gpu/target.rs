@@ -310,6 +310,72 @@ pub fn read_colours(
     }
 }
 
+/// Map `readbacks` (their copies submitted), wait once, and hand each
+/// row of each, top to bottom, to `visit` (readback index, pixels as
+/// stored: non-finite values are not replaced), without copying the
+/// image; so a caller that needs only part of a target (a count over its
+/// alpha) pays for no more.
+pub fn visit_colours(
+    device: &wgpu::Device,
+    readbacks: &[&ColourReadback],
+    mut visit: impl FnMut(usize, &[[f32; 4]]),
+) -> Result<(), GpuError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    for (i, r) in readbacks.iter().enumerate() {
+        let tx = tx.clone();
+        r.buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver lives until after the poll below.
+            let _ = tx.send((i, result));
+        });
+    }
+    drop(tx);
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    let mut failed = None;
+    for (_, result) in rx.iter() {
+        if let Err(e) = result {
+            failed = Some(GpuError::Map(e.to_string()));
+        }
+    }
+    let mut unaligned = Vec::new();
+    for (i, r) in readbacks.iter().enumerate() {
+        if failed.is_some() {
+            break;
+        }
+        match r.buffer.get_mapped_range(..) {
+            Ok(view) => {
+                let row = r.width as usize * 16;
+                for y in 0..r.height as usize {
+                    let start = y * r.padded as usize;
+                    let bytes = &view[start..start + row];
+                    // Rows start at multiples of 256 bytes of a mapping, so
+                    // the cast succeeds; the per-value read is the fallback.
+                    match bytemuck::try_cast_slice::<u8, [f32; 4]>(bytes) {
+                        Ok(px) => visit(i, px),
+                        Err(_) => {
+                            unaligned.clear();
+                            unaligned.extend(
+                                bytes
+                                    .chunks_exact(16)
+                                    .map(|px| std::array::from_fn(|c| f32_at(px, 4 * c))),
+                            );
+                            visit(i, &unaligned);
+                        }
+                    }
+                }
+            }
+            Err(e) => failed = Some(GpuError::Map(e.to_string())),
+        }
+    }
+    for r in readbacks {
+        // Unmapping a buffer whose map failed is harmless.
+        r.buffer.unmap();
+    }
+    match failed {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::padded_bytes_per_row;

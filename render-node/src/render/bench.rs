@@ -4,6 +4,8 @@
 //! two observers) in its variants, timed per frame and per pass, with the
 //! GPU-versus-CPU and end-to-end consistency errors of each variant.
 
+pub mod floor;
+
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -409,8 +411,9 @@ pub fn bench_render(
                     let pass_times = pipeline.draw(ctx, &frame, &projector, &passes, timed)?;
                     wait_idle(&ctx.device)?;
                     if timed {
+                        // What a node reads back (ProjectorRenderer).
                         let read_start = Instant::now();
-                        let _ = pipeline.read(ctx)?;
+                        let _ = pipeline.read_output(ctx)?;
                         let readback = read_start.elapsed().as_secs_f64() * 1e3;
                         steps.add(&pass_times, readback, pipeline.last_layers_drawn());
                     }

@@ -19,11 +19,12 @@ use crate::gpu::irradiance_map::{
     self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
     LightSampleGpu, state,
 };
+use crate::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges, ranges_identity};
 use crate::gpu::shadow_views::{
-    SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex, cube_views,
-    fitted_views,
+    LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex,
+    cube_views, fitted_views,
 };
-use crate::gpu::target::{ColourReadback, read_colours};
+use crate::gpu::target::{ColourReadback, read_colours, visit_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::light::world_matrix;
@@ -180,6 +181,8 @@ pub struct ProjectorPipeline {
     /// The blend weights in use and what they were computed from.
     blend: Option<BlendTexture>,
     last_layers_drawn: u32,
+    /// Draw only the objects that can occlude into each light cube face.
+    cull_light_occluders: bool,
 }
 
 /// What a projector's blend weights depend on: the projectors, which one
@@ -287,6 +290,19 @@ pub struct GpuIrradianceMap {
     pub clipped_fraction: f64,
 }
 
+/// What a projector node presents of a frame ([`ProjectorPipeline::read_output`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProjectorOutput {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Device values in rgb, alpha 1: what the projector shows.
+    pub value: Vec<[f32; 4]>,
+    /// Clipped over unmasked surface pixels.
+    pub clipped_fraction: f64,
+}
+
 /// The targets a frame is drawn into and their readback buffers.
 #[derive(Debug)]
 struct ProjectorTargets {
@@ -328,7 +344,15 @@ impl ProjectorPipeline {
             targets: None,
             blend: None,
             last_layers_drawn: 0,
+            cull_light_occluders: true,
         }
+    }
+
+    /// Whether the light samples' cube faces hold only the objects that
+    /// can shadow a real surface and reach into the face (the default),
+    /// or every object (as before; for comparisons).
+    pub fn set_light_occluder_culling(&mut self, on: bool) {
+        self.cull_light_occluders = on;
     }
 
     /// Shadow map layers the last [`Self::draw`] drew (the others held
@@ -398,6 +422,10 @@ impl ProjectorPipeline {
         self.lights.write(device, queue, &lights);
         self.eyes.write(device, queue, &eyes);
         let response = &projector.response;
+        let key = blend_key(frame, projector);
+        // Weights other than 1 exist only where projectors overlap
+        // (BlendTexture::new); without them the shader skips the fetch.
+        let blending = key.projector.is_some() && key.projectors.len() > 1;
         let uniform = FrameUniform {
             clip_from_world: projector
                 .device
@@ -416,7 +444,7 @@ impl ProjectorPipeline {
                 lights.len() as u32,
                 eyes.len() as u32,
                 self.shadow_res,
-                u32::from(shadows) | (u32::from(occlusion) << 1),
+                u32::from(shadows) | (u32::from(occlusion) << 1) | (u32::from(blending) << 2),
             ],
             shadow: [near, far, 0.0, 0.0],
         };
@@ -424,7 +452,6 @@ impl ProjectorPipeline {
         if maps_changed {
             self.irradiance_bind = None;
         }
-        let key = blend_key(frame, projector);
         let (w, h) = (projector.device.width, projector.device.height);
         if self.blend.as_ref().is_none_or(|b| b.key != key) {
             self.blend = Some(BlendTexture::new(ctx, frame, projector, key)?);
@@ -515,19 +542,46 @@ impl ProjectorPipeline {
         flush(&mut encoder, "setup")?;
         let mut layers_drawn = 0;
         if shadows {
-            let (vertices, vertex_count) = self.scene.buffer(VertexSet::All);
-            layers_drawn += self.shadow.encode(
-                &mut encoder,
-                maps,
-                shadow_bind,
-                &views,
-                &[ShadowDraw {
+            // Each light sample's cube faces hold only the objects that
+            // can shadow a real surface and reach into the face
+            // (shadow_views::occluders); the others read as lit anyway.
+            let (vertices, _) = self.scene.buffer(VertexSet::All);
+            let objects: Vec<ObjectVertices> = self
+                .scene
+                .ranges()
+                .iter()
+                .map(|(oi, r)| ObjectVertices {
+                    range: r.clone(),
+                    receiver: frame.showcase.objects[*oi].kind == ObjectKind::Real,
+                })
+                .collect();
+            let geometry = self.scene.geometry(VertexSet::All);
+            let mut per_layer = Vec::with_capacity(light_layers.len());
+            let everything = 0..self.scene.all().len() as u32;
+            for (s, l) in frame.samples.iter().zip(&lights) {
+                let first = l.views[0] as usize;
+                let cube = &views[first..first + l.views[1] as usize];
+                let ranges = if self.cull_light_occluders {
+                    cube_occluder_ranges(self.scene.all(), &objects, s.position, cube)
+                } else {
+                    vec![vec![everything.clone()]; cube.len()]
+                };
+                for (k, ranges) in ranges.into_iter().enumerate() {
+                    per_layer.push(((first + k) as u32, ranges));
+                }
+            }
+            let draws: Vec<LayerDraw<'_>> = per_layer
+                .iter()
+                .map(|(layer, ranges)| LayerDraw {
                     vertices,
-                    vertex_count,
-                    layers: light_layers,
-                    geometry: self.scene.geometry(VertexSet::All),
-                }],
-            );
+                    layer: *layer,
+                    ranges,
+                    geometry: ranges_identity(geometry, ranges),
+                })
+                .collect();
+            layers_drawn +=
+                self.shadow
+                    .encode_layers(&mut encoder, maps, shadow_bind, &views, &draws);
             flush(&mut encoder, Pass::LightShadowViews.name())?;
         }
         if occlusion {
@@ -584,6 +638,54 @@ impl ProjectorPipeline {
             width: targets.irradiance.width(),
             height: targets.irradiance.height(),
             irradiance,
+            value,
+            clipped_fraction: if counted == 0 {
+                0.0
+            } else {
+                clipped as f64 / counted as f64
+            },
+        })
+    }
+
+    /// What a node presents of the last drawn frame (waits for the GPU):
+    /// the device values and the clipped fraction, equal to
+    /// [`Self::read`]'s. The `L` target is copied back too, but only its
+    /// state codes are looked at, in place, so no image of it is built.
+    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, RenderSetupError> {
+        let targets = self
+            .targets
+            .as_ref()
+            .ok_or(RenderSetupError::NothingDrawn)?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
+        targets.readback[1].encode_copy(&mut encoder, &targets.value);
+        ctx.queue.submit([encoder.finish()]);
+        let (w, h) = (targets.value.width(), targets.value.height());
+        let mut value: Vec<[f32; 4]> = Vec::with_capacity(w as usize * h as usize);
+        let (mut counted, mut clipped) = (0usize, 0usize);
+        visit_colours(
+            &ctx.device,
+            &[&targets.readback[0], &targets.readback[1]],
+            |i, row| {
+                if i == 0 {
+                    for p in row {
+                        counted += usize::from(p[3] == state::UNCLIPPED || p[3] == state::CLIPPED);
+                        clipped += usize::from(p[3] == state::CLIPPED);
+                    }
+                } else {
+                    let from = value.len();
+                    value.extend_from_slice(row);
+                    for v in value[from..].iter_mut().flatten() {
+                        if !v.is_finite() {
+                            *v = 0.0;
+                        }
+                    }
+                }
+            },
+        )?;
+        Ok(ProjectorOutput {
+            width: w,
+            height: h,
             value,
             clipped_fraction: if counted == 0 {
                 0.0
@@ -692,9 +794,9 @@ impl ProjectorRenderer {
             };
             return Ok(output.clone());
         }
-        let map = self
-            .pipeline
-            .render(&self.ctx, &resolved, projector, &passes)?;
+        self.pipeline
+            .draw(&self.ctx, &resolved, projector, &passes, false)?;
+        let map = self.pipeline.read_output(&self.ctx)?;
         let output = RenderOutput {
             hash: hash_pixels(&map.value),
             image: Some(OutputImage {

@@ -369,3 +369,141 @@ fn storage_array_variant_gives_the_uniform_variants_output() -> Result<()> {
     );
     Ok(())
 }
+
+/// Light cube faces drawn with only the objects that can occlude
+/// (`gpu::shadow_views::occluders`): on the bench scene with its point
+/// light and with a spot and an area light, every pixel whose `L` differs
+/// from the map drawn with every object moves towards the CPU reference
+/// (exact rays), never away from it, and the culled map passes the same
+/// GPU-vs-CPU tolerances.
+#[test]
+fn culled_light_views_change_only_pixels_towards_the_cpu_reference() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("culled_light_views_change_only_pixels_towards_the_cpu_reference")?
+    else {
+        return Ok(());
+    };
+    let mut culled = ProjectorPipeline::new(&ctx.device, 1024);
+    let mut whole = ProjectorPipeline::new(&ctx.device, 1024);
+    whole.set_light_occluder_culling(false);
+    for (name, lights) in [("point", None), ("spot+area", Some(spot_and_area()))] {
+        let (frame, _) = bench_frame_scene(lights)?;
+        let occ = Occluders::new(&frame)?;
+        let projector = bench_projector(320, 240);
+        let cpu = irradiance_map_cpu(&frame, &occ, &projector, ProjectorOptions::default())?;
+        let a = culled.render(&ctx, &frame, &projector, &PassList::full())?;
+        let b = whole.render(&ctx, &frame, &projector, &PassList::full())?;
+        let (mut changed, mut worse) = (0usize, Vec::new());
+        for (i, ((pa, pb), pc)) in a
+            .irradiance
+            .iter()
+            .zip(&b.irradiance)
+            .zip(&cpu.irradiance.data)
+            .enumerate()
+        {
+            let (la, lb) = (Vec3::from_slice(&pa[..3]), Vec3::from_slice(&pb[..3]));
+            if la == lb && pa[3] == pb[3] {
+                continue;
+            }
+            changed += 1;
+            let c = *pc;
+            let (ea, eb) = ((la - c).length(), (lb - c).length());
+            if ea > eb * (1.0 + 1e-4) + 1e-7 {
+                worse.push((i, la, lb, c));
+            }
+        }
+        eprintln!(
+            "{name}: {changed} of {} pixels changed by culling, {} moved away from the CPU reference",
+            a.irradiance.len(),
+            worse.len()
+        );
+        ensure!(
+            worse.is_empty(),
+            "{name}: pixels moved away: {:?}",
+            &worse[..worse.len().min(5)]
+        );
+        let c = compare_maps(&a, &cpu)?;
+        ensure!(
+            c.rel_rmse_off_edges <= GPU_CPU_REL_RMSE
+                && (c.outliers as f64) <= ALL_OUTLIERS * c.pixels as f64,
+            "{name}: {c:?}"
+        );
+    }
+    Ok(())
+}
+
+/// The node's readback (`read_output`: device values and the clipped
+/// fraction, the `L` target only counted in place) gives exactly what the
+/// full readback gives, on a frame with clipped, masked and background
+/// pixels.
+#[test]
+fn node_readback_equals_the_full_readback() -> Result<()> {
+    let Some(ctx) = gpu_or_skip("node_readback_equals_the_full_readback")? else {
+        return Ok(());
+    };
+    let mut pipeline = ProjectorPipeline::new(&ctx.device, 256);
+    let (frame, _) = bench_frame_scene(Some(spot_and_area()))?;
+    let mut projector = bench_projector(200, 150);
+    // A dim projector so that some pixels clip.
+    projector.response.eta = 0.05;
+    pipeline.draw(&ctx, &frame, &projector, &PassList::full(), false)?;
+    let full = pipeline.read(&ctx)?;
+    let out = pipeline.read_output(&ctx)?;
+    let states = |s: f32| full.irradiance.iter().filter(|p| p[3] == s).count();
+    eprintln!(
+        "clipped {} unclipped {} masked {} background {}; fraction {}",
+        states(2.0),
+        states(1.0),
+        states(3.0),
+        states(0.0),
+        out.clipped_fraction
+    );
+    ensure!(
+        states(2.0) > 0 && states(1.0) > 0,
+        "frame lacks clipped or unclipped pixels"
+    );
+    ensure!((out.width, out.height) == (full.width, full.height));
+    ensure!(out.value == full.value, "device values differ");
+    ensure!(
+        out.clipped_fraction == full.clipped_fraction,
+        "clipped fraction {} against {}",
+        out.clipped_fraction,
+        full.clipped_fraction
+    );
+    Ok(())
+}
+
+/// On the bench scene (light under the ceiling of the Cornell walls), the
+/// five walls can shadow no real surface and are left out of every light
+/// cube face; the real bunny and the virtual objects are kept in the faces
+/// they reach, and the ceiling-facing face holds nothing.
+#[test]
+fn bench_light_faces_leave_out_the_walls() -> Result<()> {
+    use showcase_render::gpu::shadow_views::cube_views;
+    use showcase_render::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges};
+    use showcase_render::render::projector_gpu::world_vertices_by_object;
+    let (frame, _) = bench_frame_scene(None)?;
+    let (all, ranges) = world_vertices_by_object(&frame.showcase, None)?;
+    let objects: Vec<ObjectVertices> = ranges
+        .iter()
+        .map(|(oi, r)| ObjectVertices {
+            range: r.clone(),
+            receiver: frame.showcase.objects[*oi].kind == ObjectKind::Real,
+        })
+        .collect();
+    let light = frame.samples[0].position;
+    let views = cube_views(light.as_vec3(), 1e-3, 8.0, 1024);
+    let faces = cube_occluder_ranges(&all, &objects, light, &views);
+    let drawn = |r: &std::ops::Range<u32>| {
+        faces
+            .iter()
+            .flatten()
+            .any(|f| f.start <= r.start && r.end <= f.end)
+    };
+    for (oi, r) in &ranges {
+        let name = &frame.showcase.objects[*oi].name;
+        let wall = ["floor", "ceiling", "back", "right_green", "left_red"].contains(&name.as_str());
+        ensure!(drawn(r) != wall, "{name}: drawn {} (wall {wall})", drawn(r));
+    }
+    ensure!(faces[2].is_empty(), "+y face holds {:?}", faces[2]);
+    Ok(())
+}

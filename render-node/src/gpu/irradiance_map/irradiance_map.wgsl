@@ -14,7 +14,8 @@ struct Frame {
     ambient: vec4<f32>,
     // gamma, eta, black level, cos floor.
     response: vec4<f32>,
-    // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion).
+    // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion,
+    // 4: blend weights other than 1).
     counts: vec4<u32>,
     // near and far plane of the shadow views.
     shadow: vec4<f32>,
@@ -136,7 +137,12 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);
         }
-        let share = textureLoad(blend, vec2<u32>(in.clip.xy), 0).r;
+        // The same for every pixel of a frame, so llvmpipe skips the
+        // fetch when no other projector overlaps (share 1 exactly).
+        var share = 1.0;
+        if ((flags & 4u) != 0u) {
+            share = textureLoad(blend, vec2<u32>(in.clip.xy), 0).r;
+        }
         l = e * (share * r2 / cos_p);
     }
     // Device compensation: v = ((L - black) / eta)^(1 / gamma), clamped.

@@ -12,6 +12,8 @@ use super::frame_arrays::{ArraySpace, uniform_capacity};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
+pub mod floor;
+
 /// Mirrors WGSL `struct Frame` in `irradiance_map.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -24,7 +26,8 @@ pub struct FrameUniform {
     pub ambient: [f32; 4],
     /// gamma, eta, black level, cos floor.
     pub response: [f32; 4],
-    /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion).
+    /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion,
+    /// 4 blend weights other than 1).
     pub counts: [u32; 4],
     /// near and far plane of the shadow views (depth back to distance).
     pub shadow: [f32; 4],

@@ -12,6 +12,8 @@ use glam::{Mat4, Vec3};
 use super::GpuError;
 use super::target::DEPTH_FORMAT;
 
+pub mod occluders;
+
 /// Near plane of every shadow view (metres). The sampling passes need it
 /// (with the frame's far plane) to turn depth back into distance.
 pub const SHADOW_NEAR: f32 = 1e-3;
@@ -342,45 +344,103 @@ impl ShadowViewsPass {
     ) -> u32 {
         let mut drawn = 0;
         for draw in draws {
+            let whole = 0..draw.vertex_count;
             for layer in draw.layers.clone() {
-                let (Some(target), Some(view)) = (
-                    maps.layer_views.get(layer as usize),
-                    views.get(layer as usize),
-                ) else {
-                    continue;
-                };
-                let content = Some((*view, draw.geometry));
-                if maps.contents[layer as usize] == content {
-                    continue;
-                }
-                maps.contents[layer as usize] = content;
-                drawn += 1;
-                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("shadow view"),
-                    color_attachments: &[],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: target,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Store,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-                if draw.vertex_count == 0 {
-                    continue;
-                }
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, bind_group, &[]);
-                pass.set_vertex_buffer(0, draw.vertices.slice(..));
-                pass.draw(0..draw.vertex_count, layer..layer + 1);
+                drawn += self.encode_layer(
+                    encoder,
+                    maps,
+                    bind_group,
+                    views,
+                    &LayerDraw {
+                        vertices: draw.vertices,
+                        layer,
+                        ranges: std::slice::from_ref(&whole),
+                        geometry: draw.geometry,
+                    },
+                );
             }
         }
         drawn
     }
+
+    /// [`Self::encode`] for draws of one layer each, each drawing only
+    /// its vertex ranges (an empty list clears the layer). Returns the
+    /// number of layers drawn.
+    pub fn encode_layers(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &mut ShadowMaps,
+        bind_group: &wgpu::BindGroup,
+        views: &[ShadowView],
+        draws: &[LayerDraw<'_>],
+    ) -> u32 {
+        draws
+            .iter()
+            .map(|d| self.encode_layer(encoder, maps, bind_group, views, d))
+            .sum()
+    }
+
+    fn encode_layer(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &mut ShadowMaps,
+        bind_group: &wgpu::BindGroup,
+        views: &[ShadowView],
+        draw: &LayerDraw<'_>,
+    ) -> u32 {
+        let layer = draw.layer;
+        let (Some(target), Some(view)) = (
+            maps.layer_views.get(layer as usize),
+            views.get(layer as usize),
+        ) else {
+            return 0;
+        };
+        let content = Some((*view, draw.geometry));
+        if maps.contents[layer as usize] == content {
+            return 0;
+        }
+        maps.contents[layer as usize] = content;
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shadow view"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: target,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let mut bound = false;
+        for range in draw.ranges.iter().filter(|r| r.start < r.end) {
+            if !bound {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, bind_group, &[]);
+                pass.set_vertex_buffer(0, draw.vertices.slice(..));
+                bound = true;
+            }
+            pass.draw(range.clone(), layer..layer + 1);
+        }
+        1
+    }
+}
+
+/// Geometry to draw into one layer: some vertex ranges of a buffer.
+#[derive(Debug)]
+pub struct LayerDraw<'a> {
+    /// World-space vertices, [`WorldVertex`] layout.
+    pub vertices: &'a wgpu::Buffer,
+    /// The layer (= view index) to draw into.
+    pub layer: u32,
+    /// Vertex ranges to draw (none: the layer is only cleared).
+    pub ranges: &'a [std::ops::Range<u32>],
+    /// Identity of what the ranges hold, as [`ShadowDraw::geometry`]: the
+    /// same value promises the same vertices.
+    pub geometry: u64,
 }
 
 #[cfg(test)]
