@@ -2,7 +2,7 @@
 //!
 //! It draws a [`FlatLambertScene`] exactly as `crate::gpu::flat_lambert`
 //! does, in f64:
-//! - world to clip space by [`PinholeDevice::clip_from_world`] (the one
+//! - world to clip space by [`showcase_proto::PinholeDevice::clip_from_world`] (the one
 //!   documented OpenCV to wgpu mapping), clipping against the near and far
 //!   planes in homogeneous space;
 //! - back faces culled: a front face winds counter-clockwise in NDC

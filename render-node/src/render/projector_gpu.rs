@@ -1,18 +1,17 @@
 //! The projector role on the GPU: the pass list's shadow views and the
-//! irradiance map for one projector, and the [`Renderer`] a projector node
+//! irradiance map for one projector, and the renderer a projector node
 //! runs (with whole-frame reuse). CPU reference:
 //! [`super::projector::irradiance_map_cpu`].
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
-use showcase_proto::{FrameState, ObjectKind, Projector, Showcase};
+use glam::Vec3;
+use showcase_proto::{ObjectKind, Projector};
 
 use super::RenderSetupError;
-use super::frame::{FrameScene, Lobe};
+use super::frame::FrameScene;
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
-use super::passes::{FrameKey, Pass, PassList, bounding_sphere};
+use super::passes::{Pass, PassList, bounding_sphere};
 use super::projector::COS_FLOOR;
 use crate::gpu::frame_arrays::ARRAY_USAGE;
 use crate::gpu::irradiance_map::{
@@ -21,137 +20,22 @@ use crate::gpu::irradiance_map::{
 };
 use crate::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges, ranges_identity};
 use crate::gpu::shadow_views::{
-    LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, WorldVertex,
-    cube_views, fitted_views,
+    LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, fitted_views,
 };
 use crate::gpu::target::{ColourReadback, read_colours, visit_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
-use crate::light::world_matrix;
-use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
+
+mod blend_texture;
+mod inputs;
+mod renderer;
+
+use blend_texture::{BlendTexture, blend_key};
+pub use inputs::{ObjectRange, light_inputs, shadow_far, world_vertices, world_vertices_by_object};
+pub use renderer::{FrameReport, ProjectorRenderer};
 
 /// Default size of each shadow distance map (texels per side).
 pub const DEFAULT_SHADOW_RES: u32 = 1024;
-
-/// World-space vertices (three per triangle, flat normals) of the objects
-/// of `kind` (`None`: all); degenerate triangles are left out.
-pub fn world_vertices(
-    showcase: &Showcase,
-    kind: Option<ObjectKind>,
-) -> Result<Vec<WorldVertex>, RenderSetupError> {
-    Ok(world_vertices_by_object(showcase, kind)?.0)
-}
-
-/// An object index and its vertex range in a vertex buffer.
-pub type ObjectRange = (usize, std::ops::Range<u32>);
-
-/// [`world_vertices`] with the vertex range of each object drawn, as
-/// `(object index, range)` in object order.
-pub fn world_vertices_by_object(
-    showcase: &Showcase,
-    kind: Option<ObjectKind>,
-) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderSetupError> {
-    let mut out = Vec::new();
-    let mut ranges = Vec::new();
-    for (oi, o) in showcase.objects.iter().enumerate() {
-        if kind.is_some_and(|k| k != o.kind) {
-            continue;
-        }
-        let start = out.len() as u32;
-        let name = || o.name.clone();
-        let mesh =
-            showcase
-                .mesh(&o.mesh)
-                .ok_or_else(|| crate::light::GeometryError::MissingMesh {
-                    object: oi,
-                    name: name(),
-                })?;
-        let m = world_matrix(&o.transform).ok_or_else(|| {
-            crate::light::GeometryError::BadTransform {
-                object: oi,
-                name: name(),
-            }
-        })?;
-        for (ti, tri) in mesh.triangles.iter().enumerate() {
-            let mut v = [DVec3::ZERO; 3];
-            for (k, &i) in tri.iter().enumerate() {
-                let p = mesh.positions.get(i as usize).ok_or_else(|| {
-                    crate::light::GeometryError::IndexOutOfRange {
-                        object: oi,
-                        name: name(),
-                        triangle: ti,
-                        index: i,
-                    }
-                })?;
-                v[k] = m.transform_point3(p.as_dvec3());
-            }
-            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-            if n == DVec3::ZERO || !n.is_finite() {
-                continue;
-            }
-            let normal = n.as_vec3().to_array();
-            out.extend(v.iter().map(|p| WorldVertex {
-                position: p.as_vec3().to_array(),
-                normal,
-            }));
-        }
-        ranges.push((oi, start..out.len() as u32));
-    }
-    Ok((out, ranges))
-}
-
-/// The light samples as the shaders read them and, with `shadows`, the
-/// six cube views of each (in sample order, from layer 0).
-pub fn light_inputs(
-    frame: &FrameScene,
-    shadows: bool,
-    near: f32,
-    far: f32,
-    shadow_res: u32,
-) -> (Vec<ShadowView>, Vec<LightSampleGpu>) {
-    let mut views: Vec<ShadowView> = Vec::new();
-    let mut lights = Vec::with_capacity(frame.samples.len());
-    for s in &frame.samples {
-        let first = views.len() as u32;
-        if shadows {
-            views.extend(cube_views(s.position.as_vec3(), near, far, shadow_res));
-        }
-        let (axis, kind, cone) = match s.lobe {
-            Lobe::Isotropic => (DVec3::ZERO, 0.0, [0.0, 0.0]),
-            Lobe::Spot {
-                axis,
-                cos_inner,
-                cos_outer,
-            } => (axis, 1.0, [cos_inner as f32, cos_outer as f32]),
-            Lobe::Cosine { normal } => (normal, 2.0, [0.0, 0.0]),
-        };
-        let a = axis.as_vec3();
-        lights.push(LightSampleGpu {
-            position: s.position.as_vec3().extend(0.0).to_array(),
-            intensity: s.intensity.as_vec3().extend(0.0).to_array(),
-            axis: [a.x, a.y, a.z, kind],
-            cone: [cone[0], cone[1], 0.0, 0.0],
-            views: [first, views.len() as u32 - first, 0, 0],
-        });
-    }
-    (views, lights)
-}
-
-/// Far plane for shadow views: every light, eye and surface point lies
-/// within it from every origin (`from` is any reference point).
-pub fn shadow_far(frame: &FrameScene, points: &[WorldVertex], from: DVec3) -> f32 {
-    let mut far_base = 0.0f64;
-    for p in points
-        .iter()
-        .map(|w| Vec3::from_array(w.position).as_dvec3())
-        .chain(frame.eyes.iter().copied())
-        .chain(frame.samples.iter().map(|s| s.position))
-    {
-        far_base = far_base.max((p - from).length());
-    }
-    // Every origin is within 2 far_base of every point.
-    (4.0 * far_base + 1.0) as f32
-}
 
 /// The compiled projector pipeline and the GPU state it keeps across
 /// frames (create once per device and projector): the scene's vertices
@@ -183,96 +67,6 @@ pub struct ProjectorPipeline {
     last_layers_drawn: u32,
     /// Draw only the objects that can occlude into each light cube face.
     cull_light_occluders: bool,
-}
-
-/// What a projector's blend weights depend on: the projectors, which one
-/// this is, and the real objects (meshes and transforms).
-#[derive(Clone, Debug, PartialEq)]
-struct BlendKey {
-    projector: Option<usize>,
-    projectors: Vec<showcase_proto::PinholeDevice>,
-    real: Vec<(showcase_proto::MeshId, showcase_proto::Transform)>,
-}
-
-/// A projector's blend weights on the GPU ([`super::blend`]).
-#[derive(Debug)]
-struct BlendTexture {
-    key: BlendKey,
-    _texture: wgpu::Texture,
-    view: wgpu::TextureView,
-}
-
-impl BlendTexture {
-    /// The weights of `projector` in `frame` (all 1 when it overlaps no
-    /// other projector or is not one of the scene's).
-    fn new(
-        ctx: &GpuContext,
-        frame: &FrameScene,
-        projector: &Projector,
-        key: BlendKey,
-    ) -> Result<Self, RenderSetupError> {
-        let (w, h) = (projector.device.width, projector.device.height);
-        let weights: Vec<f32> = match key.projector {
-            Some(i) if key.projectors.len() > 1 => {
-                let real = frame.geometry(&crate::light::ObjectFilter::Real)?;
-                super::blend::Blend::new(&frame.showcase.projectors)?
-                    .weight_image(i, &real)?
-                    .data
-            }
-            _ => vec![1.0; (w as usize) * (h as usize)],
-        };
-        let size = wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        };
-        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("projector blend"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&weights),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * w),
-                rows_per_image: Some(h),
-            },
-            size,
-        );
-        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        Ok(Self {
-            key,
-            _texture: texture,
-            view,
-        })
-    }
-}
-
-fn blend_key(frame: &FrameScene, projector: &Projector) -> BlendKey {
-    let projectors = &frame.showcase.projectors;
-    BlendKey {
-        projector: super::blend::index_of(projectors, projector),
-        projectors: projectors.iter().map(|p| p.device.clone()).collect(),
-        real: frame
-            .showcase
-            .objects
-            .iter()
-            .filter(|o| o.kind == ObjectKind::Real)
-            .map(|o| (o.mesh, o.transform))
-            .collect(),
-    }
 }
 
 /// A projector frame read back from the GPU.
@@ -705,144 +499,5 @@ impl ProjectorPipeline {
     ) -> Result<GpuIrradianceMap, RenderSetupError> {
         self.draw(ctx, frame, projector, passes, false)?;
         self.read(ctx)
-    }
-}
-
-/// What the last [`ProjectorRenderer::render`] did.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct FrameReport {
-    /// Passes run (empty when the last frame was reused).
-    pub passes_run: Vec<Pass>,
-    /// True when the previous output was reused unchanged.
-    pub reused: bool,
-    /// Clipped fraction of the output.
-    pub clipped_fraction: f64,
-}
-
-/// The [`Renderer`] of a projector node.
-#[derive(Debug)]
-pub struct ProjectorRenderer {
-    ctx: GpuContext,
-    pipeline: ProjectorPipeline,
-    projector: usize,
-    scene_version: Option<u64>,
-    /// Run every pass regardless of the pass list (for comparisons).
-    pub force_all_passes: bool,
-    last: Option<(FrameKey, RenderOutput, f64)>,
-    report: FrameReport,
-    presented: Vec<u64>,
-}
-
-impl ProjectorRenderer {
-    /// A renderer for `Showcase::projectors[projector]` on `ctx`.
-    pub fn new(ctx: GpuContext, projector: usize, shadow_res: u32) -> Self {
-        let pipeline = ProjectorPipeline::new(&ctx.device, shadow_res);
-        Self {
-            ctx,
-            pipeline,
-            projector,
-            scene_version: None,
-            force_all_passes: false,
-            last: None,
-            report: FrameReport::default(),
-            presented: Vec::new(),
-        }
-    }
-
-    /// What the last render did.
-    pub fn report(&self) -> &FrameReport {
-        &self.report
-    }
-
-    /// Frames presented so far.
-    pub fn presented(&self) -> &[u64] {
-        &self.presented
-    }
-
-    /// The GPU context.
-    pub fn context(&self) -> &GpuContext {
-        &self.ctx
-    }
-
-    fn render_frame(
-        &mut self,
-        frame: &FrameState,
-        scene: &Showcase,
-    ) -> Result<RenderOutput, RenderSetupError> {
-        let projector =
-            scene
-                .projectors
-                .get(self.projector)
-                .ok_or(RenderSetupError::NoProjector {
-                    index: self.projector,
-                })?;
-        let resolved = FrameScene::resolve(scene, frame)?;
-        let passes = if self.force_all_passes {
-            PassList::full()
-        } else {
-            PassList::for_projector(&resolved)
-        };
-        let key = FrameKey::projector(self.projector, frame, &passes);
-        if let Some((last_key, output, clipped)) = &self.last
-            && *last_key == key
-            && !self.force_all_passes
-        {
-            self.report = FrameReport {
-                passes_run: Vec::new(),
-                reused: true,
-                clipped_fraction: *clipped,
-            };
-            return Ok(output.clone());
-        }
-        self.pipeline
-            .draw(&self.ctx, &resolved, projector, &passes, false)?;
-        let map = self.pipeline.read_output(&self.ctx)?;
-        let output = RenderOutput {
-            hash: hash_pixels(&map.value),
-            image: Some(OutputImage {
-                width: map.width,
-                height: map.height,
-                rgba: map.value,
-            }),
-        };
-        self.report = FrameReport {
-            passes_run: passes.passes.clone(),
-            reused: false,
-            clipped_fraction: map.clipped_fraction,
-        };
-        self.last = Some((key, output.clone(), map.clipped_fraction));
-        Ok(output)
-    }
-}
-
-impl Renderer for ProjectorRenderer {
-    fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
-        self.scene_version = Some(version);
-        self.last = None;
-        Ok(())
-    }
-
-    fn render(
-        &mut self,
-        frame: &FrameState,
-        scene: &Showcase,
-    ) -> Result<RenderOutput, RenderError> {
-        if self.scene_version != Some(frame.scene_version) {
-            return Err(RenderError(format!(
-                "projector {}: frame {} is for scene version {} but the renderer has {:?}",
-                self.projector, frame.frame, frame.scene_version, self.scene_version
-            )));
-        }
-        self.render_frame(frame, scene).map_err(|e| {
-            RenderError(format!(
-                "projector {}: frame {}: {e}",
-                self.projector, frame.frame
-            ))
-        })
-    }
-
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        self.presented.push(frame);
-        Ok(())
     }
 }

@@ -320,7 +320,7 @@ impl CubeMapFrames {
         self.res
     }
 
-    /// Identity of the texture [`Self::array_view`] names: it changes
+    /// Identity of the texture [`CubeMaps::array_view`] names: it changes
     /// when the maps are reallocated (bind groups naming it are stale).
     pub fn generation(&self) -> u64 {
         self.generation

@@ -1,0 +1,153 @@
+//! The [`Renderer`] a projector node runs: the pass list per frame, the
+//! whole frame reused when nothing it depends on changed.
+
+use std::sync::Arc;
+
+use showcase_proto::{FrameState, Showcase};
+
+use crate::gpu::GpuContext;
+use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
+use crate::render::RenderSetupError;
+use crate::render::frame::FrameScene;
+use crate::render::passes::{FrameKey, Pass, PassList};
+
+use super::ProjectorPipeline;
+
+/// What the last [`ProjectorRenderer::render`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameReport {
+    /// Passes run (empty when the last frame was reused).
+    pub passes_run: Vec<Pass>,
+    /// True when the previous output was reused unchanged.
+    pub reused: bool,
+    /// Clipped fraction of the output.
+    pub clipped_fraction: f64,
+}
+
+/// The [`Renderer`] of a projector node.
+#[derive(Debug)]
+pub struct ProjectorRenderer {
+    ctx: GpuContext,
+    pipeline: ProjectorPipeline,
+    projector: usize,
+    scene_version: Option<u64>,
+    /// Run every pass regardless of the pass list (for comparisons).
+    pub force_all_passes: bool,
+    last: Option<(FrameKey, RenderOutput, f64)>,
+    report: FrameReport,
+    presented: Vec<u64>,
+}
+
+impl ProjectorRenderer {
+    /// A renderer for `Showcase::projectors[projector]` on `ctx`.
+    pub fn new(ctx: GpuContext, projector: usize, shadow_res: u32) -> Self {
+        let pipeline = ProjectorPipeline::new(&ctx.device, shadow_res);
+        Self {
+            ctx,
+            pipeline,
+            projector,
+            scene_version: None,
+            force_all_passes: false,
+            last: None,
+            report: FrameReport::default(),
+            presented: Vec::new(),
+        }
+    }
+
+    /// What the last render did.
+    pub fn report(&self) -> &FrameReport {
+        &self.report
+    }
+
+    /// Frames presented so far.
+    pub fn presented(&self) -> &[u64] {
+        &self.presented
+    }
+
+    /// The GPU context.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    fn render_frame(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderSetupError> {
+        let projector =
+            scene
+                .projectors
+                .get(self.projector)
+                .ok_or(RenderSetupError::NoProjector {
+                    index: self.projector,
+                })?;
+        let resolved = FrameScene::resolve(scene, frame)?;
+        let passes = if self.force_all_passes {
+            PassList::full()
+        } else {
+            PassList::for_projector(&resolved)
+        };
+        let key = FrameKey::projector(self.projector, frame, &passes);
+        if let Some((last_key, output, clipped)) = &self.last
+            && *last_key == key
+            && !self.force_all_passes
+        {
+            self.report = FrameReport {
+                passes_run: Vec::new(),
+                reused: true,
+                clipped_fraction: *clipped,
+            };
+            return Ok(output.clone());
+        }
+        self.pipeline
+            .draw(&self.ctx, &resolved, projector, &passes, false)?;
+        let map = self.pipeline.read_output(&self.ctx)?;
+        let output = RenderOutput {
+            hash: hash_pixels(&map.value),
+            image: Some(OutputImage {
+                width: map.width,
+                height: map.height,
+                rgba: map.value,
+            }),
+        };
+        self.report = FrameReport {
+            passes_run: passes.passes.clone(),
+            reused: false,
+            clipped_fraction: map.clipped_fraction,
+        };
+        self.last = Some((key, output.clone(), map.clipped_fraction));
+        Ok(output)
+    }
+}
+
+impl Renderer for ProjectorRenderer {
+    fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
+        self.scene_version = Some(version);
+        self.last = None;
+        Ok(())
+    }
+
+    fn render(
+        &mut self,
+        frame: &FrameState,
+        scene: &Showcase,
+    ) -> Result<RenderOutput, RenderError> {
+        if self.scene_version != Some(frame.scene_version) {
+            return Err(RenderError(format!(
+                "projector {}: frame {} is for scene version {} but the renderer has {:?}",
+                self.projector, frame.frame, frame.scene_version, self.scene_version
+            )));
+        }
+        self.render_frame(frame, scene).map_err(|e| {
+            RenderError(format!(
+                "projector {}: frame {}: {e}",
+                self.projector, frame.frame
+            ))
+        })
+    }
+
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        self.presented.push(frame);
+        Ok(())
+    }
+}
