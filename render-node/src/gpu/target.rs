@@ -262,52 +262,17 @@ pub fn read_colours(
     device: &wgpu::Device,
     readbacks: &[&ColourReadback],
 ) -> Result<Vec<Vec<[f32; 4]>>, GpuError> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    for (i, r) in readbacks.iter().enumerate() {
-        let tx = tx.clone();
-        r.buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-            // The receiver lives until after the poll below.
-            let _ = tx.send((i, result));
-        });
-    }
-    drop(tx);
-    device.poll(wgpu::PollType::wait_indefinitely())?;
-    let mut failed = None;
-    for (_, result) in rx.iter() {
-        if let Err(e) = result {
-            failed = Some(GpuError::Map(e.to_string()));
-        }
-    }
-    let mut out = Vec::with_capacity(readbacks.len());
-    for r in readbacks {
-        if failed.is_none() {
-            let mut pixels = Vec::with_capacity(r.width as usize * r.height as usize);
-            match r.buffer.get_mapped_range(..) {
-                Ok(view) => {
-                    let row = r.width as usize * 16;
-                    for y in 0..r.height as usize {
-                        let start = y * r.padded as usize;
-                        pixels.extend(view[start..start + row].chunks_exact(16).map(|px| {
-                            std::array::from_fn(|c| {
-                                let v = f32_at(px, 4 * c);
-                                if v.is_finite() { v } else { 0.0 }
-                            })
-                        }));
-                    }
-                }
-                Err(e) => failed = Some(GpuError::Map(e.to_string())),
-            }
-            out.push(pixels);
-        }
-    }
-    for r in readbacks {
-        // Unmapping a buffer whose map failed is harmless.
-        r.buffer.unmap();
-    }
-    match failed {
-        Some(e) => Err(e),
-        None => Ok(out),
-    }
+    let mut out: Vec<Vec<[f32; 4]>> = readbacks
+        .iter()
+        .map(|r| Vec::with_capacity(r.width as usize * r.height as usize))
+        .collect();
+    visit_colours(device, readbacks, |i, row| {
+        out[i].extend(
+            row.iter()
+                .map(|px| px.map(|v| if v.is_finite() { v } else { 0.0 })),
+        );
+    })?;
+    Ok(out)
 }
 
 /// Map `readbacks` (their copies submitted), wait once, and hand each

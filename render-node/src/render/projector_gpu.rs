@@ -409,9 +409,9 @@ impl ProjectorPipeline {
         Ok(times)
     }
 
-    /// Read the last drawn frame back (waits for the GPU). Non-finite
-    /// values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderSetupError> {
+    /// Copy both targets of the last drawn frame to their readback
+    /// buffers and submit the copies.
+    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, RenderSetupError> {
         let targets = self
             .targets
             .as_ref()
@@ -420,6 +420,13 @@ impl ProjectorPipeline {
         targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
         targets.readback[1].encode_copy(&mut encoder, &targets.value);
         ctx.queue.submit([encoder.finish()]);
+        Ok(targets)
+    }
+
+    /// Read the last drawn frame back (waits for the GPU). Non-finite
+    /// values become 0.
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderSetupError> {
+        let targets = self.submit_readback(ctx)?;
         let mut read = read_colours(&ctx.device, &[&targets.readback[0], &targets.readback[1]])?;
         let value = read.pop().unwrap_or_default();
         let irradiance = read.pop().unwrap_or_default();
@@ -433,11 +440,7 @@ impl ProjectorPipeline {
             height: targets.irradiance.height(),
             irradiance,
             value,
-            clipped_fraction: if counted == 0 {
-                0.0
-            } else {
-                clipped as f64 / counted as f64
-            },
+            clipped_fraction: clipped_fraction(clipped, counted),
         })
     }
 
@@ -446,14 +449,7 @@ impl ProjectorPipeline {
     /// [`Self::read`]'s. The `L` target is copied back too, but only its
     /// state codes are looked at, in place, so no image of it is built.
     pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, RenderSetupError> {
-        let targets = self
-            .targets
-            .as_ref()
-            .ok_or(RenderSetupError::NothingDrawn)?;
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
-        targets.readback[1].encode_copy(&mut encoder, &targets.value);
-        ctx.queue.submit([encoder.finish()]);
+        let targets = self.submit_readback(ctx)?;
         let (w, h) = (targets.value.width(), targets.value.height());
         let mut value: Vec<[f32; 4]> = Vec::with_capacity(w as usize * h as usize);
         let (mut counted, mut clipped) = (0usize, 0usize);
@@ -481,11 +477,7 @@ impl ProjectorPipeline {
             width: w,
             height: h,
             value,
-            clipped_fraction: if counted == 0 {
-                0.0
-            } else {
-                clipped as f64 / counted as f64
-            },
+            clipped_fraction: clipped_fraction(clipped, counted),
         })
     }
 
@@ -499,5 +491,14 @@ impl ProjectorPipeline {
     ) -> Result<GpuIrradianceMap, RenderSetupError> {
         self.draw(ctx, frame, projector, passes, false)?;
         self.read(ctx)
+    }
+}
+
+/// Clipped over counted (unclipped and clipped) pixels; 0 with none.
+fn clipped_fraction(clipped: usize, counted: usize) -> f64 {
+    if counted == 0 {
+        0.0
+    } else {
+        clipped as f64 / counted as f64
     }
 }
