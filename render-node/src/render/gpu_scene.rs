@@ -9,6 +9,7 @@ use showcase_proto::{ObjectKind, Showcase};
 use super::RenderSetupError;
 use super::projector_gpu::{ObjectRange, world_vertices_by_object};
 use crate::gpu::GpuError;
+use crate::gpu::shadow_views::occluders::ObjectVertices;
 use crate::gpu::shadow_views::{ShadowMaps, WorldVertex};
 use crate::gpu::upload::UploadBuffer;
 
@@ -110,6 +111,22 @@ impl SceneBuffers {
     /// Each drawn object's index and its range in [`Self::all`].
     pub fn ranges(&self) -> &[ObjectRange] {
         &self.ranges
+    }
+
+    /// Each drawn object's range in [`Self::all`] and whether it is real
+    /// (a receiver of `showcase`'s lights), for the light cube faces'
+    /// occluder culling.
+    pub fn object_vertices(&self, showcase: &Showcase) -> Vec<ObjectVertices> {
+        self.ranges
+            .iter()
+            .map(|(oi, r)| ObjectVertices {
+                range: r.clone(),
+                receiver: showcase
+                    .objects
+                    .get(*oi)
+                    .is_some_and(|o| o.kind == ObjectKind::Real),
+            })
+            .collect()
     }
 
     /// The buffer of `set` and its vertex count.

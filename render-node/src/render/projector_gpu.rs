@@ -18,7 +18,7 @@ use crate::gpu::irradiance_map::{
     self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
     LightSampleGpu, state,
 };
-use crate::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges, ranges_identity};
+use crate::gpu::shadow_views::occluders::{cube_occluder_ranges, ranges_identity};
 use crate::gpu::shadow_views::{
     LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, fitted_views,
 };
@@ -340,15 +340,7 @@ impl ProjectorPipeline {
             // can shadow a real surface and reach into the face
             // (shadow_views::occluders); the others read as lit anyway.
             let (vertices, _) = self.scene.buffer(VertexSet::All);
-            let objects: Vec<ObjectVertices> = self
-                .scene
-                .ranges()
-                .iter()
-                .map(|(oi, r)| ObjectVertices {
-                    range: r.clone(),
-                    receiver: frame.showcase.objects[*oi].kind == ObjectKind::Real,
-                })
-                .collect();
+            let objects = self.scene.object_vertices(&frame.showcase);
             let geometry = self.scene.geometry(VertexSet::All);
             let mut per_layer = Vec::with_capacity(light_layers.len());
             let everything = 0..self.scene.all().len() as u32;

@@ -11,11 +11,11 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use showcase_proto::{ObjectKind, Showcase};
+use showcase_proto::Showcase;
 
 use super::{BenchOptions, bench_frame, bench_projector, percentile};
 use crate::gpu::irradiance_map::floor::{FloorBindings, FloorError, FloorKind, FloorPass};
-use crate::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges};
+use crate::gpu::shadow_views::occluders::cube_occluder_ranges;
 use crate::gpu::shadow_views::{LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowViewsPass};
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
@@ -159,14 +159,7 @@ pub fn bench_floor(
         };
         let light_layers = 0..views.len() as u32;
         let (all_vertices, _) = scene_buffers.buffer(VertexSet::All);
-        let objects: Vec<ObjectVertices> = scene_buffers
-            .ranges()
-            .iter()
-            .map(|(oi, r)| ObjectVertices {
-                range: r.clone(),
-                receiver: frame.showcase.objects[*oi].kind == ObjectKind::Real,
-            })
-            .collect();
+        let objects = scene_buffers.object_vertices(&frame.showcase);
         let everything = 0..scene_buffers.all().len() as u32;
         let mut occluder_ranges = Vec::new();
         for (i, sample) in frame.samples.iter().enumerate() {
