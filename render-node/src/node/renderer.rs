@@ -71,6 +71,23 @@ impl Fnv64 {
     }
 }
 
+/// The error of a renderer (`what`, e.g. "projector 0") asked to draw
+/// `frame` while it holds scene version `have`; `Ok` when they match.
+pub fn check_scene_version(
+    what: &str,
+    frame: &FrameState,
+    have: Option<u64>,
+) -> Result<(), RenderError> {
+    if have == Some(frame.scene_version) {
+        Ok(())
+    } else {
+        Err(RenderError(format!(
+            "{what}: frame {} is for scene version {} but the renderer has {have:?}",
+            frame.frame, frame.scene_version
+        )))
+    }
+}
+
 /// Hash linear RGBA pixels bit for bit.
 pub fn hash_pixels(rgba: &[[f32; 4]]) -> u64 {
     let mut h = Fnv64::default();
@@ -122,12 +139,7 @@ impl Renderer for StateHashRenderer {
         frame: &FrameState,
         _scene: &Showcase,
     ) -> Result<RenderOutput, RenderError> {
-        if self.scene_version != Some(frame.scene_version) {
-            return Err(RenderError(format!(
-                "{}: frame {} is for scene version {} but the renderer has {:?}",
-                self.output, frame.frame, frame.scene_version, self.scene_version
-            )));
-        }
+        check_scene_version(&self.output, frame, self.scene_version)?;
         let mut h = Fnv64::default();
         h.write(self.output.as_bytes());
         h.write(&[self.role as u8]);

@@ -31,7 +31,9 @@ use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::mirror_view::FaceView;
-use crate::node::renderer::{Fnv64, OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
+use crate::node::renderer::{
+    Fnv64, OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
+};
 
 /// Near and far clip distances of face views (metres along the screen normal).
 pub const FACE_NEAR: f64 = 0.01;
@@ -616,12 +618,7 @@ impl Renderer for FaceRenderer {
         frame: &FrameState,
         scene: &Showcase,
     ) -> Result<RenderOutput, RenderError> {
-        if self.scene_version != Some(frame.scene_version) {
-            return Err(RenderError(format!(
-                "face {}: frame {} is for scene version {} but the renderer has {:?}",
-                self.face, frame.frame, frame.scene_version, self.scene_version
-            )));
-        }
+        check_scene_version(&format!("face {}", self.face), frame, self.scene_version)?;
         self.render_frame(frame, scene)
     }
 

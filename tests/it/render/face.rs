@@ -5,8 +5,9 @@
 use std::sync::Arc;
 
 use anyhow::{Result, ensure};
-use glam::{DVec2, Vec3};
-use showcase_proto::ObjectKind;
+use glam::{DVec2, DVec3, Vec3};
+use showcase_proto::{CrtFace, ObjectKind};
+use showcase_render::gpu::GpuContext;
 use showcase_render::light::metrics::relative_rmse;
 use showcase_render::light::{Image, Ray};
 use showcase_render::node::renderer::Renderer;
@@ -67,16 +68,7 @@ fn gpu_face_view_matches_the_cpu_reference() -> Result<()> {
     let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
     let occ = Occluders::new(&frame)?;
     let face = bench_face(320, 240);
-    let eyes = [frame.eyes[0], frame.eyes[1]];
-    let others = other_eyes(&frame, 0);
-    let gpu = FacePipeline::new(&ctx.device, 1024).render(
-        &ctx,
-        &frame,
-        &face,
-        &eyes,
-        &others,
-        &PassList::full_face(),
-    )?;
+    let BothEyes { eyes, others, gpu } = gpu_both_eyes(&ctx, &frame, &face, 1024)?;
     for (k, (eye, image)) in eyes.iter().zip(&gpu).enumerate() {
         let filled = eyes_to_fill(&eyes, k, &others);
         let cpu = face_image_cpu(&frame, &occ, &face, *eye, &filled)?;
@@ -352,16 +344,7 @@ fn face_without_virtual_objects_is_the_black_cpu_reference() -> Result<()> {
     let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
     let occ = Occluders::new(&frame)?;
     let face = bench_face(160, 120);
-    let eyes = [frame.eyes[0], frame.eyes[1]];
-    let others = other_eyes(&frame, 0);
-    let gpu = FacePipeline::new(&ctx.device, 256).render(
-        &ctx,
-        &frame,
-        &face,
-        &eyes,
-        &others,
-        &PassList::full_face(),
-    )?;
+    let BothEyes { eyes, others, gpu } = gpu_both_eyes(&ctx, &frame, &face, 256)?;
     for (k, (eye, image)) in eyes.iter().zip(&gpu).enumerate() {
         let filled = eyes_to_fill(&eyes, k, &others);
         let cpu = face_image_cpu(&frame, &occ, &face, *eye, &filled)?;
@@ -374,4 +357,33 @@ fn face_without_virtual_objects_is_the_black_cpu_reference() -> Result<()> {
         ensure!(lit == 0, "eye {k}: {lit} pixels drawn");
     }
     Ok(())
+}
+
+/// The first observer's two eyes, the other observers' eyes, and each of
+/// the two eyes' images drawn on the GPU.
+struct BothEyes {
+    eyes: [DVec3; 2],
+    others: Vec<DVec3>,
+    gpu: Vec<Vec<[f32; 4]>>,
+}
+
+/// [`BothEyes`] of `frame` with every face pass (shadow maps of
+/// `shadow_res` texels per side).
+fn gpu_both_eyes(
+    ctx: &GpuContext,
+    frame: &FrameScene,
+    face: &CrtFace,
+    shadow_res: u32,
+) -> Result<BothEyes> {
+    let eyes = [frame.eyes[0], frame.eyes[1]];
+    let others = other_eyes(frame, 0);
+    let gpu = FacePipeline::new(&ctx.device, shadow_res).render(
+        ctx,
+        frame,
+        face,
+        &eyes,
+        &others,
+        &PassList::full_face(),
+    )?;
+    Ok(BothEyes { eyes, others, gpu })
 }

@@ -6,7 +6,9 @@ use std::sync::Arc;
 use showcase_proto::{FrameState, Showcase};
 
 use crate::gpu::GpuContext;
-use crate::node::renderer::{OutputImage, RenderError, RenderOutput, Renderer, hash_pixels};
+use crate::node::renderer::{
+    OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
+};
 use crate::render::RenderSetupError;
 use crate::render::frame::FrameScene;
 use crate::render::passes::{FrameKey, Pass, PassList};
@@ -132,12 +134,11 @@ impl Renderer for ProjectorRenderer {
         frame: &FrameState,
         scene: &Showcase,
     ) -> Result<RenderOutput, RenderError> {
-        if self.scene_version != Some(frame.scene_version) {
-            return Err(RenderError(format!(
-                "projector {}: frame {} is for scene version {} but the renderer has {:?}",
-                self.projector, frame.frame, frame.scene_version, self.scene_version
-            )));
-        }
+        check_scene_version(
+            &format!("projector {}", self.projector),
+            frame,
+            self.scene_version,
+        )?;
         self.render_frame(frame, scene).map_err(|e| {
             RenderError(format!(
                 "projector {}: frame {}: {e}",
