@@ -39,7 +39,7 @@ fn quads_object(
 
 /// A closed unit box (inward faces, the top emitting) with a virtual cube
 /// of side `a` floating inside (outward faces), translated by `shift`.
-fn box_with_block(shift: Vec3) -> Showcase {
+pub(super) fn box_with_block(shift: Vec3) -> Showcase {
     let mut s = Showcase::default();
     let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
     let wall = Material::diffuse(Vec3::new(0.7, 0.6, 0.5));
@@ -75,7 +75,7 @@ fn box_with_block(shift: Vec3) -> Showcase {
     s
 }
 
-fn mesh_of(s: &Showcase) -> (RadiosityMesh, SceneGeometry) {
+pub(super) fn mesh_of(s: &Showcase) -> (RadiosityMesh, SceneGeometry) {
     let g = SceneGeometry::build(s, &ObjectFilter::All).unwrap();
     let m = RadiosityMesh::build(
         s,

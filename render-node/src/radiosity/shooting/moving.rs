@@ -31,7 +31,10 @@
 //!   rays may see a difference. Culling, cheapest first: the receiver
 //!   must lie in the shooter's penumbra of the box around the object's
 //!   old and new place (planes through an edge of one and a corner of the
-//!   other that separate the patch from the box), the segment between the
+//!   other that separate the patch from the box), the pair must face each
+//!   other (a receiver in or behind the shooter's plane, or a shooter in
+//!   or behind the receiver's, has a zero form factor wherever the object
+//!   is: `facing_away`), the segment between the
 //!   centres, widened by the larger of the two triangles' radii, must meet
 //!   the old or new box, and then a ray must not be sure to see the same
 //!   as before: a ray that certainly passes through both places is blocked
@@ -45,7 +48,7 @@
 //! With hemi-cube methods every row that is needed is recomputed whole
 //! (correct, not faster).
 
-use super::ray_cast::{normalise, ray_cast_form_factor, receiver_rays};
+use super::ray_cast::{facing_away, normalise, ray_cast_form_factor, receiver_rays};
 use super::{FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
@@ -416,6 +419,7 @@ impl<'a> Shooter<'a> {
             } else {
                 let rj = places.radii[j as usize];
                 if ball_outside_penumbra(&planes, e.center, rj, places.margin)
+                    || facing_away(p, e)
                     || outside_penumbra(&planes, &e.vertices, places.margin)
                 {
                     continue;

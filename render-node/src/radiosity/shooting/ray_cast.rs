@@ -4,7 +4,7 @@
 //! object-move update, which must compute the very same values.
 
 use crate::light::{SceneGeometry, form_factor_point_polygon};
-use crate::radiosity::mesh::{RadiosityMesh, barycentric_point, sub_centroids};
+use crate::radiosity::mesh::{Element, Patch, RadiosityMesh, barycentric_point, sub_centroids};
 use crate::radiosity::sources::{triangle_sample, unit};
 use glam::DVec3;
 
@@ -50,6 +50,45 @@ pub(super) fn receiver_rays<'m>(
     })
 }
 
+/// Relative height below which a point counts as lying in a plane in
+/// [`facing_away`] (in units of the pair's extent): far above round-off,
+/// far below any form factor that matters.
+const IN_PLANE: f64 = 1e-9;
+
+/// True when the ray-cast form factor from patch `p` to element `e` is
+/// zero whatever lies between them, to round-off: every corner of the
+/// receiver lies on or behind the patch's plane, or every corner of the
+/// patch on or behind the receiver's (within [`IN_PLANE`] of the pair's
+/// extent). The closed form is zero behind the emitter and where the
+/// emitter is below the receiver's horizon; a receiver within a sliver of
+/// the plane gets a form factor of the order of that sliver. Coplanar
+/// pairs (a floor seen from the floor) are the common case.
+pub(super) fn facing_away(p: &Patch, e: &Element) -> bool {
+    let extent = (e.center - p.center).length() + p.area.sqrt() + e.area.sqrt();
+    let tol = IN_PLANE * extent;
+    let below = |n: DVec3, origin: DVec3, points: &[DVec3; 3]| {
+        points.iter().all(|x| n.dot(*x - origin) <= tol)
+    };
+    below(p.normal, p.center, &e.vertices) || below(e.normal, e.center, &p.vertices)
+}
+
+/// The unoccluded point-to-polygon form factor from element `e` to patch
+/// `p`, averaged over `e`: the closed form at the centroids of n^2 equal
+/// sub-triangles, n growing as the pair gets close relative to its size.
+fn unoccluded_form_factor(p: &Patch, e: &Element) -> f64 {
+    let closeness = (p.area.sqrt() + e.area.sqrt()) / (e.center - p.center).length();
+    let n = (2.0 * closeness).ceil().clamp(1.0, 8.0) as u32;
+    let points = sub_centroids(n);
+    points
+        .iter()
+        .map(|b| {
+            let x = barycentric_point(&e.vertices, *b);
+            form_factor_point_polygon(x, e.normal, &p.vertices).unwrap_or(0.0)
+        })
+        .sum::<f64>()
+        / points.len() as f64
+}
+
 /// The raw (not normalised) ray-cast form factor `F_pj` from patch
 /// `shooter` to element `j` (see the module docs), `None`
 /// where it is zero.
@@ -63,20 +102,10 @@ pub(super) fn ray_cast_form_factor(
 ) -> Option<f64> {
     let e = &mesh.elements[j as usize];
     let p = &mesh.patches[shooter];
-    // Unoccluded area-averaged form factor: the closed form at the
-    // centroids of n^2 equal sub-triangles, n growing as the pair gets
-    // close relative to its size.
-    let closeness = (p.area.sqrt() + e.area.sqrt()) / (e.center - p.center).length();
-    let n = (2.0 * closeness).ceil().clamp(1.0, 8.0) as u32;
-    let points = sub_centroids(n);
-    let unoccluded = points
-        .iter()
-        .map(|b| {
-            let x = barycentric_point(&e.vertices, *b);
-            form_factor_point_polygon(x, e.normal, &p.vertices).unwrap_or(0.0)
-        })
-        .sum::<f64>()
-        / points.len() as f64;
+    if facing_away(p, e) {
+        return None;
+    }
+    let unoccluded = unoccluded_form_factor(p, e);
     if !(unoccluded > 0.0) {
         return None;
     }
@@ -88,4 +117,42 @@ pub(super) fn ray_cast_form_factor(
         .count();
     let f = unoccluded * seen as f64 / k as f64 * e.area / p.area;
     (f > 0.0 && f.is_finite()).then_some(f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::radiosity::moving_tests::{box_with_block, mesh_of};
+    use glam::Vec3;
+
+    /// [`facing_away`] culls only pairs whose unoccluded form factor is
+    /// zero (to round-off), on every pair of a closed box with a block in
+    /// it, and it does cull every coplanar pair.
+    #[test]
+    fn facing_away_culls_only_zero_form_factors() {
+        let (mesh, _) = mesh_of(&box_with_block(Vec3::ZERO));
+        let (mut culled, mut coplanar) = (0, 0);
+        for (i, p) in mesh.patches.iter().enumerate() {
+            for e in mesh.elements.iter().filter(|e| e.patch as usize != i) {
+                let away = facing_away(p, e);
+                let f = unoccluded_form_factor(p, e);
+                if away {
+                    culled += 1;
+                    assert!(f < 1e-12, "culled pair with form factor {f}");
+                }
+                let in_plane = e
+                    .vertices
+                    .iter()
+                    .all(|v| p.normal.dot(*v - p.center).abs() < 1e-12);
+                if in_plane && p.normal.dot(e.normal) > 0.5 {
+                    coplanar += 1;
+                    assert!(away, "coplanar pair not culled");
+                }
+            }
+        }
+        assert!(
+            coplanar > 100 && culled > coplanar,
+            "{culled} culled, {coplanar} coplanar"
+        );
+    }
 }

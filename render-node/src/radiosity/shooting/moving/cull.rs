@@ -289,31 +289,55 @@ pub(super) fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
 /// no plane separates them (the triangle touches or enters the box).
 pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f64)> {
     let corners = b.corners();
-    let mut candidates = vec![DVec3::X, DVec3::Y, DVec3::Z];
-    candidates.push((shooter[1] - shooter[0]).cross(shooter[2] - shooter[0]));
-    for k in 0..3 {
-        let (a, c) = (shooter[k], shooter[(k + 1) % 3]);
-        candidates.extend(corners.iter().map(|v| (c - a).cross(*v - a)));
+    let (center, half) = (0.5 * (b.lo + b.hi), 0.5 * (b.hi - b.lo));
+    let mut candidates = [DVec3::ZERO; 64];
+    candidates[..4].copy_from_slice(&[
+        DVec3::X,
+        DVec3::Y,
+        DVec3::Z,
+        (shooter[1] - shooter[0]).cross(shooter[2] - shooter[0]),
+    ]);
+    let mut k = 4;
+    for e in 0..3 {
+        let (a, c) = (shooter[e], shooter[(e + 1) % 3]);
+        for v in corners {
+            candidates[k] = (c - a).cross(v - a);
+            k += 1;
+        }
     }
     for (i, j) in BOX_EDGES {
         let (a, c) = (corners[i], corners[j]);
-        candidates.extend(shooter.iter().map(|y| (c - a).cross(*y - a)));
+        for y in shooter {
+            candidates[k] = (c - a).cross(*y - a);
+            k += 1;
+        }
     }
     let mut planes: Vec<(DVec3, f64)> = Vec::new();
+    let mut push = |n: DVec3, c: f64| {
+        let duplicate = planes
+            .iter()
+            .any(|(m, d)| m.dot(n) > 1.0 - 1e-12 && (d - c).abs() < 1e-12);
+        if !duplicate {
+            planes.push((n, c));
+        }
+    };
     for n in candidates {
         let n = n.normalize_or_zero();
         if n == DVec3::ZERO || !n.is_finite() {
             continue;
         }
-        for n in [n, -n] {
-            let y_max = shooter.iter().map(|y| n.dot(*y)).fold(f64::MIN, f64::max);
-            let b_min = corners.iter().map(|c| n.dot(*c)).fold(f64::MAX, f64::min);
-            let duplicate = planes
-                .iter()
-                .any(|(m, c)| m.dot(n) > 1.0 - 1e-12 && (c - b_min).abs() < 1e-12);
-            if y_max <= b_min && !duplicate {
-                planes.push((n, b_min));
-            }
+        // The shooter's and the box's extent along n (the box's from its
+        // support function): a plane with normal n or -n separates them
+        // when the extents do not overlap.
+        let y = shooter.map(|y| n.dot(y));
+        let (y_lo, y_hi) = (y[0].min(y[1]).min(y[2]), y[0].max(y[1]).max(y[2]));
+        let (mid, reach) = (n.dot(center), n.abs().dot(half));
+        let (b_lo, b_hi) = (mid - reach, mid + reach);
+        if y_hi <= b_lo {
+            push(n, b_lo);
+        }
+        if b_hi <= y_lo {
+            push(-n, -b_hi);
         }
     }
     planes
