@@ -112,16 +112,20 @@ pub(super) enum Crossing {
 /// Relative margin of [`crossing`] (in barycentric and segment units).
 const CROSSING_MARGIN: f64 = 1e-6;
 
-/// A triangle prepared for [`crossing`]: its first corner, edges, the
-/// product of the edge lengths and its box.
+/// A triangle prepared for [`crossing`]: its plane, first corner, the
+/// dual basis that gives a point's barycentric coordinates, and its box.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PreparedTriangle {
     /// Unit normal of the plane (zero when degenerate).
     normal: DVec3,
     v0: DVec3,
-    e1: DVec3,
-    e2: DVec3,
-    edge_product: f64,
+    /// `(p - v0) . u_axis` and `(p - v0) . v_axis` are the barycentric
+    /// coordinates of a point `p` of the plane along the two edges.
+    u_axis: DVec3,
+    v_axis: DVec3,
+    /// Length of the edges' cross product over the product of their
+    /// lengths (the sine of the corner angle).
+    sine: f64,
     lo: DVec3,
     hi: DVec3,
 }
@@ -130,12 +134,20 @@ impl PreparedTriangle {
     /// `[v0, v1, v2]` prepared.
     pub(super) fn new([v0, v1, v2]: [DVec3; 3]) -> Self {
         let (e1, e2) = (v1 - v0, v2 - v0);
+        let n = e1.cross(e2);
+        let n2 = n.length_squared();
+        let (u_axis, v_axis) = if n2 > 0.0 && n2.is_finite() {
+            (e2.cross(n) / n2, n.cross(e1) / n2)
+        } else {
+            (DVec3::ZERO, DVec3::ZERO)
+        };
+        let sine = n.length() / (e1.length() * e2.length());
         Self {
-            normal: e1.cross(e2).normalize_or_zero(),
+            normal: n.normalize_or_zero(),
             v0,
-            e1,
-            e2,
-            edge_product: e1.length() * e2.length(),
+            u_axis,
+            v_axis,
+            sine: if sine.is_finite() { sine } else { 0.0 },
             lo: v0.min(v1).min(v2),
             hi: v0.max(v1).max(v2),
         }
@@ -170,16 +182,15 @@ pub(super) fn crossing_from(
     let start = if *first < triangles.len() { *first } else { 0 };
     let (tail, head) = triangles.split_at(start);
     for (k, t) in head.iter().chain(tail).enumerate() {
-        if t.normal != DVec3::ZERO {
-            let (da, db) = (t.normal.dot(a - t.v0), t.normal.dot(b - t.v0));
-            if (da > off_plane && db > off_plane) || (da < -off_plane && db < -off_plane) {
-                continue;
-            }
+        let (da, db) = (t.normal.dot(a - t.v0), t.normal.dot(b - t.v0));
+        if t.normal != DVec3::ZERO
+            && ((da > off_plane && db > off_plane) || (da < -off_plane && db < -off_plane))
+        {
+            continue;
         }
-        let p = d.cross(t.e2);
-        let det = t.e1.dot(p);
-        let scale = t.edge_product * d_length;
-        if !(det.abs() > 1e-9 * scale) {
+        // Where the line crosses the plane, as a fraction of the segment.
+        let across = da - db;
+        if !(across.abs() > 1e-9 * t.sine * d_length) {
             // Parallel to the plane (or degenerate): only sure when the
             // segment is far from the triangle's box.
             let pad = m * (1.0 + (t.hi - t.lo).max_element());
@@ -189,12 +200,9 @@ pub(super) fn crossing_from(
             }
             continue;
         }
-        let inv = 1.0 / det;
-        let s = a - t.v0;
-        let u = s.dot(p) * inv;
-        let q = s.cross(t.e1);
-        let v = d.dot(q) * inv;
-        let tt = t.e2.dot(q) * inv;
+        let tt = da / across;
+        let q = a + tt * d - t.v0;
+        let (u, v) = (q.dot(t.u_axis), q.dot(t.v_axis));
         if u > m && v > m && u + v < 1.0 - m && tt > m && tt < 1.0 - m {
             *first = (start + k) % triangles.len();
             return Crossing::Hit;
@@ -411,6 +419,54 @@ mod tests {
         assert_eq!(
             crossing(&tri, DVec3::new(-1.0, 0.2, 0.5), DVec3::new(2.0, 0.2, 0.5)),
             Crossing::Miss
+        );
+    }
+
+    /// A sure answer agrees with a plain Moller-Trumbore test (no
+    /// margins) on random segments and triangles, and most answers are
+    /// sure.
+    #[test]
+    fn crossing_agrees_with_plain_moller_trumbore() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        let mut p = || DVec3::new(rng.random(), rng.random(), rng.random());
+        let plain = |[v0, v1, v2]: [DVec3; 3], a: DVec3, b: DVec3| -> bool {
+            let (e1, e2, d) = (v1 - v0, v2 - v0, b - a);
+            let h = d.cross(e2);
+            let det = e1.dot(h);
+            let s = a - v0;
+            let (u, q) = (s.dot(h) / det, s.cross(e1));
+            let (v, t) = (d.dot(q) / det, e2.dot(q) / det);
+            u > 0.0 && v > 0.0 && u + v < 1.0 && t > 0.0 && t < 1.0
+        };
+        let (mut hits, mut misses, mut unsure) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let tri = [p(), p(), p()];
+            // Half the segments through a point of the triangle's plane
+            // near the triangle, half anywhere.
+            let (a, b) = if hits + misses + unsure < 10_000 {
+                let w = p();
+                let (u, v) = (1.4 * w.x - 0.2, 1.4 * w.y - 0.2);
+                let on = tri[0] + u * (tri[1] - tri[0]) + v * (tri[2] - tri[0]);
+                let dir = p() - 0.5 * DVec3::ONE;
+                (on + dir, on - w.z * dir)
+            } else {
+                (3.0 * p() - DVec3::ONE, 3.0 * p() - DVec3::ONE)
+            };
+            match crossing(&[PreparedTriangle::new(tri)], a, b) {
+                Crossing::Hit => {
+                    hits += 1;
+                    assert!(plain(tri, a, b), "{tri:?} {a} {b}");
+                }
+                Crossing::Miss => {
+                    misses += 1;
+                    assert!(!plain(tri, a, b), "{tri:?} {a} {b}");
+                }
+                Crossing::Unsure => unsure += 1,
+            }
+        }
+        assert!(
+            hits > 1000 && misses > 10_000 && unsure < 50,
+            "{hits} {misses} {unsure}"
         );
     }
 
