@@ -155,6 +155,26 @@ fn row_difference(old: &[(u32, f64)], new: &[(u32, f64)]) -> Vec<(u32, f64)> {
     out
 }
 
+/// The signed difference `new - old` where `new` is `old` (sorted by
+/// element) with `changes` (sorted) put in: as [`row_difference`] of the
+/// merged row, touching only the changed entries.
+fn changes_difference(old: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f64)> {
+    let mut rest = old;
+    let mut out = Vec::with_capacity(changes.len());
+    for &(j, f) in changes {
+        let k = rest.partition_point(|e| e.0 < j);
+        let before = match rest.get(k) {
+            Some(&(jo, fo)) if jo == j => fo,
+            _ => 0.0,
+        };
+        rest = &rest[k..];
+        if f - before != 0.0 {
+            out.push((j, f - before));
+        }
+    }
+    out
+}
+
 /// `row` (sorted by element) with the entries of `changes` (sorted, a
 /// zero value removes the entry) put in.
 fn merge_changes(row: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f64)> {
@@ -255,6 +275,8 @@ impl<'a> Shooter<'a> {
             margin,
             [triangles_of(old_mesh), triangles_of(mesh)],
             mesh,
+            object,
+            &self.active,
         );
 
         // The old rows of every patch that shot or has a cached row.
@@ -312,16 +334,18 @@ impl<'a> Shooter<'a> {
             .enumerate()
             .map(|(i, (own, old))| {
                 let mut stats = MoveStats::default();
-                let (row, scale) = match own {
+                let (row, scale, diff) = match own {
                     Some(recomputed) => {
                         stats.rows_recomputed = 1;
-                        recomputed
+                        let diff = old.as_ref().map_or_else(Vec::new, |(old_row, _)| {
+                            row_difference(old_row, &recomputed.0)
+                        });
+                        (recomputed.0, recomputed.1, diff)
                     }
                     None => {
                         let (old_row, old_scale) = old.as_ref()?;
                         stats.rows_patched = 1;
-                        let changes =
-                            new.changed_entries(i, object, &places, &reciprocal, &mut stats);
+                        let changes = new.changed_entries(i, &places, &reciprocal, &mut stats);
                         let mut row = if *old_scale == 1.0 {
                             merge_changes(old_row, &changes)
                         } else {
@@ -330,12 +354,16 @@ impl<'a> Shooter<'a> {
                             merge_changes(&raw, &changes)
                         };
                         let scale = normalise(&mut row);
-                        (row, scale)
+                        // Unscaled before and after, only the changed
+                        // entries differ.
+                        let diff = if *old_scale == 1.0 && scale == 1.0 {
+                            changes_difference(old_row, &changes)
+                        } else {
+                            row_difference(old_row, &row)
+                        };
+                        (row, scale, diff)
                     }
                 };
-                let diff = old
-                    .as_ref()
-                    .map_or_else(Vec::new, |(old_row, _)| row_difference(old_row, &row));
                 Some((row, scale, diff, stats))
             })
             .collect();
@@ -391,7 +419,6 @@ impl<'a> Shooter<'a> {
     fn changed_entries(
         &self,
         i: usize,
-        object: u32,
         places: &Places,
         reciprocal: &Reciprocal,
         stats: &mut MoveStats,
@@ -404,44 +431,45 @@ impl<'a> Shooter<'a> {
         let planes = penumbra_planes(&p.vertices, &places.union);
         let mut hints = [0; 2];
         let mut out = Vec::new();
-        for (j, e) in mesh.elements.iter().enumerate() {
-            if !self.active[j] || e.patch as usize == i {
+        for &j in &places.object_elements {
+            if !self.active[j as usize] {
                 continue;
             }
-            let j = j as u32;
-            let recompute = if e.object == object {
-                if let Some(f) = reciprocal.entry(mesh, i, j) {
-                    stats.entries_reciprocal += 1;
-                    out.push((j, f));
-                    continue;
-                }
-                true
+            if let Some(f) = reciprocal.entry(mesh, i, j) {
+                stats.entries_reciprocal += 1;
+                out.push((j, f));
             } else {
-                let rj = places.radii[j as usize];
-                if ball_outside_penumbra(&planes, e.center, rj, places.margin)
-                    || facing_away(p, e)
-                    || outside_penumbra(&planes, &e.vertices, places.margin)
-                {
-                    continue;
-                }
-                let widen = rp.max(rj);
-                if !places
-                    .boxes
-                    .iter()
-                    .any(|b| b.grown(widen).meets_segment(p.center, e.center))
-                {
-                    continue;
-                }
-                stats.pairs_near += 1;
-                receiver_rays(mesh, i, j, &samples, seed)
-                    .any(|(x, y)| places.may_change(x, y, &mut hints))
-            };
-            if recompute {
                 stats.entries_recomputed += 1;
                 let f = ray_cast_form_factor(mesh, self.geometry, i, j, &samples, seed);
                 out.push((j, f.unwrap_or(0.0)));
             }
         }
+        for &(center, rj, j, patch) in &places.receivers {
+            if patch as usize == i || ball_outside_penumbra(&planes, center, rj, places.margin) {
+                continue;
+            }
+            let e = &mesh.elements[j as usize];
+            if facing_away(p, e) || outside_penumbra(&planes, &e.vertices, places.margin) {
+                continue;
+            }
+            let widen = rp.max(rj);
+            if !places
+                .boxes
+                .iter()
+                .any(|b| b.grown(widen).meets_segment(p.center, center))
+            {
+                continue;
+            }
+            stats.pairs_near += 1;
+            if receiver_rays(mesh, i, j, &samples, seed)
+                .any(|(x, y)| places.may_change(x, y, &mut hints))
+            {
+                stats.entries_recomputed += 1;
+                let f = ray_cast_form_factor(mesh, self.geometry, i, j, &samples, seed);
+                out.push((j, f.unwrap_or(0.0)));
+            }
+        }
+        out.sort_unstable_by_key(|e| e.0);
         out
     }
 }
@@ -513,6 +541,8 @@ mod tests {
         assert_eq!(new, vec![(0, 0.05), (1, 0.1), (5, 0.25), (7, 0.7)]);
         let d = row_difference(&old, &new);
         assert_eq!(d, vec![(0, 0.05), (3, -0.3), (5, -0.25), (7, 0.7)]);
+        assert_eq!(changes_difference(&old, &changes), d);
+        assert!(changes_difference(&new, &[(1, 0.1), (5, 0.25)]).is_empty());
         assert!(row_difference(&new, &new).is_empty());
     }
 }

@@ -229,30 +229,42 @@ pub(super) struct Places {
     pub(super) margin: f64,
     /// Triangles (old, new).
     pub(super) triangles: [Vec<PreparedTriangle>; 2],
-    /// Each element's largest distance from its centre to a corner.
-    pub(super) radii: Vec<f64>,
+    /// The object's elements.
+    pub(super) object_elements: Vec<u32>,
+    /// The other active elements, packed for the per-row scan: centre,
+    /// largest distance from it to a corner, element, patch.
+    pub(super) receivers: Vec<(DVec3, f64, u32, u32)>,
 }
 
 impl Places {
-    /// The places of the object's old and new `boxes` (grown here by
-    /// `margin`) and `triangles`, with the element radii of `mesh`.
+    /// The places of `object`'s old and new `boxes` (grown here by
+    /// `margin`) and `triangles`, with the elements of `mesh` (the
+    /// receivers: those `active`).
     pub(super) fn new(
         boxes: [Bounds; 2],
         margin: f64,
         triangles: [Vec<[DVec3; 3]>; 2],
         mesh: &RadiosityMesh,
+        object: u32,
+        active: &[bool],
     ) -> Self {
         let boxes = boxes.map(|b| b.grown(margin));
+        let (mut object_elements, mut receivers) = (Vec::new(), Vec::new());
+        for (j, e) in mesh.elements.iter().enumerate() {
+            if e.object == object {
+                object_elements.push(j as u32);
+            } else if active[j] {
+                let r = radius(e.center, &e.vertices);
+                receivers.push((e.center, r, j as u32, e.patch));
+            }
+        }
         Self {
             union: boxes[0].union(&boxes[1]),
             boxes,
             margin,
             triangles: triangles.map(|t| t.into_iter().map(PreparedTriangle::new).collect()),
-            radii: mesh
-                .elements
-                .iter()
-                .map(|e| radius(e.center, &e.vertices))
-                .collect(),
+            object_elements,
+            receivers,
         }
     }
 
