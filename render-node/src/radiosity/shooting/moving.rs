@@ -30,8 +30,10 @@
 //! - a static pair is re-computed only when one of its own visibility
 //!   rays may see a difference. Culling, cheapest first: the receiver
 //!   must lie in the shooter's penumbra of the box around the object's
-//!   old and new place (planes through an edge of one and a corner of the
-//!   other that separate the patch from the box), the pair must face each
+//!   old and new place (a box in the frame that fits the object best,
+//!   see `Bounds::of_places`; planes through an edge of one and a corner
+//!   of the other that separate the patch from the box), the pair must
+//!   face each
 //!   other (a receiver in or behind the shooter's plane, or a shooter in
 //!   or behind the receiver's, has a zero form factor wherever the object
 //!   is: `facing_away`), the segment between the
@@ -252,10 +254,7 @@ impl<'a> Shooter<'a> {
                 });
             }
         }
-        let (Some(old_box), Some(new_box)) = (
-            Bounds::of_object(old_mesh, object),
-            Bounds::of_object(mesh, object),
-        ) else {
+        let Some([old_box, new_box]) = Bounds::of_places(old_mesh, mesh, object) else {
             return Err(MoveError::NoSuchObject(object));
         };
         // Wider than any ray offset, so the box test is conservative.
@@ -532,6 +531,40 @@ impl Reciprocal {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A block turned 30 degrees about the vertical is boxed in its own
+    /// frame: both places' boxes hold every vertex and have the block's
+    /// volume, not the 1.87 times larger one of its axis-aligned box.
+    #[test]
+    fn a_turned_block_is_boxed_in_its_own_frame() {
+        use crate::radiosity::moving_tests::{box_with_block, mesh_of};
+        let turned = |shift: glam::Vec3| {
+            let mut s = box_with_block(shift);
+            s.objects[2].transform.rotation =
+                glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_6);
+            s
+        };
+        let (m0, _) = mesh_of(&turned(glam::Vec3::ZERO));
+        let (m1, _) = mesh_of(&turned(glam::Vec3::new(0.05, 0.0, 0.03)));
+        let boxes = Bounds::of_places(&m0, &m1, 2).unwrap();
+        for (b, m) in boxes.iter().zip([&m0, &m1]) {
+            let volume = (b.hi - b.lo).element_product();
+            assert!(
+                (volume / 0.25_f64.powi(3) - 1.0).abs() < 1e-6,
+                "volume {volume}"
+            );
+            for v in m
+                .elements
+                .iter()
+                .filter(|e| e.object == 2)
+                .flat_map(|e| e.vertices)
+            {
+                let x = DVec3::new(b.axes[0].dot(v), b.axes[1].dot(v), b.axes[2].dot(v));
+                assert!(x.cmpge(b.lo - 1e-12).all() && x.cmple(b.hi + 1e-12).all());
+            }
+        }
+        assert!(Bounds::of_places(&m0, &m1, 9).is_none());
+    }
 
     #[test]
     fn row_merge_and_difference_are_exact() {

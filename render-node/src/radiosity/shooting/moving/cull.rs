@@ -6,24 +6,106 @@
 use crate::radiosity::mesh::RadiosityMesh;
 use glam::DVec3;
 
-/// An axis-aligned box.
+/// A box with its own orthonormal axes (`lo`, `hi` along them): an
+/// object's places are boxed in the frame that fits them best, so a
+/// rotated block is not boxed by its far larger axis-aligned box.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Bounds {
+    /// Orthonormal axes.
+    pub(super) axes: [DVec3; 3],
+    /// Smallest coordinates along the axes.
     pub(super) lo: DVec3,
+    /// Largest coordinates along the axes.
     pub(super) hi: DVec3,
 }
 
+/// The world axes.
+const WORLD: [DVec3; 3] = [DVec3::X, DVec3::Y, DVec3::Z];
+
+/// At most this many of an object's largest triangles propose a frame in
+/// [`Bounds::of_places`].
+const FRAME_CANDIDATES: usize = 32;
+
 impl Bounds {
-    /// The box of `object`'s elements in `mesh`, `None` when it has none.
-    pub(super) fn of_object(mesh: &RadiosityMesh, object: u32) -> Option<Self> {
-        let mut it = mesh
-            .elements
+    /// The axis-aligned box from `lo` to `hi`.
+    pub(super) fn aligned(lo: DVec3, hi: DVec3) -> Self {
+        Self {
+            axes: WORLD,
+            lo,
+            hi,
+        }
+    }
+
+    /// `x` in the box's axes.
+    fn local(&self, x: DVec3) -> DVec3 {
+        DVec3::new(
+            self.axes[0].dot(x),
+            self.axes[1].dot(x),
+            self.axes[2].dot(x),
+        )
+    }
+
+    /// The boxes of `object`'s old and new place (its elements in
+    /// `old` and `new`), in one frame: the world's or one of a large
+    /// triangle's (its normal and one of its edges), whichever gives the
+    /// smaller total volume. `None` when the object has no elements.
+    pub(super) fn of_places(
+        old: &RadiosityMesh,
+        new: &RadiosityMesh,
+        object: u32,
+    ) -> Option<[Self; 2]> {
+        let points = |m: &RadiosityMesh| -> Vec<DVec3> {
+            m.elements
+                .iter()
+                .filter(|e| e.object == object)
+                .flat_map(|e| e.vertices)
+                .collect()
+        };
+        let (p_old, p_new) = (points(old), points(new));
+        if p_old.is_empty() || p_new.is_empty() {
+            return None;
+        }
+        let mut triangles: Vec<(f64, [DVec3; 3])> = old
+            .primitives
             .iter()
-            .filter(|e| e.object == object)
-            .flat_map(|e| e.vertices);
-        let first = it.next()?;
-        let (lo, hi) = it.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        Some(Self { lo, hi })
+            .filter(|p| p.object == object)
+            .map(|p| {
+                let [a, b, c] = p.vertices;
+                ((b - a).cross(c - a).length(), p.vertices)
+            })
+            .collect();
+        triangles.sort_by(|x, y| y.0.total_cmp(&x.0));
+        let frames = triangles
+            .iter()
+            .take(FRAME_CANDIDATES)
+            .flat_map(|(_, [a, b, c])| {
+                let n = (*b - *a).cross(*c - *a).normalize_or_zero();
+                [*b - *a, *c - *b, *a - *c].map(|edge| {
+                    let u = (edge - n * n.dot(edge)).normalize_or_zero();
+                    [n, u, n.cross(u)]
+                })
+            })
+            .filter(|[n, u, w]| *n != DVec3::ZERO && *u != DVec3::ZERO && w.is_finite());
+        std::iter::once(WORLD)
+            .chain(frames)
+            .map(|axes| {
+                let fit = |points: &[DVec3]| {
+                    let first = Self::aligned(DVec3::ZERO, DVec3::ZERO);
+                    let frame = Self { axes, ..first };
+                    let (lo, hi) = points.iter().map(|p| frame.local(*p)).fold(
+                        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+                        |(lo, hi), x| (lo.min(x), hi.max(x)),
+                    );
+                    Self { axes, lo, hi }
+                };
+                [fit(&p_old), fit(&p_new)]
+            })
+            .min_by(|x, y| {
+                let volume = |b: &[Self; 2]| {
+                    (b[0].hi - b[0].lo).element_product() + (b[1].hi - b[1].lo).element_product()
+                };
+                volume(x).total_cmp(&volume(y))
+            })
     }
 
     /// Grown by `by` on every side.
@@ -31,31 +113,45 @@ impl Bounds {
         Self {
             lo: self.lo - DVec3::splat(by),
             hi: self.hi + DVec3::splat(by),
+            ..*self
         }
     }
 
-    /// The smallest box holding both.
+    /// The smallest box in this box's frame holding both (`other` is in
+    /// the same frame).
     fn union(&self, other: &Self) -> Self {
         Self {
             lo: self.lo.min(other.lo),
             hi: self.hi.max(other.hi),
+            ..*self
         }
     }
 
-    /// The eight corners.
+    /// The eight corners, in world space.
     fn corners(&self) -> [DVec3; 8] {
         let (l, h) = (self.lo, self.hi);
+        let [ax, ay, az] = self.axes;
         [0, 1, 2, 3, 4, 5, 6, 7].map(|k| {
-            DVec3::new(
-                if k & 1 == 0 { l.x } else { h.x },
-                if k & 2 == 0 { l.y } else { h.y },
-                if k & 4 == 0 { l.z } else { h.z },
-            )
+            ax * if k & 1 == 0 { l.x } else { h.x }
+                + ay * if k & 2 == 0 { l.y } else { h.y }
+                + az * if k & 4 == 0 { l.z } else { h.z }
         })
+    }
+
+    /// The box's centre (world space) and half extents along its axes.
+    fn centre_and_half(&self) -> (DVec3, DVec3) {
+        let m = 0.5 * (self.lo + self.hi);
+        let centre = self.axes[0] * m.x + self.axes[1] * m.y + self.axes[2] * m.z;
+        (centre, 0.5 * (self.hi - self.lo))
     }
 
     /// True when the segment `a`-`b` meets the box (slab test).
     pub(super) fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
+        let (a, b) = if self.axes == WORLD {
+            (a, b)
+        } else {
+            (self.local(a), self.local(b))
+        };
         let d = b - a;
         let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
         for k in 0..3 {
@@ -194,7 +290,7 @@ pub(super) fn crossing_from(
             // Parallel to the plane (or degenerate): only sure when the
             // segment is far from the triangle's box.
             let pad = m * (1.0 + (t.hi - t.lo).max_element());
-            let bounds = Bounds { lo: t.lo, hi: t.hi }.grown(pad);
+            let bounds = Bounds::aligned(t.lo, t.hi).grown(pad);
             if bounds.meets_segment(a, b) {
                 all_miss = false;
             }
@@ -309,12 +405,12 @@ pub(super) fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
 /// no plane separates them (the triangle touches or enters the box).
 pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f64)> {
     let corners = b.corners();
-    let (center, half) = (0.5 * (b.lo + b.hi), 0.5 * (b.hi - b.lo));
+    let (center, half) = b.centre_and_half();
     let mut candidates = [DVec3::ZERO; 64];
     candidates[..4].copy_from_slice(&[
-        DVec3::X,
-        DVec3::Y,
-        DVec3::Z,
+        b.axes[0],
+        b.axes[1],
+        b.axes[2],
         (shooter[1] - shooter[0]).cross(shooter[2] - shooter[0]),
     ]);
     let mut k = 4;
@@ -351,7 +447,8 @@ pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f
         // when the extents do not overlap.
         let y = shooter.map(|y| n.dot(y));
         let (y_lo, y_hi) = (y[0].min(y[1]).min(y[2]), y[0].max(y[1]).max(y[2]));
-        let (mid, reach) = (n.dot(center), n.abs().dot(half));
+        let reach = b.local(n).abs().dot(half);
+        let mid = n.dot(center);
         let (b_lo, b_hi) = (mid - reach, mid + reach);
         if y_hi <= b_lo {
             push(n, b_lo);
@@ -396,10 +493,7 @@ mod tests {
 
     #[test]
     fn segment_box_test_matches_hand_cases() {
-        let b = Bounds {
-            lo: DVec3::ZERO,
-            hi: DVec3::ONE,
-        };
+        let b = Bounds::aligned(DVec3::ZERO, DVec3::ONE);
         let x = DVec3::X;
         assert!(b.meets_segment(DVec3::new(-1.0, 0.5, 0.5), DVec3::new(2.0, 0.5, 0.5)));
         assert!(!b.meets_segment(DVec3::new(-1.0, 1.5, 0.5), DVec3::new(2.0, 1.5, 0.5)));
@@ -516,9 +610,22 @@ mod tests {
             )
         };
         let mut rejected = 0;
-        for _ in 0..2000 {
+        for k in 0..2000 {
             let lo = point(&mut rng, 0.3);
+            // Every other box turned to a random frame.
+            let axes = if k % 2 == 0 {
+                WORLD
+            } else {
+                let q = glam::DQuat::from_euler(
+                    glam::EulerRot::XYZ,
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                );
+                [q * DVec3::X, q * DVec3::Y, q * DVec3::Z]
+            };
             let b = Bounds {
+                axes,
                 lo,
                 hi: lo + point(&mut rng, 0.2).abs() + DVec3::splat(0.01),
             };
@@ -533,8 +640,9 @@ mod tests {
             ];
             let sum: f64 = w.iter().sum();
             let y = (w[0] * shooter[0] + w[1] * shooter[1] + w[2] * shooter[2]) / sum;
-            let through =
+            let inside =
                 b.lo + (b.hi - b.lo) * DVec3::new(rng.random(), rng.random(), rng.random());
+            let through = axes[0] * inside.x + axes[1] * inside.y + axes[2] * inside.z;
             let x = y + rng.random_range(1.0..4.0) * (through - y);
             let receiver = [x, x + point(&mut rng, 0.05), x + point(&mut rng, 0.05)];
             assert!(
