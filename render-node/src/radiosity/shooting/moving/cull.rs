@@ -89,9 +89,12 @@ impl Bounds {
         std::iter::once(WORLD)
             .chain(frames)
             .map(|axes| {
+                let frame = Self {
+                    axes,
+                    lo: DVec3::ZERO,
+                    hi: DVec3::ZERO,
+                };
                 let fit = |points: &[DVec3]| {
-                    let first = Self::aligned(DVec3::ZERO, DVec3::ZERO);
-                    let frame = Self { axes, ..first };
                     let (lo, hi) = points.iter().map(|p| frame.local(*p)).fold(
                         (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
                         |(lo, hi), x| (lo.min(x), hi.max(x)),
