@@ -5,149 +5,10 @@
 use super::camera::{CameraModel, Layout, Observation};
 use super::lm::Refined;
 use nalgebra::DVector;
+use showcase_render::reflectance::{bracket, brent_minimize};
 
 /// Cost standing in for a pose that puts a point behind the device.
 const BEHIND: f64 = 1e300;
-const GOLD: f64 = 1.618_033_988_749_895;
-const CGOLD: f64 = 0.381_966_011_250_105;
-
-/// Bracket a minimum of `f` starting from `a`, `b`: returns `(a, b, c)`
-/// with `f(b) <= f(a), f(c)` (Numerical Recipes `mnbrak`).
-fn bracket(f: &mut impl FnMut(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64, f64, f64) {
-    let (mut fa, mut fb) = (f(a), f(b));
-    if fb > fa {
-        std::mem::swap(&mut a, &mut b);
-        std::mem::swap(&mut fa, &mut fb);
-    }
-    let mut c = b + GOLD * (b - a);
-    let mut fc = f(c);
-    for _ in 0..200 {
-        if fb <= fc {
-            break;
-        }
-        let r = (b - a) * (fb - fc);
-        let q = (b - c) * (fb - fa);
-        let denom = 2.0 * (q - r).abs().max(1e-20).copysign(q - r);
-        let mut u = b - ((b - c) * q - (b - a) * r) / denom;
-        let ulim = b + 100.0 * (c - b);
-        let mut fu;
-        if (b - u) * (u - c) > 0.0 {
-            fu = f(u);
-            if fu < fc {
-                return (b, u, c, fu);
-            } else if fu > fb {
-                return (a, b, u, fb);
-            }
-            u = c + GOLD * (c - b);
-            fu = f(u);
-        } else if (c - u) * (u - ulim) > 0.0 {
-            fu = f(u);
-            if fu < fc {
-                b = c;
-                c = u;
-                u = c + GOLD * (c - b);
-                fb = fc;
-                fc = fu;
-                fu = f(u);
-            }
-        } else if (u - ulim) * (ulim - c) >= 0.0 {
-            u = ulim;
-            fu = f(u);
-        } else {
-            u = c + GOLD * (c - b);
-            fu = f(u);
-        }
-        a = b;
-        b = c;
-        c = u;
-        fa = fb;
-        fb = fc;
-        fc = fu;
-    }
-    let _ = fa;
-    (a, b, c, fb)
-}
-
-/// Brent's parabolic-interpolation line minimisation inside the bracket
-/// `(a, b, c)` to relative tolerance `tol`; returns `(x_min, f_min)`.
-fn brent(
-    f: &mut impl FnMut(f64) -> f64,
-    ax: f64,
-    bx: f64,
-    cx: f64,
-    fbx: f64,
-    tol: f64,
-) -> (f64, f64) {
-    const ZEPS: f64 = 1e-12;
-    let (mut a, mut b) = (ax.min(cx), ax.max(cx));
-    let (mut x, mut w, mut v) = (bx, bx, bx);
-    let (mut fx, mut fw, mut fv) = (fbx, fbx, fbx);
-    let (mut d, mut e) = (0.0f64, 0.0f64);
-    for _ in 0..200 {
-        let xm = 0.5 * (a + b);
-        let tol1 = tol * x.abs() + ZEPS;
-        let tol2 = 2.0 * tol1;
-        if (x - xm).abs() <= tol2 - 0.5 * (b - a) {
-            break;
-        }
-        let golden = |x: f64| if x >= xm { a - x } else { b - x };
-        if e.abs() > tol1 {
-            let r = (x - w) * (fx - fv);
-            let mut q = (x - v) * (fx - fw);
-            let mut p = (x - v) * q - (x - w) * r;
-            q = 2.0 * (q - r);
-            if q > 0.0 {
-                p = -p;
-            }
-            q = q.abs();
-            let etemp = e;
-            e = d;
-            if p.abs() >= (0.5 * q * etemp).abs() || p <= q * (a - x) || p >= q * (b - x) {
-                e = golden(x);
-                d = CGOLD * e;
-            } else {
-                d = p / q;
-                let u = x + d;
-                if u - a < tol2 || b - u < tol2 {
-                    d = tol1.copysign(xm - x);
-                }
-            }
-        } else {
-            e = golden(x);
-            d = CGOLD * e;
-        }
-        let u = if d.abs() >= tol1 {
-            x + d
-        } else {
-            x + tol1.copysign(d)
-        };
-        let fu = f(u);
-        if fu <= fx {
-            if u >= x {
-                a = x;
-            } else {
-                b = x;
-            }
-            (v, w, x) = (w, x, u);
-            (fv, fw, fx) = (fw, fx, fu);
-        } else {
-            if u < x {
-                a = u;
-            } else {
-                b = u;
-            }
-            if fu <= fw || w == x {
-                (v, w) = (w, u);
-                (fv, fw) = (fw, fu);
-            } else if fu <= fv || v == x || v == w {
-                v = u;
-                fv = fu;
-            }
-        }
-    }
-    (x, fx)
-}
-
 /// Settings of the baseline.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PowellSettings {
@@ -245,7 +106,10 @@ pub(crate) fn refine(
 }
 
 /// Move `p` to the minimum along `dir` and scale `dir` to the step taken
-/// (Numerical Recipes `linmin`); returns the cost there.
+/// (Numerical Recipes `linmin`, with the shared Brent search of
+/// [`showcase_render::reflectance`]); returns the cost there. A direction
+/// along which no minimum is bracketed (the cost falls without bound) is
+/// not taken: `p` stays and `dir` becomes zero.
 fn line_minimise(
     cost_at: &mut impl FnMut(&DVector<f64>) -> f64,
     p: &mut DVector<f64>,
@@ -253,23 +117,13 @@ fn line_minimise(
     tol: f64,
 ) -> f64 {
     let mut along = |s: f64| cost_at(&(&*p + &*dir * s));
-    let (a, b, c, fb) = bracket(&mut along, 0.0, 1.0);
-    let (s, fmin) = brent(&mut along, a, b, c, fb, tol);
+    let Ok((a, b, c, fb)) = bracket(&mut along, 0.0, 1.0) else {
+        let here = along(0.0);
+        dir.fill(0.0);
+        return here;
+    };
+    let (s, fmin) = brent_minimize(&mut along, a, b, c, fb, tol);
     *dir *= s;
     *p += &*dir;
     fmin
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn brent_finds_a_parabola_minimum() {
-        let mut f = |x: f64| (x - 2.5).powi(2) + 1.0;
-        let (a, b, c, fb) = bracket(&mut f, 0.0, 1.0);
-        let (x, fx) = brent(&mut f, a, b, c, fb, 1e-8);
-        assert!((x - 2.5).abs() < 1e-6, "{x}");
-        assert!((fx - 1.0).abs() < 1e-12);
-    }
 }
