@@ -46,7 +46,8 @@ use std::sync::Arc;
 mod moving;
 mod ray_cast;
 pub use moving::{MoveError, MoveStats};
-use ray_cast::{normalise, ray_cast_form_factor};
+pub(crate) use ray_cast::RayMask;
+use ray_cast::{normalise, ray_cast_entry};
 
 /// How a shot's form factors are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -181,6 +182,11 @@ fn finite(v: DVec3) -> DVec3 {
     if v.is_finite() { v } else { DVec3::ZERO }
 }
 
+/// A computed form-factor row: `(element, F)` sorted by element, the scale
+/// it was normalised with, and its entries' [`RayMask`]s when every entry
+/// was ray-cast.
+type ComputedRow = (Vec<(u32, f64)>, f64, Option<Vec<RayMask>>);
+
 /// A progressive-refinement solve in progress over the active elements of
 /// a mesh, with visibility in `geometry` (which must hold exactly the
 /// active elements' objects, e.g. only the real ones for pass B1).
@@ -201,6 +207,10 @@ pub struct Shooter<'a> {
     /// The scale each cached row was normalised with (at most 1): the
     /// raw form factors are the row over it.
     row_scale: Vec<f64>,
+    /// Per cached ray-cast row, the visibility of each entry's rays
+    /// (aligned with the row's entries), which lets an object move update
+    /// an entry from the rays it may change alone.
+    row_rays: Vec<Option<Vec<RayMask>>>,
     /// Exitance each patch has shot so far (sum of its shots' deltas).
     shot: Vec<DVec3>,
     /// Bytes held in `rows`.
@@ -272,6 +282,7 @@ impl<'a> Shooter<'a> {
             curve: Vec::new(),
             rows: vec![None; mesh.patches.len()],
             row_scale: vec![1.0; mesh.patches.len()],
+            row_rays: vec![None; mesh.patches.len()],
             shot: vec![DVec3::ZERO; mesh.patches.len()],
             row_bytes: 0,
             rows_computed: 0,
@@ -440,16 +451,18 @@ impl<'a> Shooter<'a> {
         }
         self.unshot[shooter] = DVec3::ZERO;
         self.shot[shooter] += delta;
-        let (ff, scale, cached) = match self.rows[shooter].take() {
-            Some(row) => (row, self.row_scale[shooter], true),
-            None if self.raster.is_some() => {
-                let (row, scale) = self.rasterised_rows(shooter);
-                (row, scale, false)
+        let ((ff, scale, rays), cached) = match self.rows[shooter].take() {
+            Some(row) => {
+                let rays = self.row_rays[shooter].take();
+                ((row, self.row_scale[shooter], rays), true)
             }
+            None if self.raster.is_some() => (self.rasterised_rows(shooter), false),
             None => {
                 self.rows_computed += 1;
-                let (row, scale) = self.form_factors(shooter, self.row_seed(shooter), None);
-                (row, scale, false)
+                (
+                    self.form_factors(shooter, self.row_seed(shooter), None),
+                    false,
+                )
             }
         };
         let p_area = self.mesh.patches[shooter].area;
@@ -460,15 +473,11 @@ impl<'a> Shooter<'a> {
             let q = &self.mesh.patches[e.patch as usize];
             self.unshot[e.patch as usize] += gain * (e.area / q.area);
         }
-        let bytes = ff.capacity() * std::mem::size_of::<(u32, f64)>();
         if cached {
             self.rows[shooter] = Some(ff);
-        } else if self.options.form_factor_cache_bytes > 0
-            && self.row_bytes + bytes <= self.options.form_factor_cache_bytes
-        {
-            self.row_bytes += bytes;
-            self.rows[shooter] = Some(ff);
-            self.row_scale[shooter] = scale;
+            self.row_rays[shooter] = rays;
+        } else {
+            self.cache_row(shooter, (ff, scale, rays));
         }
         self.shots += 1;
         self.curve.push(ConvergencePoint {
@@ -497,7 +506,7 @@ impl<'a> Shooter<'a> {
     /// with the rows of the patches with most unshot power that have no
     /// cached row yet (those are cached here while the cache has room;
     /// without a cache the batch is the shooter alone).
-    fn rasterised_rows(&mut self, shooter: usize) -> (Vec<(u32, f64)>, f64) {
+    fn rasterised_rows(&mut self, shooter: usize) -> ComputedRow {
         let Some(raster) = self.raster.as_ref() else {
             return self.form_factors(shooter, self.row_seed(shooter), None);
         };
@@ -536,35 +545,41 @@ impl<'a> Shooter<'a> {
             self.rows_computed += 1;
             return self.form_factors(shooter, self.row_seed(shooter), None);
         };
-        let rows: Vec<(Vec<(u32, f64)>, f64)> = batch
+        let rows: Vec<ComputedRow> = batch
             .iter()
             .zip(&buffers)
             .map(|(&p, items)| self.form_factors(p, self.row_seed(p), Some(items)))
             .collect();
         self.rows_computed += rows.len();
         let mut rows = rows.into_iter();
-        let own = rows.next().unwrap_or((Vec::new(), 1.0));
-        for (&p, (row, scale)) in batch[1..].iter().zip(rows) {
-            let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>();
-            if self.row_bytes + bytes <= self.options.form_factor_cache_bytes {
-                self.row_bytes += bytes;
-                self.rows[p] = Some(row);
-                self.row_scale[p] = scale;
-            }
+        let own = rows.next().unwrap_or((Vec::new(), 1.0, None));
+        for (&p, row) in batch[1..].iter().zip(rows) {
+            self.cache_row(p, row);
         }
         own
+    }
+
+    /// Keep `row` as patch `p`'s cached row while the cache has room.
+    fn cache_row(&mut self, p: usize, (row, scale, rays): ComputedRow) {
+        let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>()
+            + rays
+                .as_ref()
+                .map_or(0, |r| r.capacity() * std::mem::size_of::<RayMask>());
+        if self.options.form_factor_cache_bytes > 0
+            && self.row_bytes + bytes <= self.options.form_factor_cache_bytes
+        {
+            self.row_bytes += bytes;
+            self.rows[p] = Some(row);
+            self.row_scale[p] = scale;
+            self.row_rays[p] = rays;
+        }
     }
 
     /// Form factors `F_pj` from patch `shooter` to the active receivers,
     /// scaled to sum to at most 1, and the scale applied. `raster_items` is
     /// the shooter's rasterised item buffer (active elements seen front-on),
     /// or `None` to cast it on the CPU.
-    fn form_factors(
-        &self,
-        shooter: usize,
-        seed: u64,
-        raster_items: Option<&[u32]>,
-    ) -> (Vec<(u32, f64)>, f64) {
+    fn form_factors(&self, shooter: usize, seed: u64, raster_items: Option<&[u32]>) -> ComputedRow {
         let mesh = self.mesh;
         let p = &mesh.patches[shooter];
         let method = self.options.method;
@@ -599,13 +614,16 @@ impl<'a> Shooter<'a> {
             })
             .collect();
         let samples = stratified(self.options.visibility_samples, seed);
-        let mut out: Vec<(u32, f64)> = receivers
+        let cast: Vec<(u32, f64, RayMask)> = receivers
             .par_iter()
             .filter_map(|&j| {
-                ray_cast_form_factor(mesh, self.geometry, shooter, j, &samples, seed)
-                    .map(|f| (j, f))
+                ray_cast_entry(mesh, self.geometry, shooter, j, &samples, seed)
+                    .map(|(f, mask)| (j, f, mask))
             })
             .collect();
+        let rays = (method == FormFactorMethod::RayCast)
+            .then(|| cast.iter().map(|&(_, _, mask)| mask).collect());
+        let mut out: Vec<(u32, f64)> = cast.into_iter().map(|(j, f, _)| (j, f)).collect();
         if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
             let rotation = unit(seed) * std::f64::consts::TAU;
             let active = &self.active;
@@ -640,7 +658,7 @@ impl<'a> Shooter<'a> {
             }
         }
         let scale = normalise(&mut out);
-        (out, scale)
+        (out, scale, rays)
     }
 
     /// Element radiosity B (exitance, W/m^2) so far.
@@ -688,6 +706,17 @@ impl<'a> Shooter<'a> {
             None => None,
         };
         Some(self.form_factors(p, self.row_seed(p), items.as_deref()).0)
+    }
+
+    /// The [`RayMask`] of each entry of [`Self::form_factor_row`] (bit `r`:
+    /// ray `r` saw the shooter), from the cache or computed now; `None`
+    /// where the row has none (not every entry was ray-cast).
+    #[cfg(test)]
+    pub(crate) fn row_rays(&self, p: usize) -> Option<Vec<RayMask>> {
+        if self.rows[p].is_some() {
+            return self.row_rays[p].clone();
+        }
+        self.form_factors(p, self.row_seed(p), None).2
     }
 
     /// The unshot fraction after every shot.

@@ -71,7 +71,8 @@ pub fn cornell_with_small_cube(cornell: &Showcase, side: f32) -> Showcase {
 /// `speedup_paired_median` the (nearest-rank) median over repeats of each repeat's own
 /// ratio (the steadier figure on a loaded machine).
 ///
-/// `pairs_near`, `entries_recomputed` and `entries_reciprocal` count the
+/// `pairs_near`, `entries_recomputed`, `entries_rescaled` and
+/// `entries_reciprocal` count the
 /// update's work ([`radiosity::MoveStats`]).
 ///
 /// Errors are area-weighted relative RMSE of the interpolated element
@@ -213,6 +214,7 @@ pub fn incremental_object_record(
         "pairs_near": stats.pairs_near,
         "entries_recomputed": stats.entries_recomputed,
         "entries_reciprocal": stats.entries_reciprocal,
+        "entries_rescaled": stats.entries_rescaled,
         "speedup": full_seconds / inc_seconds.max(1e-9),
         "speedup_paired_median": crate::cluster::metrics::percentile(&paired, 50.0),
         "speedup_without_scene": (full_seconds - scene_seconds)

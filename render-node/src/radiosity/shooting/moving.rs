@@ -45,17 +45,32 @@
 //!   above the ray offsets; when unsure, the entry is recomputed). A pair
 //!   whose rays all see no difference has the very same value as before.
 //!   Re-computed entries use the same seeds as a fresh solve, so they
-//!   equal a fresh row's entries of the moved scene (to round-off).
+//!   equal a fresh row's entries of the moved scene (to round-off);
+//! - a cached ray-cast row records which of each entry's rays saw the
+//!   shooter ([`RayMask`]). An entry whose rays may see the move is then
+//!   not ray-cast again: a clear ray stays clear unless the object now
+//!   certainly blocks it, a blocked ray that the object certainly did not
+//!   block was blocked by the static scene and stays blocked, and only
+//!   the other rays are traced again; the entry is rescaled by the
+//!   visible count (its unoccluded form factor and areas are unchanged),
+//!   which equals a fresh entry to round-off. An entry that was zero
+//!   stays zero when the object blocked none of its rays.
 //!
 //! With hemi-cube methods every row that is needed is recomputed whole
 //! (correct, not faster).
 
-use super::ray_cast::{facing_away, normalise, ray_cast_form_factor, receiver_rays};
-use super::{FormFactorMethod, Shooter};
+use super::ray_cast::{
+    MASK_RAYS, RayMask, UNKNOWN_RAYS, facing_away, normalise, ray_cast_entry, receiver_rays,
+    rescaled_entry,
+};
+use super::{ComputedRow, FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
 use crate::radiosity::sources::stratified;
-use cull::{Bounds, Places, ball_outside_penumbra, outside_penumbra, penumbra_planes, radius};
+use cull::{
+    Bounds, Crossing, Places, ball_outside_penumbra, outside_penumbra, penumbra_planes, radius,
+    unchanged,
+};
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
@@ -106,6 +121,11 @@ pub struct MoveStats {
     pub pairs_near: usize,
     /// Form-factor entries recomputed (ray-cast) in patched rows.
     pub entries_recomputed: usize,
+    /// Entries of patched rows updated from their rays' recorded
+    /// visibility: only the rays the move may change were traced again
+    /// (and none that the object certainly blocks now or certainly did
+    /// not block before), and the entry rescaled by the visible count.
+    pub entries_rescaled: usize,
     /// Entries of the object's column in patched rows taken from its own
     /// rows by reciprocity (single-element object patches).
     pub entries_reciprocal: usize,
@@ -113,13 +133,9 @@ pub struct MoveStats {
     pub elements_corrected: usize,
 }
 
-/// A form-factor row (sorted by element) and the scale it was normalised
-/// with.
-type ScaledRow = (Vec<(u32, f64)>, f64);
-
 /// A row after the move: the row, its scale, its difference from the old
 /// row, and what it took.
-type UpdatedRow = (Vec<(u32, f64)>, f64, Vec<(u32, f64)>, MoveStats);
+type UpdatedRow = (ComputedRow, Vec<(u32, f64)>, MoveStats);
 
 /// The signed difference `new - old` of two rows sorted by element.
 fn row_difference(old: &[(u32, f64)], new: &[(u32, f64)]) -> Vec<(u32, f64)> {
@@ -178,40 +194,52 @@ fn changes_difference(old: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f
 }
 
 /// `row` (sorted by element) with the entries of `changes` (sorted, a
-/// zero value removes the entry) put in.
-fn merge_changes(row: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f64)> {
+/// zero value removes the entry) put in, and the rows' [`RayMask`]s
+/// merged alike (`rays` aligned with `row`, `change_rays` with `changes`;
+/// none when `row` has none).
+fn merge_changes(
+    row: &[(u32, f64)],
+    rays: Option<&[RayMask]>,
+    changes: &[(u32, f64)],
+    change_rays: &[RayMask],
+) -> (Vec<(u32, f64)>, Option<Vec<RayMask>>) {
     let mut out = Vec::with_capacity(row.len() + changes.len());
-    let (mut a, mut c) = (row.iter().peekable(), changes.iter().peekable());
+    let mut out_rays = rays.map(|_| Vec::with_capacity(row.len() + changes.len()));
+    let ray_of = |k: usize| rays.map_or(UNKNOWN_RAYS, |r| r[k]);
+    let (mut a, mut c) = (0, 0);
     loop {
-        let next = match (a.peek(), c.peek()) {
-            (Some(&&(j, f)), Some(&&(jc, fc))) => {
+        let (next, mask) = match (row.get(a), changes.get(c)) {
+            (Some(&(j, f)), Some(&(jc, fc))) => {
                 if jc < j {
-                    c.next();
-                    (jc, fc)
+                    c += 1;
+                    ((jc, fc), change_rays[c - 1])
                 } else if jc == j {
-                    a.next();
-                    c.next();
-                    (jc, fc)
+                    a += 1;
+                    c += 1;
+                    ((jc, fc), change_rays[c - 1])
                 } else {
-                    a.next();
-                    (j, f)
+                    a += 1;
+                    ((j, f), ray_of(a - 1))
                 }
             }
-            (Some(&&x), None) => {
-                a.next();
-                x
+            (Some(&x), None) => {
+                a += 1;
+                (x, ray_of(a - 1))
             }
-            (None, Some(&&x)) => {
-                c.next();
-                x
+            (None, Some(&x)) => {
+                c += 1;
+                (x, change_rays[c - 1])
             }
             (None, None) => break,
         };
         if next.1 != 0.0 {
             out.push(next);
+            if let Some(r) = out_rays.as_mut() {
+                r.push(mask);
+            }
         }
     }
-    out
+    (out, out_rays)
 }
 
 impl<'a> Shooter<'a> {
@@ -280,10 +308,10 @@ impl<'a> Shooter<'a> {
 
         // The old rows of every patch that shot or has a cached row.
         let n = old_mesh.patches.len();
-        let mut old_rows: Vec<Option<ScaledRow>> = vec![None; n];
+        let mut old_rows: Vec<Option<ComputedRow>> = vec![None; n];
         for (i, slot) in old_rows.iter_mut().enumerate() {
             if let Some(row) = self.rows[i].take() {
-                *slot = Some((row, self.row_scale[i]));
+                *slot = Some((row, self.row_scale[i], self.row_rays[i].take()));
             } else if self.shot[i] != DVec3::ZERO && self.patch_active[i] {
                 self.rows_computed += 1;
                 *slot = Some(self.form_factors(i, self.row_seed(i), None));
@@ -306,6 +334,7 @@ impl<'a> Shooter<'a> {
             curve: self.curve,
             rows: vec![None; n],
             row_scale: vec![1.0; n],
+            row_rays: vec![None; n],
             shot: self.shot,
             row_bytes: 0,
             rows_computed: self.rows_computed,
@@ -315,7 +344,7 @@ impl<'a> Shooter<'a> {
         let ray_cast = new.options.method == FormFactorMethod::RayCast;
         // Rows recomputed whole: the object's own (also where there was no
         // old row, when reciprocity needs it), every row for hemi-cubes.
-        let own: Vec<Option<ScaledRow>> = (0..n)
+        let own: Vec<Option<ComputedRow>> = (0..n)
             .into_par_iter()
             .map(|i| {
                 let p = &mesh.patches[i];
@@ -333,24 +362,26 @@ impl<'a> Shooter<'a> {
             .enumerate()
             .map(|(i, (own, old))| {
                 let mut stats = MoveStats::default();
-                let (row, scale, diff) = match own {
+                let (row, diff) = match own {
                     Some(recomputed) => {
                         stats.rows_recomputed = 1;
-                        let diff = old.as_ref().map_or_else(Vec::new, |(old_row, _)| {
+                        let diff = old.as_ref().map_or_else(Vec::new, |(old_row, _, _)| {
                             row_difference(old_row, &recomputed.0)
                         });
-                        (recomputed.0, recomputed.1, diff)
+                        (recomputed, diff)
                     }
                     None => {
-                        let (old_row, old_scale) = old.as_ref()?;
+                        let old = old.as_ref()?;
+                        let (old_row, old_scale, old_rays) = old;
                         stats.rows_patched = 1;
-                        let changes = new.changed_entries(i, &places, &reciprocal, &mut stats);
-                        let mut row = if *old_scale == 1.0 {
-                            merge_changes(old_row, &changes)
+                        let (changes, change_rays) =
+                            new.changed_entries(i, &places, &reciprocal, old, &mut stats);
+                        let (mut row, rays) = if *old_scale == 1.0 {
+                            merge_changes(old_row, old_rays.as_deref(), &changes, &change_rays)
                         } else {
                             let raw: Vec<(u32, f64)> =
                                 old_row.iter().map(|&(j, f)| (j, f / old_scale)).collect();
-                            merge_changes(&raw, &changes)
+                            merge_changes(&raw, old_rays.as_deref(), &changes, &change_rays)
                         };
                         let scale = normalise(&mut row);
                         // Unscaled before and after, only the changed
@@ -360,17 +391,17 @@ impl<'a> Shooter<'a> {
                         } else {
                             row_difference(old_row, &row)
                         };
-                        (row, scale, diff)
+                        ((row, scale, rays), diff)
                     }
                 };
-                Some((row, scale, diff, stats))
+                Some((row, diff, stats))
             })
             .collect();
 
         let mut stats = MoveStats::default();
         let mut corrected = vec![false; mesh.elements.len()];
         for (i, u) in updated.into_iter().enumerate() {
-            let Some((row, scale, diff, s)) = u else {
+            let Some((row, diff, s)) = u else {
                 continue;
             };
             stats.rows_patched += s.rows_patched;
@@ -378,6 +409,7 @@ impl<'a> Shooter<'a> {
             stats.pairs_near += s.pairs_near;
             stats.entries_recomputed += s.entries_recomputed;
             stats.entries_reciprocal += s.entries_reciprocal;
+            stats.entries_rescaled += s.entries_rescaled;
             new.rows_computed += s.rows_recomputed;
             let shot = new.shot[i];
             if shot != DVec3::ZERO {
@@ -391,14 +423,7 @@ impl<'a> Shooter<'a> {
                     corrected[j as usize] = true;
                 }
             }
-            let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>();
-            if new.options.form_factor_cache_bytes > 0
-                && new.row_bytes + bytes <= new.options.form_factor_cache_bytes
-            {
-                new.row_bytes += bytes;
-                new.rows[i] = Some(row);
-                new.row_scale[i] = scale;
-            }
+            new.cache_row(i, row);
         }
         stats.elements_corrected = corrected.iter().filter(|c| **c).count();
         for (l, old) in lights.iter().zip(&old_deposits) {
@@ -409,40 +434,54 @@ impl<'a> Shooter<'a> {
         Ok((new, stats))
     }
 
-    /// The entries of ray-cast row `i` (a static patch) that the move of
-    /// `object` (old and new place in `places`) may change, on the moved
-    /// scene: `(element, raw F)`, sorted, zero where it is now zero. The
+    /// The entries of ray-cast row `i` (a static patch, its row before
+    /// the move `old`) that the move of `object` (old and new place in
+    /// `places`) may change, on the moved scene: `(element, raw F)`,
+    /// sorted, zero where it is now zero, and each entry's [`RayMask`]. The
     /// object's column comes from its own rows by reciprocity where
     /// `reciprocal` has them, else it is ray-cast like the static entries
-    /// whose rays may see the move.
+    /// whose rays may see the move. A static entry whose rays' visibility
+    /// the old row recorded is updated from the rays that may see the move
+    /// ([`Self::moved_rays`]); one with no old entry (zero) is unchanged
+    /// when the object certainly blocked none of its rays before (they
+    /// were blocked by the static scene, which did not move); any other is
+    /// ray-cast.
     fn changed_entries(
         &self,
         i: usize,
         places: &Places,
         reciprocal: &Reciprocal,
+        (old_row, old_scale, old_rays): &ComputedRow,
         stats: &mut MoveStats,
-    ) -> Vec<(u32, f64)> {
+    ) -> (Vec<(u32, f64)>, Vec<RayMask>) {
         let mesh = self.mesh;
         let p = &mesh.patches[i];
         let rp = radius(p.center, &p.vertices);
         let seed = self.row_seed(i);
         let samples = stratified(self.options.visibility_samples, seed);
+        let k = samples.len();
         let planes = penumbra_planes(&p.vertices, &places.union);
         let mut hints = [0; 2];
-        let mut out = Vec::new();
+        let mut out: Vec<(u32, f64, RayMask)> = Vec::new();
+        let cast = |j: u32, stats: &mut MoveStats| {
+            stats.entries_recomputed += 1;
+            let (f, mask) =
+                ray_cast_entry(mesh, self.geometry, i, j, &samples, seed).unwrap_or((0.0, 0));
+            (j, f, mask)
+        };
         for &j in &places.object_elements {
             if !self.active[j as usize] {
                 continue;
             }
             if let Some(f) = reciprocal.entry(mesh, i, j) {
                 stats.entries_reciprocal += 1;
-                out.push((j, f));
+                out.push((j, f, UNKNOWN_RAYS));
             } else {
-                stats.entries_recomputed += 1;
-                let f = ray_cast_form_factor(mesh, self.geometry, i, j, &samples, seed);
-                out.push((j, f.unwrap_or(0.0)));
+                out.push(cast(j, stats));
             }
         }
+        let mut rays = [(DVec3::ZERO, DVec3::ZERO); MASK_RAYS];
+        let mut crossings = [[Crossing::Miss; 2]; MASK_RAYS];
         for &(center, rj, j, patch) in &places.receivers {
             if patch as usize == i || ball_outside_penumbra(&planes, center, rj, places.margin) {
                 continue;
@@ -451,24 +490,83 @@ impl<'a> Shooter<'a> {
             if facing_away(p, e) || outside_penumbra(&planes, &e.vertices, places.margin) {
                 continue;
             }
-            let widen = rp.max(rj);
-            if !places
-                .boxes
-                .iter()
-                .any(|b| b.grown(widen).meets_segment(p.center, center))
-            {
+            if !places.near_segment(p.center, center, rp.max(rj)) {
                 continue;
             }
             stats.pairs_near += 1;
-            if receiver_rays(mesh, i, j, &samples, seed)
-                .any(|(x, y)| places.may_change(x, y, &mut hints))
-            {
-                stats.entries_recomputed += 1;
-                let f = ray_cast_form_factor(mesh, self.geometry, i, j, &samples, seed);
-                out.push((j, f.unwrap_or(0.0)));
+            if k > MASK_RAYS {
+                if receiver_rays(mesh, i, j, &samples, seed)
+                    .any(|(x, y)| !unchanged(places.classify(x, y, &mut hints)))
+                {
+                    out.push(cast(j, stats));
+                }
+                continue;
+            }
+            let mut any_change = false;
+            for (r, (x, y)) in receiver_rays(mesh, i, j, &samples, seed).enumerate() {
+                rays[r] = (x, y);
+                crossings[r] = places.classify(x, y, &mut hints);
+                any_change |= !unchanged(crossings[r]);
+            }
+            if !any_change {
+                continue;
+            }
+            let at = old_row.partition_point(|entry| entry.0 < j);
+            let old = match old_row.get(at) {
+                Some(&(jo, f)) if jo == j => Some((
+                    f / old_scale,
+                    old_rays.as_ref().map_or(UNKNOWN_RAYS, |r| r[at]),
+                )),
+                _ => None,
+            };
+            match old {
+                Some((f, mask)) if mask != UNKNOWN_RAYS => {
+                    let new_mask = self.moved_rays(e.normal, &rays[..k], &crossings[..k], mask);
+                    if new_mask != mask {
+                        stats.entries_rescaled += 1;
+                        let f = rescaled_entry(f, mask.count_ones(), new_mask.count_ones());
+                        out.push((j, f.unwrap_or(0.0), new_mask));
+                    }
+                }
+                // Zero before, and the object blocked none of its rays:
+                // the static scene did, and still does.
+                None if crossings[..k].iter().all(|c| c[0] == Crossing::Miss) => {}
+                _ => out.push(cast(j, stats)),
             }
         }
         out.sort_unstable_by_key(|e| e.0);
+        out.into_iter().map(|(j, f, m)| ((j, f), m)).unzip()
+    }
+
+    /// Which of an entry's `rays` (receiver point, patch point; the
+    /// receiver's normal `normal`) see the shooter after the move, from
+    /// which saw it before (`mask`) and how each meets the object's old
+    /// and new place (`crossings`): a ray that was clear stays clear
+    /// unless the object now certainly blocks it; a ray that was blocked
+    /// while the object certainly did not block it was blocked by the
+    /// static scene and stays blocked; every other ray is traced again in
+    /// the moved scene. Equal to tracing every ray, given that the
+    /// crossings are sure where they say so.
+    fn moved_rays(
+        &self,
+        normal: DVec3,
+        rays: &[(DVec3, DVec3)],
+        crossings: &[[Crossing; 2]],
+        mask: RayMask,
+    ) -> RayMask {
+        let mut out = 0;
+        for (r, (&(x, y), &[before, after])) in rays.iter().zip(crossings).enumerate() {
+            let was_clear = mask & (1 << r) != 0;
+            let clear = match (was_clear, before, after) {
+                (true, Crossing::Miss | Crossing::Unsure, Crossing::Hit) => false,
+                (true, Crossing::Miss | Crossing::Unsure, Crossing::Miss) => true,
+                (false, Crossing::Miss, _) => false,
+                _ => self.geometry.visible(x, normal, y, true),
+            };
+            if clear {
+                out |= 1 << r;
+            }
+        }
         out
     }
 }
@@ -494,12 +592,12 @@ struct Reciprocal {
 
 impl Reciprocal {
     /// The table from the recomputed rows `own` (empty unless `ray_cast`).
-    fn new(mesh: &RadiosityMesh, object: u32, own: &[Option<ScaledRow>], ray_cast: bool) -> Self {
+    fn new(mesh: &RadiosityMesh, object: u32, own: &[Option<ComputedRow>], ray_cast: bool) -> Self {
         let mut to_patch = std::collections::HashMap::new();
         if ray_cast {
             for (q, row) in own.iter().enumerate() {
                 let p = &mesh.patches[q];
-                let (Some((row, scale)), true, [e]) =
+                let (Some((row, scale, _)), true, [e]) =
                     (row, p.object == object, p.elements.as_slice())
                 else {
                     continue;
@@ -570,8 +668,15 @@ mod tests {
     fn row_merge_and_difference_are_exact() {
         let old = [(1, 0.1), (3, 0.3), (5, 0.5)];
         let changes = [(0, 0.05), (3, 0.0), (5, 0.25), (7, 0.7)];
-        let new = merge_changes(&old, &changes);
+        // The rays' masks follow their entries; a removed entry drops its
+        // mask, and a row without masks gets none.
+        let (new, rays) = merge_changes(&old, Some(&[0b01, 0b11, 0b11]), &changes, &[1, 0, 2, 3]);
         assert_eq!(new, vec![(0, 0.05), (1, 0.1), (5, 0.25), (7, 0.7)]);
+        assert_eq!(rays, Some(vec![1, 0b01, 2, 3]));
+        assert_eq!(
+            merge_changes(&old, None, &changes, &[1, 0, 2, 3]),
+            (new.clone(), None)
+        );
         let d = row_difference(&old, &new);
         assert_eq!(d, vec![(0, 0.05), (3, -0.3), (5, -0.25), (7, 0.7)]);
         assert_eq!(changes_difference(&old, &changes), d);

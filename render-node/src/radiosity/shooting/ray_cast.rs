@@ -89,17 +89,30 @@ fn unoccluded_form_factor(p: &Patch, e: &Element) -> f64 {
         / points.len() as f64
 }
 
+/// Rays per entry whose visibility a [`RayMask`] records: bit `r` is ray
+/// `r` of [`receiver_rays`]. Entries with more rays get [`UNKNOWN_RAYS`].
+pub(super) const MASK_RAYS: usize = 31;
+
+/// Which of an entry's visibility rays saw the shooter (bit `r` for ray
+/// `r`), so that a move can update the entry from the rays the move may
+/// change alone (see `moving`).
+pub(crate) type RayMask = u32;
+
+/// The mask of an entry whose rays were not recorded (more than
+/// [`MASK_RAYS`] rays, or an entry not cast, such as a reciprocal one).
+pub(super) const UNKNOWN_RAYS: RayMask = u32::MAX;
+
 /// The raw (not normalised) ray-cast form factor `F_pj` from patch
-/// `shooter` to element `j` (see the module docs), `None`
-/// where it is zero.
-pub(super) fn ray_cast_form_factor(
+/// `shooter` to element `j` (see the module docs) and the [`RayMask`] of
+/// its rays, `None` where it is zero.
+pub(super) fn ray_cast_entry(
     mesh: &RadiosityMesh,
     geometry: &SceneGeometry,
     shooter: usize,
     j: u32,
     samples: &[glam::DVec2],
     seed: u64,
-) -> Option<f64> {
+) -> Option<(f64, RayMask)> {
     let e = &mesh.elements[j as usize];
     let p = &mesh.patches[shooter];
     if facing_away(p, e) {
@@ -112,10 +125,34 @@ pub(super) fn ray_cast_form_factor(
     // Visible fraction: rays between paired jittered points of the
     // receiver and the patch.
     let k = samples.len();
-    let seen = receiver_rays(mesh, shooter, j, samples, seed)
-        .filter(|(x, y)| geometry.visible(*x, e.normal, *y, true))
-        .count();
-    let f = unoccluded * seen as f64 / k as f64 * e.area / p.area;
+    let mut mask: RayMask = 0;
+    let mut seen = 0;
+    for (r, (x, y)) in receiver_rays(mesh, shooter, j, samples, seed).enumerate() {
+        if geometry.visible(x, e.normal, y, true) {
+            seen += 1;
+            if r < MASK_RAYS {
+                mask |= 1 << r;
+            }
+        }
+    }
+    let f = entry_value(unoccluded, seen, k, e.area, p.area);
+    let mask = if k <= MASK_RAYS { mask } else { UNKNOWN_RAYS };
+    (f > 0.0 && f.is_finite()).then_some((f, mask))
+}
+
+/// The raw form factor of an entry whose unoccluded form factor is
+/// `unoccluded` and whose `seen` of `k` rays are visible (receiver area
+/// `e_area`, patch area `p_area`).
+fn entry_value(unoccluded: f64, seen: u32, k: usize, e_area: f64, p_area: f64) -> f64 {
+    unoccluded * seen as f64 / k as f64 * e_area / p_area
+}
+
+/// The raw form factor of an entry that was `old` with `seen_old` visible
+/// rays, now that `seen_new` are: the unoccluded form factor and the areas
+/// are unchanged, so it is `old * seen_new / seen_old` (equal to a fresh
+/// [`ray_cast_entry`] to round-off); `None` where it is now zero.
+pub(super) fn rescaled_entry(old: f64, seen_old: u32, seen_new: u32) -> Option<f64> {
+    let f = old * seen_new as f64 / seen_old as f64;
     (f > 0.0 && f.is_finite()).then_some(f)
 }
 

@@ -150,11 +150,22 @@ impl Bounds {
 
     /// True when the segment `a`-`b` meets the box (slab test).
     pub(super) fn meets_segment(&self, a: DVec3, b: DVec3) -> bool {
-        let (a, b) = if self.axes == WORLD {
-            (a, b)
+        let [a, b] = self.local_segment(a, b);
+        self.meets_local_segment(a, b)
+    }
+
+    /// The segment `a`-`b` in the box's axes (as is for the world's).
+    fn local_segment(&self, a: DVec3, b: DVec3) -> [DVec3; 2] {
+        if self.axes == WORLD {
+            [a, b]
         } else {
-            (self.local(a), self.local(b))
-        };
+            [self.local(a), self.local(b)]
+        }
+    }
+
+    /// [`Self::meets_segment`] for a segment already in the box's axes
+    /// ([`Self::local_segment`]).
+    fn meets_local_segment(&self, a: DVec3, b: DVec3) -> bool {
         let d = b - a;
         let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
         for k in 0..3 {
@@ -367,26 +378,42 @@ impl Places {
         }
     }
 
-    /// True unless the segment certainly meets both places or certainly
-    /// neither (then its visibility is the same before and after).
-    /// `hints` are the triangles to try first in each place (see
+    /// True when the segment `a`-`b` comes within `by` of the old or the
+    /// new box.
+    pub(super) fn near_segment(&self, a: DVec3, b: DVec3, by: f64) -> bool {
+        let [la, lb] = self.union.local_segment(a, b);
+        self.boxes
+            .iter()
+            .any(|b| b.grown(by).meets_local_segment(la, lb))
+    }
+
+    /// How the segment `a`-`b` meets the old and the new place. `hints`
+    /// are the triangles to try first in each place (see
     /// [`crossing_from`]).
-    pub(super) fn may_change(&self, a: DVec3, b: DVec3, hints: &mut [usize; 2]) -> bool {
-        if !self.union.meets_segment(a, b) {
-            return false;
+    pub(super) fn classify(&self, a: DVec3, b: DVec3, hints: &mut [usize; 2]) -> [Crossing; 2] {
+        // The union and both boxes share their axes.
+        let [la, lb] = self.union.local_segment(a, b);
+        if !self.union.meets_local_segment(la, lb) {
+            return [Crossing::Miss; 2];
         }
-        let [o, n] = [0, 1].map(|k| {
-            if self.boxes[k].meets_segment(a, b) {
+        [0, 1].map(|k| {
+            if self.boxes[k].meets_local_segment(la, lb) {
                 crossing_from(&self.triangles[k], a, b, &mut hints[k])
             } else {
                 Crossing::Miss
             }
-        });
-        !matches!(
-            (o, n),
-            (Crossing::Hit, Crossing::Hit) | (Crossing::Miss, Crossing::Miss)
-        )
+        })
     }
+}
+
+/// True when a segment that meets the old and new place as `places`
+/// says (see [`Places::classify`]) certainly sees the same before and
+/// after: it passes through both, or through neither.
+pub(super) fn unchanged(places: [Crossing; 2]) -> bool {
+    matches!(
+        places,
+        [Crossing::Hit, Crossing::Hit] | [Crossing::Miss, Crossing::Miss]
+    )
 }
 
 /// Largest distance from `center` to a corner.
