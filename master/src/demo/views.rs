@@ -12,7 +12,7 @@
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use showcase_proto::{FrameState, Showcase};
+use showcase_proto::{FrameState, PinholeDevice, Showcase};
 use showcase_render::gpu::GpuContext;
 use showcase_render::light::DeviceRays;
 use showcase_render::light::{Image, RgbImage, metrics};
@@ -340,14 +340,6 @@ pub(super) fn observe(
     outputs: &Outputs,
     observer: usize,
 ) -> Result<ObserverResult> {
-    let frame = FrameScene::resolve(truth, state)?;
-    let occluders = Occluders::new(&frame)?;
-    let projected: Vec<ProjectedLight<'_>> = truth
-        .projectors
-        .iter()
-        .zip(&outputs.projectors)
-        .map(|(projector, value)| ProjectedLight { projector, value })
-        .collect();
     let mirror = outputs
         .faces
         .iter()
@@ -359,7 +351,7 @@ pub(super) fn observe(
             })
         });
     let cam = eye_camera(truth, state, observer);
-    let view = observer_view(&frame, &occluders, &cam, &projected, mirror)?;
+    let (view, projector_edges) = simulate(truth, state, outputs, &cam, mirror)?;
     let exposure = exposure(&view).with_context(|| {
         format!(
             "observer {observer} sees no object at frame {}",
@@ -423,12 +415,6 @@ pub(super) fn observe(
     let rel_rmse_real = part(false, false);
     let rel_rmse_virtual = part(true, false);
     let rel_rmse_reflective = part(true, true);
-    let edges: Vec<(&showcase_proto::Projector, &Image<bool>)> = truth
-        .projectors
-        .iter()
-        .zip(&outputs.projector_edges)
-        .collect();
-    let projector_edges = projector_edge_pixels(&occluders, &cam, &edges)?;
     let real_mask = |comparable: bool| Image {
         width: mask.width,
         height: mask.height,
@@ -464,6 +450,35 @@ pub(super) fn observe(
         rel_rmse_real_comparable_per_object,
         comparable_real_fraction,
     })
+}
+
+/// What `eye` sees of `outputs` in the true scene `truth` at `state`
+/// through the simulated cabinet (`mirror`: the face image reflected to
+/// it, if any), and its pixels lit from a projector pixel on an edge of
+/// that projector's map.
+fn simulate(
+    truth: &Showcase,
+    state: &FrameState,
+    outputs: &Outputs,
+    eye: &PinholeDevice,
+    mirror: Option<MirrorImage<'_>>,
+) -> Result<(ObserverView, Image<bool>)> {
+    let frame = FrameScene::resolve(truth, state)?;
+    let occluders = Occluders::new(&frame)?;
+    let projected: Vec<ProjectedLight<'_>> = truth
+        .projectors
+        .iter()
+        .zip(&outputs.projectors)
+        .map(|(projector, value)| ProjectedLight { projector, value })
+        .collect();
+    let view = observer_view(&frame, &occluders, eye, &projected, mirror)?;
+    let edges: Vec<(&showcase_proto::Projector, &Image<bool>)> = truth
+        .projectors
+        .iter()
+        .zip(&outputs.projector_edges)
+        .collect();
+    let projector_edges = projector_edge_pixels(&occluders, eye, &edges)?;
+    Ok((view, projector_edges))
 }
 
 /// The exposure that maps the 99th percentile of `view`'s target (its
@@ -516,28 +531,14 @@ pub(super) fn camera_consistency(
     outputs: &Outputs,
     camera: usize,
 ) -> Result<CameraConsistency> {
-    let frame = FrameScene::resolve(truth, state)?;
-    let occluders = Occluders::new(&frame)?;
     let device = &truth
         .cameras
         .get(camera)
         .with_context(|| format!("the scene has no camera {camera}"))?
         .device;
-    let projected: Vec<ProjectedLight<'_>> = truth
-        .projectors
-        .iter()
-        .zip(&outputs.projectors)
-        .map(|(projector, value)| ProjectedLight { projector, value })
-        .collect();
     // No mirror: the camera is no tracked eye, so every eye's occlusion
     // shadow counts as unfillable and is left out.
-    let view = observer_view(&frame, &occluders, device, &projected, None)?;
-    let edges: Vec<(&showcase_proto::Projector, &Image<bool>)> = truth
-        .projectors
-        .iter()
-        .zip(&outputs.projector_edges)
-        .collect();
-    let projector_edges = projector_edge_pixels(&occluders, device, &edges)?;
+    let (view, projector_edges) = simulate(truth, state, outputs, device, None)?;
     let n = view.covered.data.len();
     let real = |i: usize| view.covered.data[i] && !view.sees_virtual.data[i];
     let mask = Image {
