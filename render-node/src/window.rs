@@ -9,6 +9,9 @@
 //! [`FrameSink`]). The window opens its own device on the adapter that
 //! can present to it; images travel as CPU pixels between the two.
 
+use crate::gpu::pipeline::{
+    TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer,
+};
 use crate::node::present::FrameSink;
 use crate::node::{OutputImage, RenderError};
 use std::sync::Arc;
@@ -177,58 +180,28 @@ impl App {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("present"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                entry(0, wgpu::ShaderStages::FRAGMENT, uniform_buffer(false, None)),
+                entry(
+                    1,
+                    wgpu::ShaderStages::FRAGMENT,
+                    texture(
+                        wgpu::TextureSampleType::Float { filterable: false },
+                        wgpu::TextureViewDimension::D2,
+                    ),
+                ),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("present"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("present"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: config.format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        // A full-screen triangle: no vertex buffers, no depth.
+        let pipeline = TrianglePipeline {
+            label: "present",
+            layout: &one_group_layout(&device, "present", &layout),
+            shader: &module,
+            vertex: ("vs_main", &[]),
+            cull_mode: None,
+            depth: None,
+            fragment: Some(("fs_main", &[opaque(config.format)])),
+        }
+        .build(&device);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("present params"),
             size: 16,

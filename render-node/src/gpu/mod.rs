@@ -16,6 +16,7 @@ pub mod flat_lambert;
 pub mod frame_arrays;
 pub mod hemicube;
 pub mod irradiance_map;
+pub(crate) mod pipeline;
 mod shadow_lookup;
 pub mod shadow_views;
 pub mod target;

@@ -10,6 +10,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::frame_arrays::{ArraySpace, uniform_capacity};
 
+use super::pipeline::{self, TrianglePipeline, opaque, texture, uniform_buffer};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -86,12 +87,7 @@ pub struct FaceViewPass {
 }
 
 fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-        ty,
-        count: None,
-    }
+    pipeline::entry(binding, wgpu::ShaderStages::VERTEX_FRAGMENT, ty)
 }
 
 /// The WGSL source of the face view (and cube-map) shader (uniform
@@ -227,23 +223,15 @@ pub fn bind_group_layout(
     space: ArraySpace,
 ) -> wgpu::BindGroupLayout {
     let mut entries = vec![
-        entry(
-            0,
-            wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-        ),
+        entry(0, uniform_buffer(false, None)),
         entry(1, space.binding_type()),
         entry(2, space.binding_type()),
         entry(
             3,
-            wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Depth,
-                view_dimension: wgpu::TextureViewDimension::D2Array,
-                multisampled: false,
-            },
+            texture(
+                wgpu::TextureSampleType::Depth,
+                wgpu::TextureViewDimension::D2Array,
+            ),
         ),
         entry(4, space.binding_type()),
         entry(5, space.binding_type()),
@@ -251,11 +239,10 @@ pub fn bind_group_layout(
     if cube_maps {
         entries.push(entry(
             6,
-            wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2Array,
-                multisampled: false,
-            },
+            texture(
+                wgpu::TextureSampleType::Float { filterable: false },
+                wgpu::TextureViewDimension::D2Array,
+            ),
         ));
     }
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -312,43 +299,18 @@ pub fn render_pipeline(
     pipeline_layout: &wgpu::PipelineLayout,
     fs: &str,
 ) -> wgpu::RenderPipeline {
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(fs),
-        layout: Some(pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: shader,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(world_vertex_layout())],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            // Two-sided, as in the CPU reference (so the mirror's
-            // winding flip needs no special case).
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        }),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: shader,
-            entry_point: Some(fs),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: COLOUR_FORMAT,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    TrianglePipeline {
+        label: fs,
+        layout: pipeline_layout,
+        shader,
+        vertex: ("vs_main", &[Some(world_vertex_layout())]),
+        // Two-sided, as in the CPU reference (so the mirror's winding
+        // flip needs no special case).
+        cull_mode: None,
+        depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
+        fragment: Some((fs, &[opaque(COLOUR_FORMAT)])),
+    }
+    .build(device)
 }
 
 impl FaceViewPass {

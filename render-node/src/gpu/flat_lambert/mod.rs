@@ -9,6 +9,7 @@ use glam::{DMat3, Mat4};
 use wgpu::util::DeviceExt;
 
 use super::GpuError;
+use super::pipeline::{TrianglePipeline, entry, opaque, uniform_buffer};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 use crate::light::raster::{FlatLambertScene, face_normal, normal_from_object};
 
@@ -67,16 +68,11 @@ pub struct FlatLambertBatch {
 fn uniform_layout(device: &wgpu::Device, label: &str) -> wgpu::BindGroupLayout {
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(label),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        }],
+        entries: &[entry(
+            0,
+            wgpu::ShaderStages::VERTEX,
+            uniform_buffer(false, None),
+        )],
     })
 }
 
@@ -112,48 +108,26 @@ impl FlatLambertPass {
             bind_group_layouts: &[Some(&view_layout), Some(&object_layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("flat lambert"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
+        let pipeline = TrianglePipeline {
+            label: "flat lambert",
+            layout: &layout,
+            shader: &shader,
+            vertex: (
+                "vs_main",
+                &[Some(wgpu::VertexBufferLayout {
                     array_stride: size_of::<Vertex>() as wgpu::BufferAddress,
                     step_mode: wgpu::VertexStepMode::Vertex,
                     attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
                 })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Counter-clockwise in NDC (y up) is a front face; see
-                // `light::raster` for why that is the mesh's outer side.
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: Some(wgpu::Face::Back),
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOUR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            ),
+            // Counter-clockwise in NDC (y up) is a front face (wgpu's
+            // default winding); see `light::raster` for why that is the
+            // mesh's outer side.
+            cull_mode: Some(wgpu::Face::Back),
+            depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
+            fragment: Some(("fs_main", &[opaque(COLOUR_FORMAT)])),
+        }
+        .build(device);
         Self {
             pipeline,
             view_layout,

@@ -20,6 +20,7 @@ use glam::{DMat4, DVec3, DVec4};
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
+use super::pipeline::{TrianglePipeline, entry, one_group_layout, opaque, uniform_buffer};
 use super::target::padded_bytes_per_row;
 use super::{GpuContext, GpuError};
 use crate::radiosity::hemicube::{
@@ -103,66 +104,34 @@ impl GpuHemiCube {
         let shader = device.create_shader_module(wgpu::include_wgsl!("hemicube.wgsl"));
         let face_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("hemicube face"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: wgpu::BufferSize::new(size_of::<FaceUniform>() as u64),
-                },
-                count: None,
-            }],
+            entries: &[entry(
+                0,
+                wgpu::ShaderStages::VERTEX,
+                uniform_buffer(true, Some(size_of::<FaceUniform>() as u64)),
+            )],
         });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("hemicube"),
-            bind_group_layouts: &[Some(&face_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("hemicube"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
+        let pipeline = TrianglePipeline {
+            label: "hemicube",
+            layout: &one_group_layout(device, "hemicube", &face_layout),
+            shader: &shader,
+            vertex: (
+                "vs_main",
+                &[Some(wgpu::VertexBufferLayout {
                     array_stride: size_of::<Vertex>() as wgpu::BufferAddress,
                     step_mode: wgpu::VertexStepMode::Vertex,
                     attributes: &wgpu::vertex_attr_array![
                         0 => Float32x3, 1 => Uint32, 2 => Float32x3
                     ],
                 })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Both sides are drawn: back faces occlude; the fragment
-                // shader decides facing from the triangle's plane, which
-                // does not depend on the faces' handedness.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: ITEM_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            ),
+            // Both sides are drawn: back faces occlude; the fragment
+            // shader decides facing from the triangle's plane, which
+            // does not depend on the faces' handedness.
+            cull_mode: None,
+            depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater)),
+            fragment: Some(("fs_main", &[opaque(ITEM_FORMAT)])),
+        }
+        .build(device);
         Self {
             ctx: ctx.clone(),
             pipeline,

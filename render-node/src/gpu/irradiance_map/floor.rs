@@ -8,6 +8,9 @@
 //! shadow maps (and the blend weights), the lookups the real fragment
 //! shader makes, and nothing else. Used by `render::bench::floor`.
 
+use super::super::pipeline::{
+    TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer,
+};
 use super::super::shadow_views::world_vertex_layout;
 use super::super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -134,86 +137,47 @@ impl FloorPass {
             label: Some("irradiance floor"),
             source: wgpu::ShaderSource::Wgsl(floor_source(kind, targets).into()),
         });
-        let texture = |binding, sample_type, view_dimension| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type,
-                view_dimension,
-                multisampled: false,
-            },
-            count: None,
+        let fragment_texture = |binding, sample_type, view_dimension| {
+            entry(
+                binding,
+                wgpu::ShaderStages::FRAGMENT,
+                texture(sample_type, view_dimension),
+            )
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance floor"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                texture(
+                entry(0, wgpu::ShaderStages::VERTEX, uniform_buffer(false, None)),
+                fragment_texture(
                     1,
                     wgpu::TextureSampleType::Depth,
                     wgpu::TextureViewDimension::D2Array,
                 ),
-                texture(
+                fragment_texture(
                     2,
                     wgpu::TextureSampleType::Float { filterable: false },
                     wgpu::TextureViewDimension::D2,
                 ),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("irradiance floor"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let target = Some(wgpu::ColorTargetState {
-            format: COLOUR_FORMAT,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        });
-        let colour_targets = vec![target; targets as usize];
+        let colour_targets = vec![opaque(COLOUR_FORMAT); targets as usize];
         let geometry = kind == FloorKind::Geometry;
         let layouts = [Some(world_vertex_layout())];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("irradiance floor"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some(if geometry { "vs_geometry" } else { "vs_full" }),
-                compilation_options: Default::default(),
-                buffers: if geometry { &layouts } else { &[] },
+        let pipeline = TrianglePipeline {
+            label: "irradiance floor",
+            layout: &one_group_layout(device, "irradiance floor", &layout),
+            shader: &shader,
+            vertex: if geometry {
+                ("vs_geometry", &layouts)
+            } else {
+                ("vs_full", &[])
             },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
+            cull_mode: None,
             // The real pass's depth test; a full-screen pass needs none.
-            depth_stencil: geometry.then(|| wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &colour_targets,
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            depth: geometry.then_some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
+            fragment: Some(("fs_main", &colour_targets)),
+        }
+        .build(device);
         Self {
             kind,
             targets,

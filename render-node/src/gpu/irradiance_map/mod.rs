@@ -9,6 +9,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
 use super::frame_arrays::{ArraySpace, uniform_capacity};
+use super::pipeline::{TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -133,12 +134,7 @@ pub struct IrradianceBindings<'a> {
 }
 
 fn array_entry(binding: u32, space: ArraySpace) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: space.binding_type(),
-        count: None,
-    }
+    entry(binding, wgpu::ShaderStages::FRAGMENT, space.binding_type())
 }
 
 impl IrradianceMapPass {
@@ -167,83 +163,43 @@ impl IrradianceMapPass {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance map"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                entry(
+                    0,
+                    wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    uniform_buffer(false, None),
+                ),
                 array_entry(1, space),
                 array_entry(2, space),
                 array_entry(3, space),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 5,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                entry(
+                    4,
+                    wgpu::ShaderStages::FRAGMENT,
+                    texture(
+                        wgpu::TextureSampleType::Depth,
+                        wgpu::TextureViewDimension::D2Array,
+                    ),
+                ),
+                entry(
+                    5,
+                    wgpu::ShaderStages::FRAGMENT,
+                    texture(
+                        wgpu::TextureSampleType::Float { filterable: false },
+                        wgpu::TextureViewDimension::D2,
+                    ),
+                ),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("irradiance map"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let target = Some(wgpu::ColorTargetState {
-            format: COLOUR_FORMAT,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("irradiance map"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(world_vertex_layout())],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Phantom surfaces are two-sided, as in the CPU reference.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[target.clone(), target],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = TrianglePipeline {
+            label: "irradiance map",
+            layout: &one_group_layout(device, "irradiance map", &layout),
+            shader: &shader,
+            vertex: ("vs_main", &[Some(world_vertex_layout())]),
+            // Phantom surfaces are two-sided, as in the CPU reference.
+            cull_mode: None,
+            depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
+            fragment: Some(("fs_main", &[opaque(COLOUR_FORMAT), opaque(COLOUR_FORMAT)])),
+        }
+        .build(device);
         Variant { pipeline, layout }
     }
 

@@ -10,6 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
 use super::GpuError;
+use super::pipeline::{TrianglePipeline, entry, one_group_layout, read_only_storage};
 use super::target::DEPTH_FORMAT;
 
 pub mod occluders;
@@ -270,50 +271,20 @@ impl ShadowViewsPass {
         let shader = device.create_shader_module(wgpu::include_wgsl!("shadow_views.wgsl"));
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow views"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[entry(0, wgpu::ShaderStages::VERTEX, read_only_storage())],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("shadow views"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("shadow views"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(world_vertex_layout())],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Surfaces are two-sided occluders.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
+        let pipeline = TrianglePipeline {
+            label: "shadow views",
+            layout: &one_group_layout(device, "shadow views", &layout),
+            shader: &shader,
+            vertex: ("vs_main", &[Some(world_vertex_layout())]),
+            // Surfaces are two-sided occluders.
+            cull_mode: None,
+            depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
             // Depth only.
             fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
+        }
+        .build(device);
         Self { pipeline, layout }
     }
 
