@@ -10,7 +10,7 @@
 //! can present to it; images travel as CPU pixels between the two.
 
 use crate::gpu::pipeline::{
-    TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer,
+    TrianglePipeline, entry, fragment_texture, one_group_layout, opaque, uniform_buffer,
 };
 use crate::node::present::FrameSink;
 use crate::node::{OutputImage, RenderError};
@@ -181,13 +181,10 @@ impl App {
             label: Some("present"),
             entries: &[
                 entry(0, wgpu::ShaderStages::FRAGMENT, uniform_buffer(false, None)),
-                entry(
+                fragment_texture(
                     1,
-                    wgpu::ShaderStages::FRAGMENT,
-                    texture(
-                        wgpu::TextureSampleType::Float { filterable: false },
-                        wgpu::TextureViewDimension::D2,
-                    ),
+                    wgpu::TextureSampleType::Float { filterable: false },
+                    wgpu::TextureViewDimension::D2,
                 ),
             ],
         });

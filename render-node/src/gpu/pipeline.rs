@@ -47,6 +47,20 @@ pub(crate) fn texture(
     }
 }
 
+/// Binding `binding`: a single-sampled texture read by the fragment
+/// stage.
+pub(crate) fn fragment_texture(
+    binding: u32,
+    sample_type: wgpu::TextureSampleType,
+    view_dimension: wgpu::TextureViewDimension,
+) -> wgpu::BindGroupLayoutEntry {
+    entry(
+        binding,
+        wgpu::ShaderStages::FRAGMENT,
+        texture(sample_type, view_dimension),
+    )
+}
+
 /// A colour target of `format`, written whole with no blending.
 pub(crate) fn opaque(format: wgpu::TextureFormat) -> Option<wgpu::ColorTargetState> {
     Some(wgpu::ColorTargetState {

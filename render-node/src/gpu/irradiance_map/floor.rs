@@ -9,7 +9,7 @@
 //! shader makes, and nothing else. Used by `render::bench::floor`.
 
 use super::super::pipeline::{
-    TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer,
+    TrianglePipeline, entry, fragment_texture, one_group_layout, opaque, uniform_buffer,
 };
 use super::super::shadow_views::world_vertex_layout;
 use super::super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
@@ -137,13 +137,6 @@ impl FloorPass {
             label: Some("irradiance floor"),
             source: wgpu::ShaderSource::Wgsl(floor_source(kind, targets).into()),
         });
-        let fragment_texture = |binding, sample_type, view_dimension| {
-            entry(
-                binding,
-                wgpu::ShaderStages::FRAGMENT,
-                texture(sample_type, view_dimension),
-            )
-        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance floor"),
             entries: &[

@@ -9,7 +9,9 @@ use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
 use super::frame_arrays::{ArraySpace, uniform_capacity};
-use super::pipeline::{TrianglePipeline, entry, one_group_layout, opaque, texture, uniform_buffer};
+use super::pipeline::{
+    TrianglePipeline, entry, fragment_texture, one_group_layout, opaque, uniform_buffer,
+};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -171,21 +173,15 @@ impl IrradianceMapPass {
                 array_entry(1, space),
                 array_entry(2, space),
                 array_entry(3, space),
-                entry(
+                fragment_texture(
                     4,
-                    wgpu::ShaderStages::FRAGMENT,
-                    texture(
-                        wgpu::TextureSampleType::Depth,
-                        wgpu::TextureViewDimension::D2Array,
-                    ),
+                    wgpu::TextureSampleType::Depth,
+                    wgpu::TextureViewDimension::D2Array,
                 ),
-                entry(
+                fragment_texture(
                     5,
-                    wgpu::ShaderStages::FRAGMENT,
-                    texture(
-                        wgpu::TextureSampleType::Float { filterable: false },
-                        wgpu::TextureViewDimension::D2,
-                    ),
+                    wgpu::TextureSampleType::Float { filterable: false },
+                    wgpu::TextureViewDimension::D2,
                 ),
             ],
         });
