@@ -222,7 +222,7 @@ pub(super) fn rendering_stage(
                 "not measured (the scene has no camera)".to_string(),
                 |r| format!(
                     "{r:.4} over at least {:.0}% of the real pixels",
-                    100.0 * cameras.compared_fraction
+                    100.0 * cameras.compared_fraction.unwrap_or(0.0)
                 )
             ),
             median.unwrap_or(f64::NAN),
@@ -297,22 +297,13 @@ impl Seen {
 }
 
 /// What the cabinet's cameras measured over the rendered frames: the worst
-/// of each figure ([`views::CameraConsistency`]).
-#[derive(Clone, Debug)]
+/// of each figure ([`views::CameraConsistency`]); all `None` or empty
+/// until a camera measured.
+#[derive(Clone, Debug, Default)]
 struct SeenByCamera {
     rel: Option<f64>,
     per_object: std::collections::BTreeMap<String, f64>,
-    compared_fraction: f64,
-}
-
-impl Default for SeenByCamera {
-    fn default() -> Self {
-        Self {
-            rel: None,
-            per_object: Default::default(),
-            compared_fraction: 1.0,
-        }
-    }
+    compared_fraction: Option<f64>,
 }
 
 impl SeenByCamera {
@@ -322,6 +313,9 @@ impl SeenByCamera {
             let w = self.per_object.entry(name.clone()).or_insert(0.0);
             *w = w.max(*e);
         }
-        self.compared_fraction = self.compared_fraction.min(r.compared_fraction);
+        self.compared_fraction = Some(
+            self.compared_fraction
+                .map_or(r.compared_fraction, |c| c.min(r.compared_fraction)),
+        );
     }
 }

@@ -8,9 +8,7 @@
 //! shadow maps (and the blend weights), the lookups the real fragment
 //! shader makes, and nothing else. Used by `render::bench::floor`.
 
-use super::super::pipeline::{
-    TrianglePipeline, entry, fragment_texture, one_group_layout, opaque, uniform_buffer,
-};
+use super::super::pipeline::{TrianglePipeline, entry, one_group_layout, opaque, uniform_buffer};
 use super::super::shadow_views::world_vertex_layout;
 use super::super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
@@ -137,20 +135,13 @@ impl FloorPass {
             label: Some("irradiance floor"),
             source: wgpu::ShaderSource::Wgsl(floor_source(kind, targets).into()),
         });
+        let [shadow_maps, blend] = super::shadow_and_blend(1);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance floor"),
             entries: &[
                 entry(0, wgpu::ShaderStages::VERTEX, uniform_buffer(false, None)),
-                fragment_texture(
-                    1,
-                    wgpu::TextureSampleType::Depth,
-                    wgpu::TextureViewDimension::D2Array,
-                ),
-                fragment_texture(
-                    2,
-                    wgpu::TextureSampleType::Float { filterable: false },
-                    wgpu::TextureViewDimension::D2,
-                ),
+                shadow_maps,
+                blend,
             ],
         });
         let colour_targets = vec![opaque(COLOUR_FORMAT); targets as usize];

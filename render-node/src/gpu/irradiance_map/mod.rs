@@ -135,6 +135,24 @@ pub struct IrradianceBindings<'a> {
     pub space: ArraySpace,
 }
 
+/// The light's shadow maps (a depth array) at binding `first` and the
+/// projector's blend weights (a float texture) at `first + 1`, both read
+/// by the fragment stage: the irradiance map's and its floor pass's.
+pub(super) fn shadow_and_blend(first: u32) -> [wgpu::BindGroupLayoutEntry; 2] {
+    [
+        fragment_texture(
+            first,
+            wgpu::TextureSampleType::Depth,
+            wgpu::TextureViewDimension::D2Array,
+        ),
+        fragment_texture(
+            first + 1,
+            wgpu::TextureSampleType::Float { filterable: false },
+            wgpu::TextureViewDimension::D2,
+        ),
+    ]
+}
+
 fn array_entry(binding: u32, space: ArraySpace) -> wgpu::BindGroupLayoutEntry {
     entry(binding, wgpu::ShaderStages::FRAGMENT, space.binding_type())
 }
@@ -162,6 +180,7 @@ impl IrradianceMapPass {
             label: Some("irradiance_map"),
             source: wgpu::ShaderSource::Wgsl(space.source(SOURCE)),
         });
+        let [shadow_maps, blend] = shadow_and_blend(4);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("irradiance map"),
             entries: &[
@@ -173,16 +192,8 @@ impl IrradianceMapPass {
                 array_entry(1, space),
                 array_entry(2, space),
                 array_entry(3, space),
-                fragment_texture(
-                    4,
-                    wgpu::TextureSampleType::Depth,
-                    wgpu::TextureViewDimension::D2Array,
-                ),
-                fragment_texture(
-                    5,
-                    wgpu::TextureSampleType::Float { filterable: false },
-                    wgpu::TextureViewDimension::D2,
-                ),
+                shadow_maps,
+                blend,
             ],
         });
         let pipeline = TrianglePipeline {
