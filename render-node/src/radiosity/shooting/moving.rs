@@ -480,8 +480,8 @@ impl<'a> Shooter<'a> {
                 out.push(cast(j, stats));
             }
         }
-        let mut rays = [(DVec3::ZERO, DVec3::ZERO); MASK_RAYS];
-        let mut crossings = [[Crossing::Miss; 2]; MASK_RAYS];
+        // Receivers come in element order, like the old row's entries.
+        let mut cursor = 0;
         for &(center, rj, j, patch) in &places.receivers {
             if patch as usize == i || ball_outside_penumbra(&planes, center, rj, places.margin) {
                 continue;
@@ -494,44 +494,46 @@ impl<'a> Shooter<'a> {
                 continue;
             }
             stats.pairs_near += 1;
-            if k > MASK_RAYS {
-                if receiver_rays(mesh, i, j, &samples, seed)
-                    .any(|(x, y)| !unchanged(places.classify(x, y, &mut hints)))
-                {
-                    out.push(cast(j, stats));
+            let mut rays = receiver_rays(mesh, i, j, &samples, seed);
+            let old = if k > MASK_RAYS {
+                None
+            } else {
+                while old_row.get(cursor).is_some_and(|entry| entry.0 < j) {
+                    cursor += 1;
                 }
-                continue;
-            }
-            let mut any_change = false;
-            for (r, (x, y)) in receiver_rays(mesh, i, j, &samples, seed).enumerate() {
-                rays[r] = (x, y);
-                crossings[r] = places.classify(x, y, &mut hints);
-                any_change |= !unchanged(crossings[r]);
-            }
-            if !any_change {
-                continue;
-            }
-            let at = old_row.partition_point(|entry| entry.0 < j);
-            let old = match old_row.get(at) {
-                Some(&(jo, f)) if jo == j => Some((
-                    f / old_scale,
-                    old_rays.as_ref().map_or(UNKNOWN_RAYS, |r| r[at]),
-                )),
-                _ => None,
+                match old_row.get(cursor) {
+                    Some(&(jo, f)) if jo == j => Some((
+                        f / old_scale,
+                        old_rays.as_ref().map_or(UNKNOWN_RAYS, |r| r[cursor]),
+                    )),
+                    _ => Some((0.0, 0)),
+                }
             };
             match old {
-                Some((f, mask)) if mask != UNKNOWN_RAYS => {
-                    let new_mask = self.moved_rays(e.normal, &rays[..k], &crossings[..k], mask);
+                Some((f, mask)) if f > 0.0 && mask != UNKNOWN_RAYS => {
+                    let new_mask = self.moved_rays(e.normal, rays, places, &mut hints, mask);
                     if new_mask != mask {
                         stats.entries_rescaled += 1;
                         let f = rescaled_entry(f, mask.count_ones(), new_mask.count_ones());
                         out.push((j, f.unwrap_or(0.0), new_mask));
                     }
                 }
-                // Zero before, and the object blocked none of its rays:
-                // the static scene did, and still does.
-                None if crossings[..k].iter().all(|c| c[0] == Crossing::Miss) => {}
-                _ => out.push(cast(j, stats)),
+                // Zero before: every ray was blocked (or the entry is zero
+                // wherever the object is). It stays zero when every ray is
+                // still blocked: by the object's new place, or by the
+                // static scene where the old place did not block it.
+                Some((_, 0))
+                    if rays.all(|(x, y)| {
+                        places.crossing(1, x, y, &mut hints[1]) == Crossing::Hit
+                            || places.crossing(0, x, y, &mut hints[0]) == Crossing::Miss
+                    }) => {}
+                Some((_, 0)) => out.push(cast(j, stats)),
+                // Rays not recorded: re-cast when one may see a difference.
+                _ => {
+                    if rays.any(|(x, y)| !unchanged(places.classify(x, y, &mut hints))) {
+                        out.push(cast(j, stats));
+                    }
+                }
             }
         }
         out.sort_unstable_by_key(|e| e.0);
@@ -540,28 +542,34 @@ impl<'a> Shooter<'a> {
 
     /// Which of an entry's `rays` (receiver point, patch point; the
     /// receiver's normal `normal`) see the shooter after the move, from
-    /// which saw it before (`mask`) and how each meets the object's old
-    /// and new place (`crossings`): a ray that was clear stays clear
-    /// unless the object now certainly blocks it; a ray that was blocked
-    /// while the object certainly did not block it was blocked by the
-    /// static scene and stays blocked; every other ray is traced again in
-    /// the moved scene. Equal to tracing every ray, given that the
+    /// which saw it before (`mask`) and how each meets the object's new
+    /// and, where needed, old place (`places`; `hints` as in
+    /// [`Places::classify`]): a ray that the new place certainly blocks is
+    /// blocked; one that was clear stays clear when the new place
+    /// certainly misses it (the static scene did not block it); one that
+    /// was blocked while the old place certainly missed it was blocked by
+    /// the static scene and stays blocked; every other ray is traced again
+    /// in the moved scene. Equal to tracing every ray, given that the
     /// crossings are sure where they say so.
     fn moved_rays(
         &self,
         normal: DVec3,
-        rays: &[(DVec3, DVec3)],
-        crossings: &[[Crossing; 2]],
+        rays: impl Iterator<Item = (DVec3, DVec3)>,
+        places: &Places,
+        hints: &mut [usize; 2],
         mask: RayMask,
     ) -> RayMask {
         let mut out = 0;
-        for (r, (&(x, y), &[before, after])) in rays.iter().zip(crossings).enumerate() {
+        for (r, (x, y)) in rays.enumerate() {
             let was_clear = mask & (1 << r) != 0;
-            let clear = match (was_clear, before, after) {
-                (true, Crossing::Miss | Crossing::Unsure, Crossing::Hit) => false,
-                (true, Crossing::Miss | Crossing::Unsure, Crossing::Miss) => true,
-                (false, Crossing::Miss, _) => false,
-                _ => self.geometry.visible(x, normal, y, true),
+            let clear = match (was_clear, places.crossing(1, x, y, &mut hints[1])) {
+                (_, Crossing::Hit) => false,
+                (true, Crossing::Miss) => true,
+                (true, Crossing::Unsure) => self.geometry.visible(x, normal, y, true),
+                (false, _) => {
+                    places.crossing(0, x, y, &mut hints[0]) != Crossing::Miss
+                        && self.geometry.visible(x, normal, y, true)
+                }
             };
             if clear {
                 out |= 1 << r;

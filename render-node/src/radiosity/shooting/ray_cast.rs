@@ -42,12 +42,21 @@ pub(super) fn receiver_rays<'m>(
         } else {
             triangle_sample(
                 &e.vertices,
-                (samples[i] + glam::DVec2::new(shift.y, shift.x)).fract(),
+                wrap(samples[i] + glam::DVec2::new(shift.y, shift.x)),
             )
         };
-        let y = triangle_sample(&p.vertices, (samples[k - 1 - i] + shift).fract());
+        let y = triangle_sample(&p.vertices, wrap(samples[k - 1 - i] + shift));
         (x, y)
     })
+}
+
+/// The fractional part of a sum of two numbers in `[0, 1)` (so in
+/// `[0, 2)`): bit for bit `fract`, which compiles to a library call on
+/// the baseline x86-64 target, where this is a compare and a subtraction
+/// (exact: `x - 1` for `x` in `[1, 2)` is representable).
+fn wrap(v: glam::DVec2) -> glam::DVec2 {
+    let w = |x: f64| if x >= 1.0 { x - 1.0 } else { x };
+    glam::DVec2::new(w(v.x), w(v.y))
 }
 
 /// Relative height below which a point counts as lying in a plane in
@@ -161,6 +170,23 @@ mod tests {
     use super::*;
     use crate::radiosity::moving_tests::{box_with_block, mesh_of};
     use glam::Vec3;
+
+    /// [`wrap`] is `fract` bit for bit on sums of two numbers in `[0, 1)`.
+    #[test]
+    fn wrap_is_fract_on_sums_of_unit_numbers() {
+        let edge = [0.0, f64::EPSILON, 0.5, 1.0 - f64::EPSILON / 2.0];
+        let random = (0..2000).map(|k| unit(k as u64));
+        for a in edge.into_iter().chain(random.clone()) {
+            for b in edge.into_iter().chain(random.clone().take(50)) {
+                let v = glam::DVec2::new(a + b, b + a / 2.0);
+                let (w, f) = (wrap(v), v.fract());
+                assert_eq!(
+                    (w.x.to_bits(), w.y.to_bits()),
+                    (f.x.to_bits(), f.y.to_bits())
+                );
+            }
+        }
+    }
 
     /// [`facing_away`] culls only pairs whose unoccluded form factor is
     /// zero (to round-off), on every pair of a closed box with a block in

@@ -387,6 +387,17 @@ impl Places {
             .any(|b| b.grown(by).meets_local_segment(la, lb))
     }
 
+    /// How the segment `a`-`b` meets place `k` (0 the old, 1 the new);
+    /// `hint` is the triangle to try first (see [`crossing_from`]).
+    pub(super) fn crossing(&self, k: usize, a: DVec3, b: DVec3, hint: &mut usize) -> Crossing {
+        let [la, lb] = self.union.local_segment(a, b);
+        if self.boxes[k].meets_local_segment(la, lb) {
+            crossing_from(&self.triangles[k], a, b, hint)
+        } else {
+            Crossing::Miss
+        }
+    }
+
     /// How the segment `a`-`b` meets the old and the new place. `hints`
     /// are the triangles to try first in each place (see
     /// [`crossing_from`]).
@@ -423,6 +434,10 @@ pub(super) fn radius(center: DVec3, vertices: &[DVec3; 3]) -> f64 {
         .map(|v| (*v - center).length())
         .fold(0.0, f64::max)
 }
+
+/// Relative round-off within which [`penumbra_planes`] takes touching
+/// extents as separate.
+const TOUCH: f64 = 1e-12;
 
 /// Planes that bound the region a segment from the triangle `shooter`
 /// through the box `b` can reach: `(n, c)` with unit `n` such that every
@@ -468,23 +483,33 @@ pub(super) fn penumbra_planes(shooter: &[DVec3; 3], b: &Bounds) -> Vec<(DVec3, f
         }
     };
     for n in candidates {
-        let n = n.normalize_or_zero();
-        if n == DVec3::ZERO || !n.is_finite() {
-            continue;
-        }
         // The shooter's and the box's extent along n (the box's from its
         // support function): a plane with normal n or -n separates them
-        // when the extents do not overlap.
+        // when the extents do not overlap. Both scale with n, so only the
+        // separating candidates are normalised. A plane through an edge of
+        // one and a corner of the other touches both, so the extents meet
+        // to round-off: they count as separate within `touch`, which
+        // moves a far receiver's side of the plane by far less than the
+        // tolerance of the tests (see `outside_penumbra`).
         let y = shooter.map(|y| n.dot(y));
         let (y_lo, y_hi) = (y[0].min(y[1]).min(y[2]), y[0].max(y[1]).max(y[2]));
         let reach = b.local(n).abs().dot(half);
         let mid = n.dot(center);
         let (b_lo, b_hi) = (mid - reach, mid + reach);
-        if y_hi <= b_lo {
-            push(n, b_lo);
+        let touch = TOUCH * (y_lo.abs().max(y_hi.abs()) + mid.abs() + reach);
+        let (below, above) = (y_hi <= b_lo + touch, b_hi <= y_lo + touch);
+        if !(below || above) {
+            continue;
         }
-        if b_hi <= y_lo {
-            push(-n, -b_hi);
+        let length = n.length();
+        if !(length > 0.0 && length.is_finite()) {
+            continue;
+        }
+        if below {
+            push(n / length, b_lo / length);
+        }
+        if above {
+            push(-n / length, -b_hi / length);
         }
     }
     planes
