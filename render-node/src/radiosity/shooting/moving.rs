@@ -47,14 +47,18 @@
 //!   Re-computed entries use the same seeds as a fresh solve, so they
 //!   equal a fresh row's entries of the moved scene (to round-off);
 //! - a cached ray-cast row records which of each entry's rays saw the
-//!   shooter ([`RayMask`]). An entry whose rays may see the move is then
-//!   not ray-cast again: a clear ray stays clear unless the object now
-//!   certainly blocks it, a blocked ray that the object certainly did not
-//!   block was blocked by the static scene and stays blocked, and only
-//!   the other rays are traced again; the entry is rescaled by the
-//!   visible count (its unoccluded form factor and areas are unchanged),
-//!   which equals a fresh entry to round-off. An entry that was zero
-//!   stays zero when the object blocked none of its rays.
+//!   shooter ([`RayMask`]). An entry near the object is then not ray-cast
+//!   again: a ray that the new place certainly blocks is blocked, a clear
+//!   ray stays clear unless the new place may block it, a blocked ray
+//!   that the old place certainly missed was blocked by the static scene
+//!   and stays blocked, and only the other rays are traced again; the
+//!   entry is rescaled by the visible count (its unoccluded form factor
+//!   and areas are unchanged), which equals a fresh entry to round-off.
+//!   So a ray meets the old place's test only when it was blocked and is
+//!   not certainly blocked now. An entry that was zero stays zero when
+//!   each of its rays is blocked by the new place or was not blocked by
+//!   the old one. (Rows without masks use the rule above: an entry is
+//!   recomputed when a ray may see a difference.)
 //!
 //! With hemi-cube methods every row that is needed is recomputed whole
 //! (correct, not faster).
@@ -443,9 +447,9 @@ impl<'a> Shooter<'a> {
     /// whose rays may see the move. A static entry whose rays' visibility
     /// the old row recorded is updated from the rays that may see the move
     /// ([`Self::moved_rays`]); one with no old entry (zero) is unchanged
-    /// when the object certainly blocked none of its rays before (they
-    /// were blocked by the static scene, which did not move); any other is
-    /// ray-cast.
+    /// when each of its rays is certainly blocked by the new place or was
+    /// certainly not blocked by the old one (so the static scene, which
+    /// did not move, blocked it); any other is ray-cast.
     fn changed_entries(
         &self,
         i: usize,
