@@ -217,6 +217,15 @@ pub struct BenchArgs {
     /// augmented.
     #[arg(long, value_delimiter = ',')]
     pub kinds: Vec<String>,
+    /// Radiosity only: the `incremental_object` records to make, as
+    /// OBJECT@AREA with OBJECT `short_block` or `small_cube` and AREA the
+    /// largest patch in m^2 (default: both at 0.02 and 0.005).
+    #[arg(long, value_delimiter = ',')]
+    pub object_records: Vec<String>,
+    /// Radiosity only: timed runs per `incremental_object` record
+    /// (default 5).
+    #[arg(long)]
+    pub repeats: Option<usize>,
 }
 
 /// Subcommands of `sim`.
@@ -435,10 +444,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 emit_bench(&args, &records)
             }
             BenchTarget::Radiosity => {
-                let records = crate::radiosity_job::bench::bench_radiosity_kinds(
-                    &shared_data("cornell-box.obj"),
-                    &args.kinds,
-                )?;
+                use crate::radiosity_job::bench::{ObjectRecords, bench_radiosity_kinds};
+                let objects = ObjectRecords::parse(&args.object_records, args.repeats)?;
+                let records =
+                    bench_radiosity_kinds(&shared_data("cornell-box.obj"), &args.kinds, &objects)?;
                 if !args.json {
                     crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
                 }

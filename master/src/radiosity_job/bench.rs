@@ -463,7 +463,74 @@ pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<
 /// Run the radiosity benchmark on the Cornell box at `cornell` (the OBJ).
 /// Slow (minutes): build in release.
 pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
-    bench_radiosity_kinds(cornell, &[])
+    bench_radiosity_kinds(cornell, &[], &ObjectRecords::default())
+}
+
+/// Which `incremental_object` records to make, and how often to time
+/// each (`bench radiosity --object-records ... --repeats N`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectRecords {
+    /// `(object, max patch area)` pairs; the object is `short_block` (the
+    /// Cornell box's) or `small_cube` (a 6 cm cube added to it).
+    pub records: Vec<(String, f64)>,
+    /// Timed runs per record (the fastest and the paired median are
+    /// reported).
+    pub repeats: usize,
+}
+
+/// The objects of the `incremental_object` records.
+pub const MOVED_OBJECTS: [&str; 2] = ["short_block", "small_cube"];
+
+impl Default for ObjectRecords {
+    /// Both objects at 0.02 and 0.005 m^2, 5 runs each.
+    fn default() -> Self {
+        let records = [0.02, 0.005]
+            .into_iter()
+            .flat_map(|area| MOVED_OBJECTS.map(|o| (o.to_string(), area)))
+            .collect();
+        Self {
+            records,
+            repeats: 5,
+        }
+    }
+}
+
+impl ObjectRecords {
+    /// From `OBJECT@AREA` specs (all default records when empty) and a
+    /// repeat count (5 when `None`); an unknown object, an unreadable or
+    /// non-positive area, or zero repeats is an error naming it.
+    pub fn parse(specs: &[String], repeats: Option<usize>) -> anyhow::Result<Self> {
+        let mut out = Self::default();
+        if let Some(n) = repeats {
+            anyhow::ensure!(n > 0, "--repeats must be at least 1");
+            out.repeats = n;
+        }
+        if specs.is_empty() {
+            return Ok(out);
+        }
+        out.records = specs
+            .iter()
+            .map(|spec| {
+                let (object, area) = spec.split_once('@').with_context(|| {
+                    format!("object record {spec:?} is not OBJECT@AREA (e.g. short_block@0.02)")
+                })?;
+                anyhow::ensure!(
+                    MOVED_OBJECTS.contains(&object),
+                    "unknown moved object {object:?} in {spec:?}; known: {}",
+                    MOVED_OBJECTS.join(", ")
+                );
+                let area: f64 = area
+                    .parse()
+                    .ok()
+                    .filter(|a: &f64| a.is_finite() && *a > 0.0)
+                    .with_context(|| {
+                        format!("patch area {area:?} in {spec:?} is not a positive number (m^2)")
+                    })?;
+                Ok((object.to_string(), area))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(out)
+    }
 }
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
@@ -479,10 +546,15 @@ pub const RECORD_KINDS: [&str; 7] = [
 ];
 
 /// [`bench_radiosity_at`], making only the records whose `"kind"` is in
-/// `kinds` (all of them when `kinds` is empty); the fine reference
+/// `kinds` (all of them when `kinds` is empty), and of the
+/// `incremental_object` kind those of `objects`; the fine reference
 /// solution is solved only when a record that needs it is made. An
 /// unknown kind is an error that lists the known ones.
-pub fn bench_radiosity_kinds(cornell: &Path, kinds: &[String]) -> anyhow::Result<Vec<BenchRecord>> {
+pub fn bench_radiosity_kinds(
+    cornell: &Path,
+    kinds: &[String],
+    objects: &ObjectRecords,
+) -> anyhow::Result<Vec<BenchRecord>> {
     if let Some(bad) = kinds.iter().find(|k| !RECORD_KINDS.contains(&k.as_str())) {
         anyhow::bail!(
             "unknown radiosity record kind {bad:?}; known kinds: {}",
@@ -506,10 +578,19 @@ pub fn bench_radiosity_kinds(cornell: &Path, kinds: &[String]) -> anyhow::Result
     if wanted("incremental_object") {
         let shift = Vec3::new(0.03, 0.0, 0.02);
         let with_cube = cornell_with_small_cube(&showcase, 0.06);
-        for area in [0.02, 0.005] {
-            for (scene, name) in [(&showcase, "short_block"), (&with_cube, "small_cube")] {
-                records.push(incremental_object_record(scene, name, shift, area, 5)?);
-            }
+        for (name, area) in &objects.records {
+            let scene = if name == "small_cube" {
+                &with_cube
+            } else {
+                &showcase
+            };
+            records.push(incremental_object_record(
+                scene,
+                name,
+                shift,
+                *area,
+                objects.repeats,
+            )?);
         }
     }
     if wanted("augmented") {
@@ -587,4 +668,41 @@ fn bench_against_reference(
 /// directory, the repository root).
 pub fn bench_radiosity() -> anyhow::Result<Vec<BenchRecord>> {
     bench_radiosity_at(Path::new(CORNELL_BOX))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--object-records` and `--repeats`: the default is every record at
+    /// 5 runs; specs pick records; a bad spec is an error naming it.
+    #[test]
+    fn object_record_specs_parse_and_bad_ones_are_named() {
+        let all = ObjectRecords::parse(&[], None).unwrap();
+        assert_eq!(all, ObjectRecords::default());
+        assert_eq!(all.records.len(), 4);
+        assert_eq!(all.repeats, 5);
+        let specs = [
+            "short_block@0.02".to_string(),
+            "small_cube@5e-3".to_string(),
+        ];
+        let picked = ObjectRecords::parse(&specs, Some(30)).unwrap();
+        assert_eq!(
+            picked.records,
+            vec![("short_block".into(), 0.02), ("small_cube".into(), 0.005)]
+        );
+        assert_eq!(picked.repeats, 30);
+        for (spec, named) in [
+            ("tall_block@0.02", "tall_block"),
+            ("short_block", "OBJECT@AREA"),
+            ("short_block@big", "big"),
+            ("short_block@-1", "-1"),
+            ("short_block@NaN", "NaN"),
+        ] {
+            let e = ObjectRecords::parse(&[spec.to_string()], None).unwrap_err();
+            assert!(e.to_string().contains(named), "{spec}: {e}");
+        }
+        let e = ObjectRecords::parse(&[], Some(0)).unwrap_err();
+        assert!(e.to_string().contains("--repeats"), "{e}");
+    }
 }
