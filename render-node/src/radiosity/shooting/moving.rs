@@ -36,7 +36,8 @@
 //!   face each
 //!   other (a receiver in or behind the shooter's plane, or a shooter in
 //!   or behind the receiver's, has a zero form factor wherever the object
-//!   is: `facing_away`), the segment between the
+//!   is: `facing_away`), where the union box holds a sizeable gap outside
+//!   both boxes (`Places::segment_test`) the segment between the
 //!   centres, widened by the larger of the two triangles' radii, must meet
 //!   the old or new box, and then a ray must not be sure to see the same
 //!   as before: a ray that certainly passes through both places is blocked
@@ -57,15 +58,17 @@
 //!   So a ray meets the old place's test only when it was blocked and is
 //!   not certainly blocked now. An entry that was zero stays zero when
 //!   each of its rays is blocked by the new place or was not blocked by
-//!   the old one. (Rows without masks use the rule above: an entry is
+//!   the old one; otherwise only its other rays are traced, and it is
+//!   computed (its unoccluded form factor) only when one of them now sees
+//!   the shooter. (Rows without masks use the rule above: an entry is
 //!   recomputed when a ray may see a difference.)
 //!
 //! With hemi-cube methods every row that is needed is recomputed whole
 //! (correct, not faster).
 
 use super::ray_cast::{
-    MASK_RAYS, RayMask, UNKNOWN_RAYS, facing_away, normalise, ray_cast_entry, receiver_rays,
-    rescaled_entry,
+    MASK_RAYS, RayMask, UNKNOWN_RAYS, entry_from_mask, facing_away, normalise, ray_cast_entry,
+    receiver_rays, rescaled_entry,
 };
 use super::{ComputedRow, FormFactorMethod, Shooter};
 use crate::light::SceneGeometry;
@@ -120,10 +123,13 @@ pub struct MoveStats {
     /// Rows recomputed whole (the object's patches, hemi-cube methods).
     pub rows_recomputed: usize,
     /// Static pairs whose rays were tested against the object: those in
-    /// the shooter's penumbra of the object's box whose centre segment,
-    /// widened by the larger triangle radius, met the old or new box.
+    /// the shooter's penumbra of the object's box (and, where the box
+    /// around both places holds a sizeable gap, whose centre segment,
+    /// widened by the larger triangle radius, met the old or new box).
     pub pairs_near: usize,
-    /// Form-factor entries recomputed (ray-cast) in patched rows.
+    /// Form-factor entries computed anew in patched rows: ray-cast, or
+    /// (an entry that was zero) from its rays once one of them sees the
+    /// shooter.
     pub entries_recomputed: usize,
     /// Entries of patched rows updated from their rays' recorded
     /// visibility: only the rays the move may change were traced again
@@ -494,7 +500,7 @@ impl<'a> Shooter<'a> {
             if facing_away(p, e) || outside_penumbra(&planes, &e.vertices, places.margin) {
                 continue;
             }
-            if !places.near_segment(p.center, center, rp.max(rj)) {
+            if places.segment_test && !places.near_segment(p.center, center, rp.max(rj)) {
                 continue;
             }
             stats.pairs_near += 1;
@@ -523,15 +529,19 @@ impl<'a> Shooter<'a> {
                     }
                 }
                 // Zero before: every ray was blocked (or the entry is zero
-                // wherever the object is). It stays zero when every ray is
-                // still blocked: by the object's new place, or by the
-                // static scene where the old place did not block it.
-                Some((_, 0))
-                    if rays.all(|(x, y)| {
-                        places.crossing(1, x, y, &mut hints[1]) == Crossing::Hit
-                            || places.crossing(0, x, y, &mut hints[0]) == Crossing::Miss
-                    }) => {}
-                Some((_, 0)) => out.push(cast(j, stats)),
+                // wherever the object is). A ray stays blocked when the
+                // object's new place blocks it, or when the old place did
+                // not (the static scene did); only the others are traced,
+                // and the entry is computed only when one of them now
+                // sees the shooter.
+                Some((_, 0)) => {
+                    let mask = self.zero_entry_rays(e.normal, rays, places, &mut hints);
+                    if mask != 0 {
+                        stats.entries_recomputed += 1;
+                        let f = entry_from_mask(mesh, i, j, mask, k);
+                        out.push((j, f.unwrap_or(0.0), mask));
+                    }
+                }
                 // Rays not recorded: re-cast when one may see a difference.
                 _ => {
                     if rays.any(|(x, y)| !unchanged(places.classify(x, y, &mut hints))) {
@@ -542,6 +552,30 @@ impl<'a> Shooter<'a> {
         }
         out.sort_unstable_by_key(|e| e.0);
         out.into_iter().map(|(j, f, m)| ((j, f), m)).unzip()
+    }
+
+    /// Which of the `rays` (as in [`Self::moved_rays`]) of an entry that
+    /// was zero see the shooter after the move: a ray that the new place
+    /// certainly blocks, or that the old place certainly did not block
+    /// (so the static scene did), is still blocked; every other ray is
+    /// traced in the moved scene. Equal to tracing every ray, given that
+    /// the crossings are sure where they say so.
+    fn zero_entry_rays(
+        &self,
+        normal: DVec3,
+        rays: impl Iterator<Item = (DVec3, DVec3)>,
+        places: &Places,
+        hints: &mut [usize; 2],
+    ) -> RayMask {
+        let mut out = 0;
+        for (r, (x, y)) in rays.enumerate() {
+            let blocked = places.crossing(1, x, y, &mut hints[1]) == Crossing::Hit
+                || places.crossing(0, x, y, &mut hints[0]) == Crossing::Miss;
+            if !blocked && self.geometry.visible(x, normal, y, true) {
+                out |= 1 << r;
+            }
+        }
+        out
     }
 
     /// Which of an entry's `rays` (receiver point, patch point; the

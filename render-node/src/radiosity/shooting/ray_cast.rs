@@ -149,6 +149,31 @@ pub(super) fn ray_cast_entry(
     (f > 0.0 && f.is_finite()).then_some((f, mask))
 }
 
+/// [`ray_cast_entry`] of an entry whose rays' visibility is known: `mask`
+/// has bit `r` set for each of its `k` rays that sees the shooter (`k` at
+/// most [`MASK_RAYS`]). The same value as `ray_cast_entry` where `mask` is
+/// what its rays see, computed without tracing them; `None` where it is
+/// zero.
+pub(super) fn entry_from_mask(
+    mesh: &RadiosityMesh,
+    shooter: usize,
+    j: u32,
+    mask: RayMask,
+    k: usize,
+) -> Option<f64> {
+    let e = &mesh.elements[j as usize];
+    let p = &mesh.patches[shooter];
+    if mask == 0 || facing_away(p, e) {
+        return None;
+    }
+    let unoccluded = unoccluded_form_factor(p, e);
+    if !(unoccluded > 0.0) {
+        return None;
+    }
+    let f = entry_value(unoccluded, mask.count_ones(), k, e.area, p.area);
+    (f > 0.0 && f.is_finite()).then_some(f)
+}
+
 /// The raw form factor of an entry whose unoccluded form factor is
 /// `unoccluded` and whose `seen` of `k` rays are visible (receiver area
 /// `e_area`, patch area `p_area`).
