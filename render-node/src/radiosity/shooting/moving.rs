@@ -535,7 +535,7 @@ impl<'a> Shooter<'a> {
                 // and the entry is computed only when one of them now
                 // sees the shooter.
                 Some((_, 0)) => {
-                    let mask = self.zero_entry_rays(e.normal, rays, places, &mut hints);
+                    let mask = self.moved_rays(e.normal, rays, places, &mut hints, 0);
                     if mask != 0 {
                         stats.entries_recomputed += 1;
                         let f = entry_from_mask(mesh, i, j, mask, k);
@@ -552,30 +552,6 @@ impl<'a> Shooter<'a> {
         }
         out.sort_unstable_by_key(|e| e.0);
         out.into_iter().map(|(j, f, m)| ((j, f), m)).unzip()
-    }
-
-    /// Which of the `rays` (as in [`Self::moved_rays`]) of an entry that
-    /// was zero see the shooter after the move: a ray that the new place
-    /// certainly blocks, or that the old place certainly did not block
-    /// (so the static scene did), is still blocked; every other ray is
-    /// traced in the moved scene. Equal to tracing every ray, given that
-    /// the crossings are sure where they say so.
-    fn zero_entry_rays(
-        &self,
-        normal: DVec3,
-        rays: impl Iterator<Item = (DVec3, DVec3)>,
-        places: &Places,
-        hints: &mut [usize; 2],
-    ) -> RayMask {
-        let mut out = 0;
-        for (r, (x, y)) in rays.enumerate() {
-            let blocked = places.crossing(1, x, y, &mut hints[1]) == Crossing::Hit
-                || places.crossing(0, x, y, &mut hints[0]) == Crossing::Miss;
-            if !blocked && self.geometry.visible(x, normal, y, true) {
-                out |= 1 << r;
-            }
-        }
-        out
     }
 
     /// Which of an entry's `rays` (receiver point, patch point; the
