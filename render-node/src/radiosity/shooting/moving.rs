@@ -576,12 +576,13 @@ impl<'a> Shooter<'a> {
         let mut out = 0;
         for (r, (x, y)) in rays.enumerate() {
             let was_clear = mask & (1 << r) != 0;
-            let clear = match (was_clear, places.crossing(1, x, y, &mut hints[1])) {
+            let s = places.segment(x, y);
+            let clear = match (was_clear, places.crossing(1, &s, &mut hints[1])) {
                 (_, Crossing::Hit) => false,
                 (true, Crossing::Miss) => true,
                 (true, Crossing::Unsure) => self.geometry.visible(x, normal, y, true),
                 (false, _) => {
-                    places.crossing(0, x, y, &mut hints[0]) != Crossing::Miss
+                    places.crossing(0, &s, &mut hints[0]) != Crossing::Miss
                         && self.geometry.visible(x, normal, y, true)
                 }
             };
