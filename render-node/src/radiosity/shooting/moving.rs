@@ -608,15 +608,16 @@ const RECIPROCAL_AREA_RATIO: f64 = 2.0;
 /// the entry differs from a ray-cast one by the discretisation error of
 /// the form factors, not by more (see [`RECIPROCAL_AREA_RATIO`]).
 struct Reciprocal {
-    /// Per element of a single-element object patch: the raw form factor
-    /// from its patch to every patch (`sum_{e in i} F_qe`).
-    to_patch: std::collections::HashMap<u32, Vec<f64>>,
+    /// Per element (indexed by element; `None` but for the elements of
+    /// single-element object patches): the raw form factor from its patch
+    /// to every patch (`sum_{e in i} F_qe`).
+    to_patch: Vec<Option<Vec<f64>>>,
 }
 
 impl Reciprocal {
     /// The table from the recomputed rows `own` (empty unless `ray_cast`).
     fn new(mesh: &RadiosityMesh, object: u32, own: &[Option<ComputedRow>], ray_cast: bool) -> Self {
-        let mut to_patch = std::collections::HashMap::new();
+        let mut to_patch = vec![None; mesh.elements.len()];
         if ray_cast {
             for (q, row) in own.iter().enumerate() {
                 let p = &mesh.patches[q];
@@ -629,7 +630,7 @@ impl Reciprocal {
                 for &(j, f) in row {
                     sums[mesh.elements[j as usize].patch as usize] += f / scale;
                 }
-                to_patch.insert(*e, sums);
+                to_patch[*e as usize] = Some(sums);
             }
         }
         Self { to_patch }
@@ -638,7 +639,7 @@ impl Reciprocal {
     /// The raw form factor from static patch `i` to object element `j`,
     /// `None` where the table has no row for it.
     fn entry(&self, mesh: &RadiosityMesh, i: usize, j: u32) -> Option<f64> {
-        let sums = self.to_patch.get(&j)?;
+        let sums = self.to_patch.get(j as usize)?.as_ref()?;
         let q = &mesh.patches[mesh.elements[j as usize].patch as usize];
         let p_area = mesh.patches[i].area;
         if !(p_area <= RECIPROCAL_AREA_RATIO * q.area) {
