@@ -470,7 +470,7 @@ impl<'a> Shooter<'a> {
         let seed = self.row_seed(i);
         let samples = stratified(self.options.visibility_samples, seed);
         let k = samples.len();
-        let planes = penumbra_planes(&p.vertices, &places.union);
+        let mut planes = penumbra_planes(&p.vertices, &places.union);
         let mut hints = [0; 2];
         let mut out: Vec<(u32, f64, RayMask)> = Vec::new();
         let cast = |j: u32, stats: &mut MoveStats| {
@@ -493,7 +493,8 @@ impl<'a> Shooter<'a> {
         // Receivers come in element order, like the old row's entries.
         let mut cursor = 0;
         for &(center, rj, j, patch) in &places.receivers {
-            if patch as usize == i || ball_outside_penumbra(&planes, center, rj, places.margin) {
+            if patch as usize == i || ball_outside_penumbra(&mut planes, center, rj, places.margin)
+            {
                 continue;
             }
             let e = &mesh.elements[j as usize];
