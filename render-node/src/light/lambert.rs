@@ -72,12 +72,34 @@ pub fn form_factor_point_polygon(
     if !(emitter_normal.dot(point - centroid) > 0.0) {
         return Ok(0.0);
     }
-    let relative: Vec<DVec3> = polygon.iter().map(|p| *p - point).collect();
-    let clipped = clip_above(&relative, n);
-    let m = clipped.len();
+    // The polygon relative to the point, clipped to the point's upper
+    // half-space (at most two corners per edge), on the stack for the
+    // triangles and quads of the radiosity mesh.
+    let m = polygon.len();
+    let f = if m <= STACK_CORNERS {
+        let mut buffer = [DVec3::ZERO; 2 * STACK_CORNERS];
+        relative_form_factor(polygon, point, n, &mut buffer[..2 * m])
+    } else {
+        relative_form_factor(polygon, point, n, &mut vec![DVec3::ZERO; 2 * m])
+    };
+    Ok(if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    })
+}
+
+/// Polygons with at most this many corners are clipped on the stack.
+const STACK_CORNERS: usize = 8;
+
+/// The form factor from `point` (unit normal `n`) to `polygon`, unclamped;
+/// `buffer` holds at least two corners per polygon corner.
+fn relative_form_factor(polygon: &[DVec3], point: DVec3, n: DVec3, buffer: &mut [DVec3]) -> f64 {
+    let m = clip_above(polygon, point, n, buffer);
     if m < 3 {
-        return Ok(0.0);
+        return 0.0;
     }
+    let clipped = &buffer[..m];
     let mut sum = 0.0;
     for i in 0..m {
         let (a, b) = (clipped[i], clipped[(i + 1) % m]);
@@ -89,12 +111,7 @@ pub fn form_factor_point_polygon(
         let theta = len.atan2(a.dot(b));
         sum += theta * n.dot(cross / len);
     }
-    let f = -sum / (2.0 * std::f64::consts::PI);
-    Ok(if f.is_finite() {
-        f.clamp(0.0, 1.0)
-    } else {
-        0.0
-    })
+    -sum / (2.0 * std::f64::consts::PI)
 }
 
 /// Unit normal of a (possibly slightly non-planar) polygon by Newell's
@@ -108,25 +125,28 @@ fn newell_normal(polygon: &[DVec3]) -> DVec3 {
     n.normalize_or_zero()
 }
 
-/// Sutherland-Hodgman clip of a polygon (relative to the receiver) to the
-/// half-space `p . n >= 0`.
-fn clip_above(polygon: &[DVec3], n: DVec3) -> Vec<DVec3> {
+/// Sutherland-Hodgman clip of a polygon, taken relative to `origin`, to
+/// the half-space `p . n >= 0`, into `out` (at least two corners per
+/// polygon corner); returns the clipped polygon's corner count.
+fn clip_above(polygon: &[DVec3], origin: DVec3, n: DVec3, out: &mut [DVec3]) -> usize {
     let m = polygon.len();
-    let mut out = Vec::with_capacity(m + 2);
+    let mut k = 0;
     for i in 0..m {
-        let (a, b) = (polygon[i], polygon[(i + 1) % m]);
+        let (a, b) = (polygon[i] - origin, polygon[(i + 1) % m] - origin);
         let (da, db) = (a.dot(n), b.dot(n));
         if da >= 0.0 {
-            out.push(a);
+            out[k] = a;
+            k += 1;
         }
         if (da >= 0.0) != (db >= 0.0) {
             let s = da / (da - db);
             let p = a + s * (b - a);
             // Exactly on the plane: drop the (rounding) height.
-            out.push(p - p.dot(n) * n);
+            out[k] = p - p.dot(n) * n;
+            k += 1;
         }
     }
-    out
+    k
 }
 
 #[cfg(test)]
