@@ -89,8 +89,9 @@ pub fn form_factor_point_polygon(
     })
 }
 
-/// Polygons with at most this many corners are clipped on the stack.
-const STACK_CORNERS: usize = 8;
+/// Polygons with at most this many corners (the mesh's triangles, quads)
+/// are clipped on the stack.
+const STACK_CORNERS: usize = 4;
 
 /// The form factor from `point` (unit normal `n`) to `polygon`, unclamped;
 /// `buffer` holds at least two corners per polygon corner.
