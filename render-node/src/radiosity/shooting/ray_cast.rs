@@ -81,13 +81,21 @@ pub(super) fn facing_away(p: &Patch, e: &Element) -> bool {
     below(p.normal, p.center, &e.vertices) || below(e.normal, e.center, &p.vertices)
 }
 
+/// The largest n of [`unoccluded_form_factor`]'s n-fold split.
+const MAX_SPLIT: u32 = 8;
+
+/// [`sub_centroids`] for n = 1 to [`MAX_SPLIT`], made once: every
+/// form-factor entry takes one of them.
+static SUB_CENTROIDS: std::sync::LazyLock<Vec<Vec<glam::DVec2>>> =
+    std::sync::LazyLock::new(|| (1..=MAX_SPLIT).map(sub_centroids).collect());
+
 /// The unoccluded point-to-polygon form factor from element `e` to patch
 /// `p`, averaged over `e`: the closed form at the centroids of n^2 equal
 /// sub-triangles, n growing as the pair gets close relative to its size.
 fn unoccluded_form_factor(p: &Patch, e: &Element) -> f64 {
     let closeness = (p.area.sqrt() + e.area.sqrt()) / (e.center - p.center).length();
-    let n = (2.0 * closeness).ceil().clamp(1.0, 8.0) as u32;
-    let points = sub_centroids(n);
+    let n = (2.0 * closeness).ceil().clamp(1.0, MAX_SPLIT as f64) as usize;
+    let points = &SUB_CENTROIDS[n - 1];
     points
         .iter()
         .map(|b| {
