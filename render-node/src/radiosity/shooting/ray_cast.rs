@@ -94,7 +94,8 @@ static SUB_CENTROIDS: std::sync::LazyLock<Vec<Vec<glam::DVec2>>> =
 /// sub-triangles, n growing as the pair gets close relative to its size.
 fn unoccluded_form_factor(p: &Patch, e: &Element) -> f64 {
     let closeness = (p.area.sqrt() + e.area.sqrt()) / (e.center - p.center).length();
-    let n = (2.0 * closeness).ceil().clamp(1.0, MAX_SPLIT as f64) as usize;
+    // A NaN closeness (a degenerate pair) casts to 0: one point, as before.
+    let n = ((2.0 * closeness).ceil() as usize).clamp(1, MAX_SPLIT as usize);
     let points = &SUB_CENTROIDS[n - 1];
     points
         .iter()
