@@ -449,17 +449,12 @@ impl Places {
     /// [`crossing_from`]).
     pub(super) fn classify(&self, a: DVec3, b: DVec3, hints: &mut [usize; 2]) -> [Crossing; 2] {
         // The union and both boxes share their axes.
-        let [la, lb] = self.union.local_segment(a, b);
+        let s = self.segment(a, b);
+        let [la, lb] = s.local;
         if !self.union.meets_local_segment(la, lb) {
             return [Crossing::Miss; 2];
         }
-        [0, 1].map(|k| {
-            if self.boxes[k].meets_local_segment(la, lb) {
-                crossing_from(&self.triangles[k], a, b, &mut hints[k])
-            } else {
-                Crossing::Miss
-            }
-        })
+        [0, 1].map(|k| self.crossing(k, &s, &mut hints[k]))
     }
 }
 
