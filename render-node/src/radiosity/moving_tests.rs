@@ -132,6 +132,34 @@ fn incremental_update_matches_a_fresh_solve_after_an_object_moves() {
     // Some static entries were updated from their rays' recorded
     // visibility instead of being ray-cast again.
     assert!(stats.entries_rescaled > 0, "{stats:?}");
+    // The scan looked at every static receiver outside each patched
+    // row's own patch; every ray of each near pair was tested (all rows
+    // recorded their rays), and only some of them were traced again.
+    let scanned: usize = m1
+        .patches
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.object != 2)
+        .map(|(i, _)| {
+            m1.elements
+                .iter()
+                .filter(|e| e.object != 2 && e.patch as usize != i)
+                .count()
+        })
+        .sum();
+    assert_eq!(stats.receivers_scanned, scanned);
+    assert!(
+        stats.pairs_near > 0 && stats.pairs_near < scanned,
+        "{stats:?}"
+    );
+    assert_eq!(
+        stats.rays_tested,
+        o.visibility_samples as usize * stats.pairs_near
+    );
+    assert!(
+        stats.rays_traced > 0 && 2 * stats.rays_traced < stats.rays_tested,
+        "{stats:?}"
+    );
 
     let incremental_shots = moved.run_to_power(limit);
     let b = moved.radiosity();

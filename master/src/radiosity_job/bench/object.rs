@@ -93,9 +93,9 @@ fn object_error(
 /// `speedup_paired_median` the (nearest-rank) median over repeats of each repeat's own
 /// ratio (the steadier figure on a loaded machine).
 ///
-/// `pairs_near`, `entries_recomputed`, `entries_rescaled` and
-/// `entries_reciprocal` count the
-/// update's work ([`radiosity::MoveStats`]).
+/// `receivers_scanned`, `pairs_near`, `rays_tested`, `rays_traced`,
+/// `entries_recomputed`, `entries_rescaled` and `entries_reciprocal`
+/// count the update's work ([`radiosity::MoveStats`]).
 ///
 /// Errors are area-weighted relative RMSE of the interpolated element
 /// values against a fresh solve of the moved scene to 1e-5; `stale_rel_error`
@@ -249,7 +249,10 @@ pub fn incremental_object_record(
         "rows_patched": stats.rows_patched,
         "rows_recomputed": stats.rows_recomputed,
         "pairs": pairs,
+        "receivers_scanned": stats.receivers_scanned,
         "pairs_near": stats.pairs_near,
+        "rays_tested": stats.rays_tested,
+        "rays_traced": stats.rays_traced,
         "entries_recomputed": stats.entries_recomputed,
         "entries_reciprocal": stats.entries_reciprocal,
         "entries_rescaled": stats.entries_rescaled,

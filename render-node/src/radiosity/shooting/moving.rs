@@ -122,6 +122,10 @@ pub struct MoveStats {
     pub rows_patched: usize,
     /// Rows recomputed whole (the object's patches, hemi-cube methods).
     pub rows_recomputed: usize,
+    /// Static receiver-row pairs the penumbra scan looked at (every
+    /// active static element outside the row's own patch, in every
+    /// patched row).
+    pub receivers_scanned: usize,
     /// Static pairs whose rays were tested against the object: those in
     /// the shooter's penumbra of the object's box (and, where the box
     /// around both places holds a sizeable gap, whose centre segment,
@@ -139,6 +143,13 @@ pub struct MoveStats {
     /// Entries of the object's column in patched rows taken from its own
     /// rows by reciprocity (single-element object patches).
     pub entries_reciprocal: usize,
+    /// Visibility rays of the near pairs tested against the object's
+    /// places (every ray of a pair whose rays' visibility was recorded;
+    /// otherwise those up to the first that may see a difference).
+    pub rays_tested: usize,
+    /// Of those, rays that the places left open and that were traced
+    /// again through the moved scene.
+    pub rays_traced: usize,
     /// Elements whose B changed by the shot difference.
     pub elements_corrected: usize,
 }
@@ -420,6 +431,9 @@ impl<'a> Shooter<'a> {
             stats.entries_recomputed += s.entries_recomputed;
             stats.entries_reciprocal += s.entries_reciprocal;
             stats.entries_rescaled += s.entries_rescaled;
+            stats.receivers_scanned += s.receivers_scanned;
+            stats.rays_tested += s.rays_tested;
+            stats.rays_traced += s.rays_traced;
             new.rows_computed += s.rows_recomputed;
             let shot = new.shot[i];
             if shot != DVec3::ZERO {
@@ -471,6 +485,14 @@ impl<'a> Shooter<'a> {
         let samples = stratified(self.options.visibility_samples, seed);
         let k = samples.len();
         let mut planes = penumbra_planes(&p.vertices, &places.union);
+        // The scan below looks at every receiver but the row's own
+        // (active, static) elements.
+        let own = p
+            .elements
+            .iter()
+            .filter(|&&e| self.active[e as usize])
+            .count();
+        stats.receivers_scanned += places.receivers.len() - own;
         let mut hints = [0; 2];
         let mut out: Vec<(u32, f64, RayMask)> = Vec::new();
         let cast = |j: u32, stats: &mut MoveStats| {
@@ -522,7 +544,7 @@ impl<'a> Shooter<'a> {
             };
             match old {
                 Some((f, mask)) if f > 0.0 && mask != UNKNOWN_RAYS => {
-                    let new_mask = self.moved_rays(e.normal, rays, places, &mut hints, mask);
+                    let new_mask = self.moved_rays(e.normal, rays, places, &mut hints, mask, stats);
                     if new_mask != mask {
                         stats.entries_rescaled += 1;
                         let f = rescaled_entry(f, mask.count_ones(), new_mask.count_ones());
@@ -536,7 +558,7 @@ impl<'a> Shooter<'a> {
                 // and the entry is computed only when one of them now
                 // sees the shooter.
                 Some((_, 0)) => {
-                    let mask = self.moved_rays(e.normal, rays, places, &mut hints, 0);
+                    let mask = self.moved_rays(e.normal, rays, places, &mut hints, 0, stats);
                     if mask != 0 {
                         stats.entries_recomputed += 1;
                         let f = entry_from_mask(mesh, i, j, mask, k);
@@ -545,7 +567,10 @@ impl<'a> Shooter<'a> {
                 }
                 // Rays not recorded: re-cast when one may see a difference.
                 _ => {
-                    if rays.any(|(x, y)| !unchanged(places.classify(x, y, &mut hints))) {
+                    if rays.any(|(x, y)| {
+                        stats.rays_tested += 1;
+                        !unchanged(places.classify(x, y, &mut hints))
+                    }) {
                         out.push(cast(j, stats));
                     }
                 }
@@ -565,7 +590,8 @@ impl<'a> Shooter<'a> {
     /// was blocked while the old place certainly missed it was blocked by
     /// the static scene and stays blocked; every other ray is traced again
     /// in the moved scene. Equal to tracing every ray, given that the
-    /// crossings are sure where they say so.
+    /// crossings are sure where they say so. The rays tested and traced
+    /// are counted in `stats`.
     fn moved_rays(
         &self,
         normal: DVec3,
@@ -573,24 +599,31 @@ impl<'a> Shooter<'a> {
         places: &Places,
         hints: &mut [usize; 2],
         mask: RayMask,
+        stats: &mut MoveStats,
     ) -> RayMask {
-        let mut out = 0;
+        let (mut out, mut tested, mut traced) = (0, 0, 0);
+        let mut trace = |x, y| {
+            traced += 1;
+            self.geometry.visible(x, normal, y, true)
+        };
         for (r, (x, y)) in rays.enumerate() {
+            tested += 1;
             let was_clear = mask & (1 << r) != 0;
             let s = places.segment(x, y);
             let clear = match (was_clear, places.crossing(1, &s, &mut hints[1])) {
                 (_, Crossing::Hit) => false,
                 (true, Crossing::Miss) => true,
-                (true, Crossing::Unsure) => self.geometry.visible(x, normal, y, true),
+                (true, Crossing::Unsure) => trace(x, y),
                 (false, _) => {
-                    places.crossing(0, &s, &mut hints[0]) != Crossing::Miss
-                        && self.geometry.visible(x, normal, y, true)
+                    places.crossing(0, &s, &mut hints[0]) != Crossing::Miss && trace(x, y)
                 }
             };
             if clear {
                 out |= 1 << r;
             }
         }
+        stats.rays_tested += tested;
+        stats.rays_traced += traced;
         out
     }
 }
