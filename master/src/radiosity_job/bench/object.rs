@@ -103,11 +103,12 @@ fn object_error(
 /// That reference uses the same form-factor estimator (two visibility rays
 /// per pair), so it rewards reproducing the estimator's own noise; the
 /// `*_fine` errors are against a fresh solve to 1e-5 with 64 rays per
-/// pair instead, the better estimate of the true solution. `object_*_rel_error_fine` are taken over the moved
-/// object's elements alone (displayed element values, area-weighted): the
-/// object is a few percent of the area, so the scene-wide figures would
-/// hide an error in its own values, which come from its column (ray-cast,
-/// or by reciprocity from its own rows).
+/// pair instead, the better estimate of the true solution.
+/// `object_*_rel_error_fine` are taken over the moved object's elements
+/// alone (displayed element values, area-weighted): the object is a few
+/// percent of the area, so the scene-wide figures would hide an error in
+/// its own values, which come from its column (ray-cast, or by
+/// reciprocity from its own rows).
 pub fn incremental_object_record(
     scene: &Showcase,
     name: &str,
