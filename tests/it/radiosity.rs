@@ -59,6 +59,42 @@ fn read_ply(text: &str) -> anyhow::Result<(Vec<PlyVertex>, usize)> {
     Ok((vertices, nf))
 }
 
+/// Input whose solution would be zero, or grey for want of its materials,
+/// is refused with an error naming the file and the problem, and nothing
+/// is written: the shipped Cornell box without its material library, a
+/// scene where nothing emits, and one with no surface.
+#[test]
+fn radiosity_refuses_a_scene_without_materials_light_or_surfaces() -> anyhow::Result<()> {
+    let dir = std::env::temp_dir().join(format!("showcase-radiosity-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let out = dir.join("out");
+    let options = RadiosityOptions {
+        max_patch_area: Some(0.05),
+        hemicube: Some(16),
+        threshold: Some(0.1),
+    };
+    let refused = |file: &str, text: &str| -> anyhow::Result<String> {
+        let path = dir.join(file);
+        std::fs::write(&path, text)?;
+        match run_radiosity(&path, &out, &options) {
+            Ok(s) => anyhow::bail!("{file} was solved: {s:?}"),
+            Err(e) => Ok(format!("{e:#}")),
+        }
+    };
+    let e = refused("cornell-without-mtl.obj", &std::fs::read_to_string(CORNELL)?)?;
+    assert!(
+        e.contains("cornell-without-mtl.obj") && e.contains("material library"),
+        "{e}"
+    );
+    let e = refused("dark.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")?;
+    assert!(e.contains("dark.obj") && e.contains("emits light"), "{e}");
+    let e = refused("junk.obj", "nothing an OBJ reader knows\n")?;
+    assert!(e.contains("junk.obj") && e.contains("no surface"), "{e}");
+    assert!(!out.exists());
+    std::fs::remove_dir_all(&dir)?;
+    Ok(())
+}
+
 #[test]
 fn cornell_box_solution_ply_matches_closed_forms() -> anyhow::Result<()> {
     let out = std::env::temp_dir().join(format!("showcase-radiosity-{}", std::process::id()));

@@ -50,7 +50,14 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
         },
     )
     .with_context(|| format!("{}: cannot load obj", path.display()))?;
-    let materials = materials.unwrap_or_default();
+    // A material library the OBJ names but that cannot be read would
+    // leave every surface grey and dark: refused, not defaulted.
+    let materials = materials.map_err(|e| {
+        anyhow::anyhow!(
+            "{}: cannot load the material library (mtllib) it names: {e}",
+            path.display()
+        )
+    })?;
     let mut s = Showcase {
         name: path
             .file_stem()

@@ -173,6 +173,7 @@ pub fn solve_showcase_on(
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
     let mut mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
     let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+    check_solvable(&mesh, &lights)?;
     let solve = options.solve_on(device)?;
     let solution =
         radiosity::solve_adaptive(&mut mesh, &all, &lights, &solve, &RefineOptions::default())
@@ -224,6 +225,23 @@ pub fn solve_showcase_on(
     })
 }
 
+/// Refuse a scene whose radiosity is zero for want of input: no surface
+/// to solve, or nothing that emits light (no positive `Ke`, no light),
+/// which is what an OBJ without its material library looks like.
+fn check_solvable(mesh: &RadiosityMesh, lights: &[showcase_proto::Light]) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !mesh.patches.is_empty(),
+        "the scene has no surface to solve: no object has a triangle of non-zero area"
+    );
+    let emits = mesh.elements.iter().any(|e| e.emission.max_element() > 0.0);
+    anyhow::ensure!(
+        emits || !lights.is_empty(),
+        "nothing in the scene emits light (no material has a positive Ke and there is no \
+         light), so its radiosity is zero everywhere"
+    );
+    Ok(())
+}
+
 /// A file-name-safe version of an object or device name.
 fn file_name(name: &str) -> String {
     name.chars()
@@ -261,7 +279,8 @@ pub fn run_radiosity_on(
 ) -> anyhow::Result<Summary> {
     let showcase = load_any_scene(scene)?;
     let start = Instant::now();
-    let solved = solve_showcase_on(&showcase, options, device)?;
+    let solved = solve_showcase_on(&showcase, options, device)
+        .with_context(|| scene.display().to_string())?;
     let mut maps = Vec::new();
     if let Some(a) = &solved.augmented {
         // The real room's interreflection gathered at each vertex, not
