@@ -61,8 +61,9 @@ fn read_ply(text: &str) -> anyhow::Result<(Vec<PlyVertex>, usize)> {
 
 /// Input whose solution would be zero, or grey for want of its materials,
 /// is refused with an error naming the file and the problem, and nothing
-/// is written: the shipped Cornell box without its material library, a
-/// scene where nothing emits, and one with no surface.
+/// is written: the shipped Cornell box without its material library or
+/// with a `usemtl` it does not define, a scene where nothing emits, a
+/// file without faces, and one whose only triangle has no area.
 #[test]
 fn radiosity_refuses_a_scene_without_materials_light_or_surfaces() -> anyhow::Result<()> {
     let dir = std::env::temp_dir().join(format!("showcase-radiosity-bad-{}", std::process::id()));
@@ -81,15 +82,31 @@ fn radiosity_refuses_a_scene_without_materials_light_or_surfaces() -> anyhow::Re
             Err(e) => Ok(format!("{e:#}")),
         }
     };
-    let e = refused("cornell-without-mtl.obj", &std::fs::read_to_string(CORNELL)?)?;
+    let e = refused(
+        "cornell-without-mtl.obj",
+        &std::fs::read_to_string(CORNELL)?,
+    )?;
     assert!(
         e.contains("cornell-without-mtl.obj") && e.contains("material library"),
+        "{e}"
+    );
+    // With its library, but one `usemtl` misspelt.
+    std::fs::copy(
+        Path::new(CORNELL).with_extension("mtl"),
+        dir.join("cornell-box.mtl"),
+    )?;
+    let misspelt = std::fs::read_to_string(CORNELL)?.replacen("usemtl red", "usemtl rde", 1);
+    let e = refused("cornell-misspelt.obj", &misspelt)?;
+    assert!(
+        e.contains("cornell-misspelt.obj") && e.contains("usemtl rde"),
         "{e}"
     );
     let e = refused("dark.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")?;
     assert!(e.contains("dark.obj") && e.contains("emits light"), "{e}");
     let e = refused("junk.obj", "nothing an OBJ reader knows\n")?;
-    assert!(e.contains("junk.obj") && e.contains("no surface"), "{e}");
+    assert!(e.contains("junk.obj") && e.contains("no triangles"), "{e}");
+    let e = refused("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")?;
+    assert!(e.contains("flat.obj") && e.contains("no surface"), "{e}");
     assert!(!out.exists());
     std::fs::remove_dir_all(&dir)?;
     Ok(())

@@ -38,25 +38,16 @@ pub fn rig_camera_response(noise: bool) -> CameraResponse {
     }
 }
 
-/// Load an OBJ file as a showcase: one real object per OBJ object, with
-/// its `Kd` as albedo and `Ke` as emitted radiance.
+/// Load an OBJ file as a showcase: one real object per OBJ object (per
+/// material group where an object has several), with its `Kd` as albedo
+/// (0.5 grey without a material) and `Ke` as emitted radiance. The file
+/// is read as a scene file's mesh is ([`crate::scene_file`]): a material
+/// library that cannot be read, a `usemtl` it does not define, a bad
+/// index or a parser failure is an error naming the file and line.
 pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
-    let (models, materials) = tobj::load_obj(
-        path,
-        &tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ..Default::default()
-        },
-    )
-    .with_context(|| format!("{}: cannot load obj", path.display()))?;
-    // A material library the OBJ names but that cannot be read would
-    // leave every surface grey and dark: refused, not defaulted.
-    let materials = materials.map_err(|e| {
-        anyhow::anyhow!(
-            "{}: cannot load the material library (mtllib) it names: {e}",
-            path.display()
-        )
+    let parts = crate::scene_file::mesh_source::load(path).map_err(|e| match e.line {
+        Some(line) => anyhow::anyhow!("{}:{line}: {}", path.display(), e.problem),
+        None => anyhow::anyhow!("{}: {}", path.display(), e.problem),
     })?;
     let mut s = Showcase {
         name: path
@@ -65,52 +56,20 @@ pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
             .unwrap_or_default(),
         ..Showcase::default()
     };
-    for model in models {
-        let m = &model.mesh;
-        let v3 = |v: &[f32], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
-        let mesh = Mesh {
-            positions: (0..m.positions.len() / 3)
-                .map(|i| v3(&m.positions, i))
-                .collect(),
-            normals: (0..m.normals.len() / 3)
-                .map(|i| v3(&m.normals, i))
-                .collect(),
-            uvs: (0..m.texcoords.len() / 2)
-                .map(|i| Vec2::new(m.texcoords[2 * i], m.texcoords[2 * i + 1]))
-                .collect(),
-            triangles: m
-                .indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect(),
-        };
-        let mut material = Material::diffuse(Vec3::splat(0.5));
-        if let Some(mat) = m.material_id.and_then(|i| materials.get(i)) {
-            if let Some(kd) = mat.diffuse {
-                material.albedo = Vec3::from(kd);
-            }
-            if let Some(ke) = mat.emissive {
-                material.emission = Vec3::from(ke);
-            } else if let Some(ke) = mat.unknown_param.get("Ke") {
-                let v: Vec<f32> = ke
-                    .split_whitespace()
-                    .filter_map(|t| t.parse().ok())
-                    .collect();
-                if v.len() == 3 {
-                    material.emission = Vec3::new(v[0], v[1], v[2]);
-                }
-            }
+    for part in parts {
+        let mut material = Material::diffuse(part.albedo.unwrap_or(Vec3::splat(0.5)));
+        if let Some(ke) = part.emission {
+            material.emission = ke;
         }
-        let id = s.add_mesh(mesh);
+        let id = s.add_mesh(part.mesh);
         s.objects.push(Object {
-            name: model.name.clone(),
+            name: part.name,
             mesh: id,
             material,
             kind: ObjectKind::Real,
             transform: Transform::IDENTITY,
         });
     }
-    anyhow::ensure!(!s.objects.is_empty(), "{}: no objects", path.display());
     showcase_proto::Validate::validate(&s)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(s)

@@ -138,6 +138,12 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<Vec<Part>, MeshFileError> {
         return Err(MeshFileError::new(msg));
     }
     let materials = materials.map_err(|e| MeshFileError::new(format!("material library: {e}")))?;
+    if let Some((line, name)) = unknown_material(bytes, &materials) {
+        return Err(MeshFileError {
+            line: Some(line),
+            problem: format!("usemtl {name}: the material library defines no such material"),
+        });
+    }
 
     let mut parts: Vec<Part> = Vec::new();
     for model in models {
@@ -179,6 +185,21 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<Vec<Part>, MeshFileError> {
         }
     }
     Ok(parts)
+}
+
+/// The first `usemtl` (line, name) that names no material of
+/// `materials`: tobj leaves the faces after it without a material (grey,
+/// and dark where the material would emit) and says nothing. The name is
+/// read as tobj reads it: the line after its first space, trimmed.
+fn unknown_material(bytes: &[u8], materials: &[tobj::Material]) -> Option<(usize, String)> {
+    let text = String::from_utf8_lossy(bytes);
+    text.lines().enumerate().find_map(|(i, line)| {
+        if line.split_whitespace().next() != Some("usemtl") {
+            return None;
+        }
+        let name = line.split_once(' ').map_or("", |(_, rest)| rest.trim());
+        (!materials.iter().any(|m| m.name == name)).then(|| (i + 1, name.to_owned()))
+    })
 }
 
 fn obj_mesh(m: &tobj::Mesh) -> Result<Mesh, MeshFileError> {

@@ -120,7 +120,7 @@
 mod builtin;
 mod device;
 mod error;
-mod mesh_source;
+pub(crate) mod mesh_source;
 mod object;
 mod schema;
 

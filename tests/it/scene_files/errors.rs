@@ -220,6 +220,10 @@ fn mesh_file_errors_name_both_files_and_the_line() {
         &["no-mtl.obj", "missing.mtl"],
     );
     check(
+        &format!("name = \"x\"\n{OBJ}mesh = \"unknown-material.obj\"\n"),
+        &["unknown-material.obj:5:", "usemtl blue", "no such material"],
+    );
+    check(
         &format!("name = \"x\"\n{OBJ}mesh = \"nan-vertex.obj\"\n"),
         &["nan-vertex.obj", "positions[1]", "not finite"],
     );
