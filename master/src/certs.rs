@@ -26,12 +26,12 @@ pub enum CertError {
     #[error("certificate generation: {0}")]
     Generate(#[from] rcgen::Error),
     /// A file could not be written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Write {
         /// The file.
         path: PathBuf,
         /// The IO error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
 }
 
@@ -119,9 +119,9 @@ pub fn generate(nodes: &[String]) -> Result<ClusterCerts, CertError> {
 }
 
 fn write_file(path: PathBuf, text: &str, secret: bool) -> Result<PathBuf, CertError> {
-    let err = |source| CertError::Write {
+    let err = |error| CertError::Write {
         path: path.clone(),
-        source,
+        error,
     };
     std::fs::write(&path, text).map_err(err)?;
     #[cfg(unix)]
@@ -137,9 +137,9 @@ fn write_file(path: PathBuf, text: &str, secret: bool) -> Result<PathBuf, CertEr
 /// Write `ca.pem`, `ca.key`, and `<name>.pem`/`<name>.key` per peer into
 /// `dir` (created if missing); keys are readable by the owner only.
 pub fn write(dir: &Path, certs: &ClusterCerts) -> Result<Vec<PathBuf>, CertError> {
-    std::fs::create_dir_all(dir).map_err(|source| CertError::Write {
+    std::fs::create_dir_all(dir).map_err(|error| CertError::Write {
         path: dir.to_owned(),
-        source,
+        error,
     })?;
     let mut files = vec![
         write_file(dir.join("ca.pem"), &certs.ca_pem, false)?,

@@ -67,12 +67,12 @@ pub enum LoopbackError {
     #[error("master: {0}")]
     Master(#[from] ServerError),
     /// A node failed.
-    #[error("node {name}: {source}")]
+    #[error("node {name}: {error}")]
     Node {
         /// The node.
         name: String,
         /// Why.
-        source: NodeRunError,
+        error: NodeRunError,
     },
     /// A task panicked or the run exceeded its time limit.
     #[error("{0}")]
@@ -217,9 +217,9 @@ async fn join_node(
 ) -> Result<NodeLog, LoopbackError> {
     match tokio::time::timeout(Duration::from_secs(10), h).await {
         Ok(Ok(Ok(log))) => Ok(log),
-        Ok(Ok(Err(source))) => Err(LoopbackError::Node {
+        Ok(Ok(Err(error))) => Err(LoopbackError::Node {
             name: name.to_owned(),
-            source,
+            error,
         }),
         Ok(Err(e)) => Err(LoopbackError::Runtime(format!("node {name} task: {e}"))),
         Err(_) => Err(LoopbackError::Runtime(format!("node {name} did not stop"))),

@@ -39,12 +39,12 @@ pub struct Entry {
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
     /// The file could not be read or written.
-    #[error("{file}: {source}")]
+    #[error("{file}: {error}")]
     Io {
         /// The file.
         file: String,
         /// The IO error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A line is not what the format says.
     #[error("{file}:{line}: {problem}")]
@@ -62,9 +62,9 @@ pub enum RecordingError {
 /// never decrease, and that every datagram parses.
 pub fn read(path: &Path) -> Result<Vec<Entry>, RecordingError> {
     let file = path.display().to_string();
-    let f = std::fs::File::open(path).map_err(|source| RecordingError::Io {
+    let f = std::fs::File::open(path).map_err(|error| RecordingError::Io {
         file: file.clone(),
-        source,
+        error,
     })?;
     parse(std::io::BufReader::new(f), &file)
 }
@@ -78,9 +78,9 @@ pub fn parse(reader: impl BufRead, file: &str) -> Result<Vec<Entry>, RecordingEr
     };
     let mut lines = reader.lines().enumerate();
     let header = match lines.next() {
-        Some((_, l)) => l.map_err(|source| RecordingError::Io {
+        Some((_, l)) => l.map_err(|error| RecordingError::Io {
             file: file.to_owned(),
-            source,
+            error,
         })?,
         None => return Err(err(1, "empty file: expected a header line".into())),
     };
@@ -99,9 +99,9 @@ pub fn parse(reader: impl BufRead, file: &str) -> Result<Vec<Entry>, RecordingEr
     let mut last = f64::NEG_INFINITY;
     for (i, l) in lines {
         let n = i + 1;
-        let l = l.map_err(|source| RecordingError::Io {
+        let l = l.map_err(|error| RecordingError::Io {
             file: file.to_owned(),
-            source,
+            error,
         })?;
         if l.trim().is_empty() {
             continue;
@@ -162,6 +162,18 @@ impl<W: Write> Recorder<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A file that cannot be read is named with the reason once: the
+    /// message holds the IO error, and the error does not chain it again
+    /// (`{:#}` printed it twice).
+    #[test]
+    fn an_unreadable_file_is_named_with_its_reason_once() {
+        let path = std::env::temp_dir().join(format!("no-such-{}.jsonl", std::process::id()));
+        let e = anyhow::Error::from(read(&path).unwrap_err());
+        let text = format!("{e:#}");
+        assert!(text.starts_with(&path.display().to_string()), "{text}");
+        assert_eq!(text.matches("(os error").count(), 1, "{text}");
+    }
 
     #[test]
     fn round_trips_and_names_bad_lines() {

@@ -53,12 +53,12 @@ pub enum NodeRunError {
     #[error(transparent)]
     Tls(#[from] TlsError),
     /// The local UDP socket could not be bound.
-    #[error("cannot bind {addr}: {source}")]
+    #[error("cannot bind {addr}: {error}")]
     Bind {
         /// The address.
         addr: SocketAddr,
         /// The IO error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The renderer failed.
     #[error("renderer: {0}")]
@@ -108,9 +108,9 @@ async fn run_inner<R: Renderer + ?Sized>(
     renderer: &mut R,
     shutdown: CancellationToken,
 ) -> Result<NodeLog, NodeRunError> {
-    let socket = std::net::UdpSocket::bind(rt.bind).map_err(|source| NodeRunError::Bind {
+    let socket = std::net::UdpSocket::bind(rt.bind).map_err(|error| NodeRunError::Bind {
         addr: rt.bind,
-        source,
+        error,
     })?;
     let mut ep = quinn::Endpoint::new(
         quinn::EndpointConfig::default(),
@@ -118,9 +118,9 @@ async fn run_inner<R: Renderer + ?Sized>(
         socket,
         std::sync::Arc::new(quinn::TokioRuntime),
     )
-    .map_err(|source| NodeRunError::Bind {
+    .map_err(|error| NodeRunError::Bind {
         addr: rt.bind,
-        source,
+        error,
     })?;
     ep.set_default_client_config(client_config(&rt.identity)?);
 

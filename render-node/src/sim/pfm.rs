@@ -9,12 +9,12 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum PfmError {
     /// File system error.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: String,
         /// The cause.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The bytes are not a PFM this reader understands.
     #[error("not a pfm: {0}")]
@@ -113,17 +113,17 @@ pub fn decode_pfm(bytes: &[u8]) -> Result<RgbImage, PfmError> {
 
 /// Write a colour image as a PFM file.
 pub fn write_pfm(path: &Path, image: &RgbImage) -> Result<(), PfmError> {
-    std::fs::write(path, encode_pfm(image)).map_err(|source| PfmError::Io {
+    std::fs::write(path, encode_pfm(image)).map_err(|error| PfmError::Io {
         path: path.display().to_string(),
-        source,
+        error,
     })
 }
 
 /// Read a PFM file (grey files come back as RGB).
 pub fn read_pfm(path: &Path) -> Result<RgbImage, PfmError> {
-    let bytes = std::fs::read(path).map_err(|source| PfmError::Io {
+    let bytes = std::fs::read(path).map_err(|error| PfmError::Io {
         path: path.display().to_string(),
-        source,
+        error,
     })?;
     decode_pfm(&bytes)
 }
