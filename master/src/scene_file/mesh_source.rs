@@ -252,6 +252,9 @@ fn obj_error_line(bytes: &[u8], e: &tobj::LoadError) -> Option<usize> {
         E::TexcoordParseError => ("vt", 1),
         E::FaceParseError | E::InvalidPolygon => ("f", 3),
         E::InvalidObjectName => ("o", 1),
+        E::FaceVertexOutOfBounds => return index_out_of_range(bytes, "v", 0),
+        E::FaceTexCoordOutOfBounds => return index_out_of_range(bytes, "vt", 1),
+        E::FaceNormalOutOfBounds => return index_out_of_range(bytes, "vn", 2),
         _ => return None,
     };
     let text = String::from_utf8_lossy(bytes);
@@ -274,6 +277,31 @@ fn obj_error_line(bytes: &[u8], e: &tobj::LoadError) -> Option<usize> {
             _ => args.len() >= arity && args.iter().all(|w| w.parse::<f64>().is_ok()),
         };
         (!ok).then_some(i + 1)
+    })
+}
+
+/// The first face line with an index of kind `keyword` (slot `slot` of
+/// `v/vt/vn`) that refers to no such element: a positive index past the
+/// file's count (tobj checks against the whole file), or a negative one
+/// reaching before the first element defined so far.
+fn index_out_of_range(bytes: &[u8], keyword: &str, slot: usize) -> Option<usize> {
+    let text = String::from_utf8_lossy(bytes);
+    let count = |line: &str| line.split_whitespace().next() == Some(keyword);
+    let total = text.lines().filter(|l| count(l)).count() as i64;
+    let mut so_far = 0_i64;
+    text.lines().enumerate().find_map(|(i, line)| {
+        if count(line) {
+            so_far += 1;
+        }
+        let mut words = line.split_whitespace();
+        if words.next() != Some("f") {
+            return None;
+        }
+        let bad = words.any(|w| {
+            let index = w.split('/').nth(slot).and_then(|s| s.parse::<i64>().ok());
+            index.is_some_and(|k| (k > 0 && k > total) || (k < 0 && so_far + k < 0))
+        });
+        bad.then_some(i + 1)
     })
 }
 
@@ -488,6 +516,32 @@ mod tests {
             Some(3)
         );
         assert_eq!(obj_error_line(text, &tobj::LoadError::ReadError), None);
+        // Indices past the file's count, or before its first element.
+        use tobj::LoadError as E;
+        for (text, kind, line) in [
+            (
+                &b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n"[..],
+                E::FaceVertexOutOfBounds,
+                5,
+            ),
+            (
+                b"v 0 0 0\nv 1 0 0\nf -1 -2 -3\nv 0 1 0\n",
+                E::FaceVertexOutOfBounds,
+                3,
+            ),
+            (
+                b"v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n",
+                E::FaceTexCoordOutOfBounds,
+                3,
+            ),
+            (
+                b"v 0 0 0\nvn 0 0 1\nf 1//1 1//1 1//2\n",
+                E::FaceNormalOutOfBounds,
+                3,
+            ),
+        ] {
+            assert_eq!(obj_error_line(text, &kind), Some(line), "{kind:?}");
+        }
     }
 
     #[test]
