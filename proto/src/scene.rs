@@ -627,6 +627,11 @@ pub struct Observer {
 }
 
 impl Observer {
+    /// Interpupillary distance (metres) of an observer whose scene does
+    /// not give one, and of tracked heads beyond the scene's observers:
+    /// the adult mean.
+    pub const DEFAULT_IPD: f32 = 0.064;
+
     /// Left and right eye positions for a head pose.
     pub fn eyes(head: &Pose, ipd: f32) -> [Vec3; 2] {
         let right = head.orientation * Vec3::X;

@@ -6,6 +6,13 @@
 
 use glam::{DMat4, DVec3, Quat, Vec3};
 use proptest::prelude::*;
+use showcase_light::hardware::ProjectorDevice;
+use showcase_light::reflectance::{ExtractParams, blend_weights, extract_reflectance, render_maps};
+use showcase_light::sim::{SimConfig, SimShowcase, SimWorld};
+use showcase_light::{
+    DeviceRays, Image, IntensityImage, ObjectFilter, SceneGeometry, SurfaceSample,
+    metrics::relative_rmse, world_matrix,
+};
 use showcase_master::capture::pipeline::calibrate_reference;
 use showcase_master::capture::scenes::{cornell_scene, plate_scene};
 use showcase_master::capture::{
@@ -13,14 +20,6 @@ use showcase_master::capture::{
     read_reflectance_map, resize_device, run_capture, run_capture_with, write_reflectance_map,
 };
 use showcase_proto::{PinholeDevice, Showcase};
-use showcase_render::light::{
-    DeviceRays, Image, IntensityImage, ObjectFilter, SceneGeometry, SurfaceSample,
-    metrics::relative_rmse, world_matrix,
-};
-use showcase_render::reflectance::{
-    ExtractParams, blend_weights, extract_reflectance, render_maps,
-};
-use showcase_render::sim::{Projector, SimConfig, SimShowcase, SimWorld};
 use std::path::Path;
 
 const CORNELL: &str = concat!(

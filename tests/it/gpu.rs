@@ -13,11 +13,11 @@ use anyhow::{Context, Result, bail, ensure};
 use compare::{MESH_TOLERANCE, Tolerance, compare};
 use glam::{DMat3, DVec2, DVec3, Quat, Vec3};
 use rand::{Rng, SeedableRng};
-use showcase_proto::{Mesh, PinholeDevice, Transform};
-use showcase_render::gpu::{FlatLambertPass, GpuContext, GpuError, OffscreenTarget};
-use showcase_render::light::raster::{
+use showcase_light::raster::{
     DrawItem, FlatLambertScene, RasterImage, SceneError, rasterise_flat_lambert,
 };
+use showcase_proto::{Mesh, PinholeDevice, Transform};
+use showcase_render::gpu::{FlatLambertPass, GpuContext, GpuError, OffscreenTarget};
 
 /// Open a headless GPU, or explain why the test is skipped. With `CI` set
 /// a missing adapter is an error, so CI cannot pass by skipping.

@@ -10,14 +10,14 @@ use std::sync::Arc;
 use anyhow::{Result, ensure};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
-use showcase_master::radiosity_job::load_obj_scene;
-use showcase_render::gpu::hemicube::GpuHemiCube;
-use showcase_render::light::{ObjectFilter, SceneGeometry, form_factor_point_polygon};
-use showcase_render::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle, NO_ITEM};
-use showcase_render::radiosity::shooting::ItemBufferBackend;
-use showcase_render::radiosity::{
+use showcase_light::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle, NO_ITEM};
+use showcase_light::radiosity::shooting::ItemBufferBackend;
+use showcase_light::radiosity::{
     FormFactorMethod, MeshOptions, RadiosityMesh, Shooter, SolveOptions, relative_error,
 };
+use showcase_light::{ObjectFilter, SceneGeometry, form_factor_point_polygon};
+use showcase_master::radiosity_job::load_obj_scene;
+use showcase_render::gpu::hemicube::GpuHemiCube;
 
 const CORNELL: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

@@ -6,11 +6,11 @@
 
 use glam::{DVec2, DVec3, Quat, Vec3};
 use proptest::prelude::*;
-use showcase_proto::{Material, Mesh, Object, ObjectKind, PinholeDevice, Showcase, Transform};
-use showcase_render::light::ray::intersect_triangle;
-use showcase_render::light::{
+use showcase_light::ray::intersect_triangle;
+use showcase_light::{
     DeviceRays, IntensityLight, ObjectFilter, Ray, SceneGeometry, render_intensity, world_matrix,
 };
+use showcase_proto::{Material, Mesh, Object, ObjectKind, PinholeDevice, Showcase, Transform};
 use std::f64::consts::PI;
 
 /// A showcase holding `meshes` as objects (name, mesh, kind, transform).

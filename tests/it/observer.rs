@@ -1,14 +1,14 @@
-//! What an observer sees, simulated (`showcase_render::observer_view`),
+//! What an observer sees, simulated (`showcase_light::observer_view`),
 //! and the projector blending it exposes: on the demo cabinet, whose two
 //! projectors overlap on most of the room, the CPU reference irradiance
 //! maps of both projectors, sent through the true projectors onto the real
 //! objects, must give the target radiance once, not twice.
 
 use glam::DVec3;
+use showcase_light::observer_view::{ObserverView, ProjectedLight, observer_view};
+use showcase_light::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
+use showcase_light::{Image, metrics::relative_rmse};
 use showcase_proto::{ObjectKind, Showcase};
-use showcase_render::light::{Image, metrics::relative_rmse};
-use showcase_render::observer_view::{ObserverView, ProjectedLight, observer_view};
-use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 
 /// The demo cabinet with its projectors at `1 / projector_divisor` of
 /// their width and height and its faces at `1 / face_divisor`.

@@ -6,15 +6,15 @@
 //! through the simulated showcase.
 
 use glam::DVec3;
+use showcase_light::radiosity::{
+    B1Pass, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, SolveOptions,
+    augmented_radiosity, augmented_radiosity_with, gathered_b2_vertices, irradiance_map,
+};
+use showcase_light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_master::radiosity_job::bench::figure3_scene;
 use showcase_master::radiosity_job::consistency::{Promise, consistency};
 use showcase_master::radiosity_job::{RadiosityOptions, load_obj_scene, run_radiosity};
 use showcase_proto::PinholeDevice;
-use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
-use showcase_render::radiosity::{
-    B1Pass, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, SolveOptions,
-    augmented_radiosity, augmented_radiosity_with, gathered_b2_vertices, irradiance_map,
-};
 use std::path::Path;
 
 const CORNELL: &str = concat!(

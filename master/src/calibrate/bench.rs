@@ -9,6 +9,7 @@ use super::{
 };
 use glam::{DMat3, DVec3};
 use serde::Serialize;
+use showcase_light::metrics::percentile;
 use showcase_proto::scene::PinholeDevice;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -136,18 +137,6 @@ fn time_per_call<T>(mut f: impl FnMut() -> T) -> (T, f64) {
     (out, best)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// One configuration, medians over seeds; `None` when every seed failed.
 pub fn bench_configuration(
     method: Method,
@@ -182,7 +171,8 @@ pub fn bench_configuration(
     if cols[0].is_empty() {
         return None;
     }
-    let [fit, heldout, center, rotation, seconds] = cols.map(median);
+    let [fit, heldout, center, rotation, seconds] =
+        cols.map(|v| percentile(&v, 50.0).unwrap_or(f64::NAN));
     Some(BenchRecord {
         method,
         points,

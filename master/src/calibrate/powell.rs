@@ -5,7 +5,7 @@
 use super::camera::{CameraModel, Layout, Observation};
 use super::lm::Refined;
 use nalgebra::DVector;
-use showcase_render::reflectance::{bracket, brent_minimize};
+use showcase_light::reflectance::{bracket, brent_minimize};
 
 /// Cost standing in for a pose that puts a point behind the device.
 const BEHIND: f64 = 1e300;
@@ -107,7 +107,7 @@ pub(crate) fn refine(
 
 /// Move `p` to the minimum along `dir` and scale `dir` to the step taken
 /// (Numerical Recipes `linmin`, with the shared Brent search of
-/// [`showcase_render::reflectance`]); returns the cost there. A direction
+/// [`showcase_light::reflectance`]); returns the cost there. A direction
 /// along which no minimum is bracketed (the cost falls without bound) is
 /// not taken: `p` stays and `dir` becomes zero.
 fn line_minimise(

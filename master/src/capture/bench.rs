@@ -15,10 +15,11 @@ use super::pipeline::{
 use super::scenes;
 use glam::Vec3;
 use serde::Serialize;
+use showcase_light::hardware::ProjectorDevice;
+use showcase_light::reflectance::CorrectionParams;
+use showcase_light::sim::{SimConfig, SimShowcase};
+use showcase_light::{Image, metrics::relative_rmse};
 use showcase_proto::Showcase;
-use showcase_render::light::{Image, metrics::relative_rmse};
-use showcase_render::reflectance::CorrectionParams;
-use showcase_render::sim::{Projector, SimConfig, SimShowcase};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -244,7 +245,7 @@ fn bench_scene(
 
 /// The sim's answers a bench compares against.
 struct GroundTruth {
-    albedo: showcase_render::light::RgbImage,
+    albedo: showcase_light::RgbImage,
     /// Pixels whose indirect light exceeds 10% of the direct light under
     /// the white projector.
     interreflection: Image<bool>,

@@ -11,10 +11,10 @@
 use anyhow::Context;
 use glam::DMat4;
 use serde::{Deserialize, Serialize};
+use showcase_light::Image;
+use showcase_light::reflectance::ReflectanceMap;
+use showcase_light::sim::{decode_pfm, encode_pfm, encode_pfm_grey};
 use showcase_proto::PinholeDevice;
-use showcase_render::light::Image;
-use showcase_render::reflectance::ReflectanceMap;
-use showcase_render::sim::{decode_pfm, encode_pfm, encode_pfm_grey};
 use std::path::Path;
 
 /// Format tag of the JSON sidecar.
@@ -66,14 +66,14 @@ pub fn write_reflectance_map(
 
 /// Read the map `NAME.*` from `dir`.
 pub fn read_reflectance_map(dir: &Path, name: &str) -> anyhow::Result<ReflectanceMap> {
-    let read = |suffix: &str| -> anyhow::Result<showcase_render::light::RgbImage> {
+    let read = |suffix: &str| -> anyhow::Result<showcase_light::RgbImage> {
         let path = dir.join(format!("{name}{suffix}"));
         let bytes =
             std::fs::read(&path).with_context(|| format!("{}: cannot read", path.display()))?;
         decode_pfm(&bytes).with_context(|| path.display().to_string())
     };
     let reflectance = read(".pfm")?;
-    let grey = |img: showcase_render::light::RgbImage| img.map(|v| v.x);
+    let grey = |img: showcase_light::RgbImage| img.map(|v| v.x);
     let weight = grey(read(".weight.pfm")?);
     let depth = grey(read(".depth.pfm")?);
     let object: Image<Option<u32>> = grey(read(".object.pfm")?)

@@ -26,9 +26,10 @@ pub use pipeline::{
 use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
+use showcase_light::hardware::ProjectorDevice;
+use showcase_light::reflectance::CorrectionParams;
+use showcase_light::sim::{SimConfig, SimShowcase, render_view, write_pfm};
 use showcase_proto::{PinholeDevice, Showcase};
-use showcase_render::reflectance::CorrectionParams;
-use showcase_render::sim::{Projector, SimConfig, SimShowcase, render_view, write_pfm};
 use std::path::Path;
 use std::time::Instant;
 
@@ -207,10 +208,8 @@ pub fn run_capture_with(
     let mut seconds = CaptureSeconds::default();
     let mut scene = scene.clone();
     if scene.cameras.is_empty() || scene.projectors.is_empty() {
-        let geometry = showcase_render::light::SceneGeometry::build(
-            &scene,
-            &showcase_render::light::ObjectFilter::Real,
-        )?;
+        let geometry =
+            showcase_light::SceneGeometry::build(&scene, &showcase_light::ObjectFilter::Real)?;
         let b = geometry.bounds();
         anyhow::ensure!(!b.is_empty(), "the scene has no real geometry");
         let centre = b.center();
@@ -276,12 +275,9 @@ pub fn run_capture_with(
     )?;
     seconds.capture = lap(&mut t);
     let (truth, objects) = sim.ground_truth(0)?;
-    let rel_rmse = showcase_render::light::metrics::relative_rmse(
-        &outcome.reflectance,
-        &truth,
-        Some(&outcome.valid),
-    )
-    .unwrap_or(f64::NAN);
+    let rel_rmse =
+        showcase_light::metrics::relative_rmse(&outcome.reflectance, &truth, Some(&outcome.valid))
+            .unwrap_or(f64::NAN);
     let visible = objects.data.iter().filter(|o| o.is_some()).count().max(1);
     let coverage = outcome.valid.data.iter().filter(|v| **v).count() as f64 / visible as f64;
     let mut files = write_reflectance_map(out, "reflectance", &outcome.map)?;
@@ -351,7 +347,7 @@ fn warm_transport(
     }
     let mut projector = sim.projector(0)?;
     let d = &scene.projectors[0].device;
-    projector.show(&showcase_render::light::Image::new(
+    projector.show(&showcase_light::Image::new(
         d.width,
         d.height,
         glam::Vec3::ONE,

@@ -5,16 +5,17 @@
 use super::scenes;
 use anyhow::Context;
 use glam::{DVec3, Vec3};
-use showcase_proto::Showcase;
-use showcase_render::light::{
-    DeviceRays, Image, IntensityImage, IntensityLight, ObjectFilter, RgbImage, SceneGeometry,
-    render_intensity, world_matrix,
-};
-use showcase_render::reflectance::{
+use showcase_light::hardware::{CameraDevice, ProjectorDevice};
+use showcase_light::reflectance::{
     CalibrationLevel, CorrectionParams, ExtractParams, ProjectorFit, ReflectanceMap, WholeCapture,
     blend_weights, estimate_projector, extract_reflectance, indirect_irradiance,
 };
-use showcase_render::sim::{Camera, Projector, SimConfig, SimShowcase};
+use showcase_light::sim::{SimConfig, SimShowcase};
+use showcase_light::{
+    DeviceRays, Image, IntensityImage, IntensityLight, ObjectFilter, RgbImage, SceneGeometry,
+    render_intensity, world_matrix,
+};
+use showcase_proto::Showcase;
 
 /// How reflectance is extracted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,7 +120,7 @@ pub struct CaptureOutcome {
 
 /// Show `image` and average `frames` frames into a radiance map `I_rad`
 /// (`pi * L`, see the module docs of `capture`).
-pub fn capture_radiance<P: Projector, C: Camera>(
+pub fn capture_radiance<P: ProjectorDevice, C: CameraDevice>(
     projector: &mut P,
     camera: &mut C,
     image: &RgbImage,
@@ -203,7 +204,7 @@ pub fn adjust_camera_gain(scene: &mut Showcase, sim: &SimShowcase) -> anyhow::Re
 /// of a reference target of albedo `albedo` (scene `reference`, seen by
 /// `projector` and `camera`) at pixel values 1 and 0.5; `gamma` is the
 /// projector's calibrated response exponent.
-pub fn calibrate_projector<P: Projector, C: Camera>(
+pub fn calibrate_projector<P: ProjectorDevice, C: CameraDevice>(
     reference: &Showcase,
     projector: &mut P,
     camera: &mut C,
@@ -215,7 +216,7 @@ pub fn calibrate_projector<P: Projector, C: Camera>(
     let rays = DeviceRays::new(camera.device())?;
     let unit = IntensityLight::projector(projector.device(), Vec3::ONE, 1.0)?;
     let g = render_intensity(&geometry, &rays, &unit, &ObjectFilter::Real);
-    let floor = showcase_render::reflectance::intensity_floor(&g.intensity, 1e-2);
+    let floor = showcase_light::reflectance::intensity_floor(&g.intensity, 1e-2);
     let phi_max = 60f64.to_radians();
     let mask = Image {
         width: g.intensity.width,
@@ -270,7 +271,7 @@ pub fn calibrate_projector<P: Projector, C: Camera>(
 /// Capture the reflectance of `model`'s real objects (the registered
 /// geometry) with a projector of known `gamma` and the given eta and black
 /// level, by `config.method`.
-pub fn capture_map<P: Projector, C: Camera>(
+pub fn capture_map<P: ProjectorDevice, C: CameraDevice>(
     model: &Showcase,
     projector: &mut P,
     camera: &mut C,

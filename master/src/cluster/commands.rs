@@ -4,7 +4,6 @@
 
 use super::cluster_core_defaults;
 use super::loopback::{LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
-use super::metrics::percentile;
 use super::server::{Server, ServerSettings};
 use super::show::{Show, Tracking};
 use crate::tracking::Tracker;
@@ -12,6 +11,7 @@ use crate::tracking::recording;
 use crate::tracking::scripted::{FIRST_HEAD_BODY, LIGHT_BODY};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
+use showcase_light::metrics::percentile;
 use showcase_proto::config::{BodyMapping, ClusterConfig, TrackingConfig, TrackingSource};
 use showcase_proto::session::MasterConfig;
 use showcase_proto::{Role, Showcase};

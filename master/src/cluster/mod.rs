@@ -8,7 +8,7 @@ pub mod server;
 pub mod show;
 
 pub use loopback::{LoopbackError, LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
-pub use metrics::{FrameMetrics, NodeMetric, percentile};
+pub use metrics::{FrameMetrics, NodeMetric};
 pub use server::{ClusterRun, Server, ServerError, ServerSettings};
 pub use show::{Show, Tracking};
 

@@ -6,6 +6,7 @@
 use super::{GalleryRow, INTERACTIVE_HZ, StageOutcome, progress, views};
 use crate::cli::DemoArgs;
 use anyhow::{Context, Result};
+use showcase_light::metrics::percentile;
 use std::time::Instant;
 
 /// Frames of the walk the rendering stage draws: a quarter, half and
@@ -96,7 +97,7 @@ pub(super) fn rendering_stage(
                 r.view.target.height,
                 &r.delta_e,
             )?;
-            let median = views::quantile(&r.delta_e, 0.5).unwrap_or(f64::NAN);
+            let median = percentile(&r.delta_e, 50.0).unwrap_or(f64::NAN);
             images.push((
                 format!("{name}: CIEDE2000 (median {median:.2}; black 0, red >= 10)"),
                 file,
@@ -148,8 +149,8 @@ pub(super) fn rendering_stage(
     }
     pb.finish_and_clear();
     let mut figures = serde_json::Map::new();
-    let median = views::quantile(&all_de, 0.5);
-    let p95 = views::quantile(&all_de, 0.95);
+    let median = percentile(&all_de, 50.0);
+    let p95 = percentile(&all_de, 95.0);
     figures.insert("delta_e2000_median".into(), serde_json::json!(median));
     figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
     // Issue 6's projector-role figure, measured by the cabinet's camera.
@@ -180,8 +181,8 @@ pub(super) fn rendering_stage(
                 .enumerate()
                 .map(|(o, seen)| serde_json::json!({
                     "observer": truth.observers[o].name,
-                    "delta_e2000_median": views::quantile(&seen.delta_e, 0.5),
-                    "delta_e2000_p95": views::quantile(&seen.delta_e, 0.95),
+                    "delta_e2000_median": percentile(&seen.delta_e, 50.0),
+                    "delta_e2000_p95": percentile(&seen.delta_e, 95.0),
                     "consistency_rel_rmse": seen.rel,
                     "consistency_rel_rmse_real": seen.rel_real,
                     "consistency_rel_rmse_virtual": seen.rel_virtual,

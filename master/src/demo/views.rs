@@ -5,27 +5,27 @@
 //! and face renderers; their CPU references when no GPU adapter opens),
 //! fed the *calibrated* devices. What the observer sees is then simulated
 //! with the *true* devices and the true reflectance
-//! ([`showcase_render::observer_view`]): calibration error, projector
+//! ([`showcase_light::observer_view`]): calibration error, projector
 //! resolution and device compensation all show up in the comparison with
 //! the target (all lighting virtual).
 
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use showcase_proto::{FrameState, PinholeDevice, Showcase};
-use showcase_render::gpu::GpuContext;
-use showcase_render::light::DeviceRays;
-use showcase_render::light::{Image, RgbImage, metrics};
-use showcase_render::node::Renderer;
-use showcase_render::observer_view::{
+use showcase_light::DeviceRays;
+use showcase_light::observer_view::{
     MirrorImage, ObserverView, ProjectedLight, observer_view, projector_edge_pixels,
 };
-use showcase_render::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
-use showcase_render::render::face::{eyes_to_fill, face_image_cpu_with};
+use showcase_light::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
+use showcase_light::render::face::{eyes_to_fill, face_image_cpu_with};
+use showcase_light::render::projector::{PixelState, edge_mask};
+use showcase_light::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
+use showcase_light::{Image, RgbImage, metrics};
+use showcase_proto::{FrameState, PinholeDevice, Showcase};
+use showcase_render::gpu::GpuContext;
+use showcase_render::node::Renderer;
 use showcase_render::render::face_gpu::FaceRenderer;
-use showcase_render::render::projector::{PixelState, edge_mask};
 use showcase_render::render::projector_gpu::ProjectorRenderer;
-use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -266,7 +266,10 @@ fn projector_edges(
 }
 
 fn eyes_of(scene: &Showcase, state: &FrameState, observer: usize) -> [DVec3; 2] {
-    let ipd = scene.observers.get(observer).map_or(0.064, |o| o.ipd);
+    let ipd = scene
+        .observers
+        .get(observer)
+        .map_or(showcase_proto::Observer::DEFAULT_IPD, |o| o.ipd);
     let head = state.heads.get(observer).copied().unwrap_or_default();
     showcase_proto::Observer::eyes(&head, ipd).map(|e| e.as_dvec3())
 }
@@ -600,16 +603,6 @@ fn per_object_rel_rmse(
                 .map(|e| (o.name.clone(), e))
         })
         .collect()
-}
-
-/// `q`-quantile of the finite values.
-pub(super) fn quantile(values: &[f64], q: f64) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[((v.len() - 1) as f64 * q).round() as usize])
 }
 
 /// Write an 8-bit RGB PNG from a per-pixel colour function.

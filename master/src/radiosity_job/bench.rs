@@ -22,12 +22,12 @@ use super::scene::load_obj_scene;
 use anyhow::Context;
 use glam::{DVec2, DVec3, Vec3};
 use serde_json::{Value, json};
-use showcase_proto::{Light, Showcase};
-use showcase_render::light::{ObjectFilter, SceneGeometry, polygon_irradiance};
-use showcase_render::radiosity::{
+use showcase_light::radiosity::{
     self, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, RefineOptions, Shooter,
     SolveOptions, VertexGather, gather_adaptive,
 };
+use showcase_light::{ObjectFilter, SceneGeometry, polygon_irradiance};
+use showcase_proto::{Light, Showcase};
 use std::path::Path;
 use std::time::Instant;
 

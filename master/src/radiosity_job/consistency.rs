@@ -15,12 +15,12 @@
 
 use anyhow::Context;
 use glam::{DVec3, Vec3};
+use showcase_light::metrics::relative_rmse_values;
+use showcase_light::radiosity::{IrradianceMap, RadiosityMesh};
+use showcase_light::sim::devices::projector_intensity;
+use showcase_light::sim::{ProjectorLight, SimWorld};
+use showcase_light::{DeviceRays, Image, ObjectFilter, SceneGeometry};
 use showcase_proto::{PinholeDevice, Showcase};
-use showcase_render::light::metrics::relative_rmse_values;
-use showcase_render::light::{DeviceRays, Image, ObjectFilter, SceneGeometry};
-use showcase_render::radiosity::{IrradianceMap, RadiosityMesh};
-use showcase_render::sim::devices::projector_intensity;
-use showcase_render::sim::{ProjectorLight, SimWorld};
 
 /// The consistency figure and what it was taken over.
 #[derive(Clone, Debug, PartialEq)]

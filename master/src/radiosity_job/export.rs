@@ -1,8 +1,8 @@
 //! Writers for radiosity results: PLY meshes with per-vertex radiosity and
 //! PFM images for irradiance maps.
 
-use showcase_render::light::RgbImage;
-use showcase_render::radiosity::VertexMesh;
+use showcase_light::RgbImage;
+use showcase_light::radiosity::VertexMesh;
 use std::fmt::Write as _;
 
 /// An ASCII PLY of `mesh`: vertex `x y z nx ny nz` and float
@@ -59,7 +59,7 @@ pub fn pfm(image: &RgbImage) -> Vec<u8> {
 mod tests {
     use super::*;
     use glam::{DVec3, Vec3};
-    use showcase_render::light::Image;
+    use showcase_light::Image;
 
     #[test]
     fn ply_header_counts_match_the_body() {

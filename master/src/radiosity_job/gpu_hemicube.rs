@@ -9,14 +9,14 @@
 use super::bench::BenchRecord;
 use super::scene::load_obj_scene;
 use serde_json::json;
-use showcase_render::gpu::GpuContext;
-use showcase_render::gpu::hemicube::GpuHemiCube;
-use showcase_render::light::{ObjectFilter, SceneGeometry};
-use showcase_render::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle};
-use showcase_render::radiosity::shooting::ItemBufferBackend;
-use showcase_render::radiosity::{
+use showcase_light::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle};
+use showcase_light::radiosity::shooting::ItemBufferBackend;
+use showcase_light::radiosity::{
     FormFactorMethod, MeshOptions, RadiosityMesh, Shooter, SolveOptions, relative_error,
 };
+use showcase_light::{ObjectFilter, SceneGeometry};
+use showcase_render::gpu::GpuContext;
+use showcase_render::gpu::hemicube::GpuHemiCube;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;

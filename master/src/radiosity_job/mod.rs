@@ -15,13 +15,13 @@ pub use scene::{load_any_scene, load_obj_scene};
 
 use anyhow::Context;
 use glam::DVec3;
-use showcase_proto::{ObjectKind, Showcase};
-use showcase_render::light::{ObjectFilter, SceneGeometry};
-use showcase_render::radiosity::{
+use showcase_light::radiosity::{
     self, B1Pass, ConvergencePoint, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh,
     RefineOptions, SolveOptions, augmented_radiosity_with, gather_adaptive, gathered_b2_vertices,
     irradiance_map, vertex_mesh_from_vertices,
 };
+use showcase_light::{ObjectFilter, SceneGeometry};
+use showcase_proto::{ObjectKind, Showcase};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -19,7 +19,6 @@ use std::path::Path;
 /// onto the nearest rotation.
 pub(crate) const ROTATION_TOLERANCE: f64 = 1e-3;
 /// Default interpupillary distance in metres.
-pub(crate) const DEFAULT_IPD: f64 = 0.064;
 /// Default near plane in metres.
 pub(crate) const DEFAULT_NEAR: f64 = 0.01;
 /// Default far plane in metres.
@@ -527,6 +526,6 @@ pub(crate) fn observer(ctx: &Ctx, label: &str, d: &ObserverDef) -> Result<Observ
             position: position.as_vec3(),
             orientation,
         },
-        ipd: d.ipd.map_or(DEFAULT_IPD, |x| x.0) as f32,
+        ipd: d.ipd.map_or(Observer::DEFAULT_IPD, |x| x.0 as f32),
     })
 }

@@ -206,7 +206,7 @@ mod tests {
                 .map(|n| Observer {
                     name: n.into(),
                     head: Pose::default(),
-                    ipd: 0.064,
+                    ipd: Observer::DEFAULT_IPD,
                 })
                 .to_vec(),
             lights: vec![LightSource {

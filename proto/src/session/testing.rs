@@ -186,7 +186,7 @@ pub fn test_scene() -> Showcase {
         observers: vec![Observer {
             name: "viewer".into(),
             head: Pose::default(),
-            ipd: 0.064,
+            ipd: Observer::DEFAULT_IPD,
         }],
         ..Showcase::default()
     }

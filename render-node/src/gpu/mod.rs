@@ -1,4 +1,4 @@
-//! wgpu device bring-up and GPU passes. Every pass has a CPU reference in `crate::light`.
+//! wgpu device bring-up and GPU passes. Every pass has a CPU reference in `showcase_light`.
 //!
 //! The shape follows the wgpu examples: [`GpuContext::new_headless`] opens
 //! a device without any surface, and all work functions take
@@ -25,7 +25,7 @@ pub mod upload;
 pub use flat_lambert::{FlatLambertBatch, FlatLambertPass};
 pub use target::OffscreenTarget;
 
-use crate::light::raster::SceneError;
+use showcase_light::raster::SceneError;
 
 /// Why a GPU operation failed.
 #[derive(Debug, thiserror::Error)]

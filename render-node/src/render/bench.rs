@@ -16,18 +16,18 @@ use showcase_proto::{
     PinholeDevice, Plane, Pose, Projector, ProjectorResponse, Rect3, Showcase, Transform,
 };
 
-use super::RenderSetupError;
+use super::FrameError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
-use super::consistency::direct_light_consistency;
-use super::face::{eyes_to_fill, face_image_cpu};
 use super::face_gpu::{FacePipeline, other_eyes};
-use super::frame::FrameScene;
 use super::passes::{FrameKey, PassList};
-use super::projector::{Occluders, ProjectorOptions, irradiance_map_cpu};
 use super::projector_gpu::{DEFAULT_SHADOW_RES, ProjectorPipeline};
 use crate::gpu::{GpuContext, wait_idle};
-use crate::light::Image;
-use crate::light::metrics::relative_rmse;
+use showcase_light::Image;
+use showcase_light::metrics::{percentile, relative_rmse};
+use showcase_light::render::consistency::direct_light_consistency;
+use showcase_light::render::face::{eyes_to_fill, face_image_cpu};
+use showcase_light::render::frame::FrameScene;
+use showcase_light::render::projector::{Occluders, ProjectorOptions, irradiance_map_cpu};
 
 /// One benchmark result (one role, size and scene variant).
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -98,10 +98,7 @@ impl StepTimes {
 
     /// (pass_ms, median_with_readback_ms, shadow_layers_drawn)
     fn medians(self) -> (BTreeMap<String, f64>, f64, f64) {
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            percentile(&v, 0.5)
-        };
+        let median = |v: Vec<f64>| percentile(&v, 50.0).unwrap_or(0.0);
         (
             self.steps
                 .into_iter()
@@ -260,7 +257,7 @@ pub fn bench_scene(walls: Vec<(String, Mesh, Vec3)>, bunny: Mesh) -> Showcase {
                 position: Vec3::new(x, 0.32, -0.55),
                 orientation: Quat::from_rotation_y(std::f32::consts::PI),
             },
-            ipd: 0.064,
+            ipd: Observer::DEFAULT_IPD,
         });
     }
     s.projectors.push(bench_projector(640, 480));
@@ -363,14 +360,6 @@ impl Default for BenchOptions {
     }
 }
 
-fn percentile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
-    sorted[i.min(sorted.len() - 1)]
-}
-
 /// Benchmark the projector and face roles on `scene` (from
 /// [`bench_scene`]) for every size and variant. Frames whose
 /// [`FrameKey`] did not change are reused (not drawn).
@@ -378,7 +367,7 @@ pub fn bench_render(
     ctx: &GpuContext,
     scene: &Showcase,
     options: &BenchOptions,
-) -> Result<Vec<Record>, RenderSetupError> {
+) -> Result<Vec<Record>, FrameError> {
     let mut pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
     let mut face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
@@ -454,8 +443,8 @@ pub fn bench_render(
                 height,
                 scene_variant: variant.into(),
                 passes_run,
-                median_ms: percentile(&times, 0.5),
-                p99_ms: percentile(&times, 0.99),
+                median_ms: percentile(&times, 50.0).unwrap_or(0.0),
+                p99_ms: percentile(&times, 99.0).unwrap_or(0.0),
                 adapter: ctx.describe(),
                 consistency_rel_rmse: consistency,
                 gpu_cpu_rel_rmse: gpu_cpu,
@@ -492,12 +481,16 @@ fn bench_face_variant(
     width: u32,
     height: u32,
     options: &BenchOptions,
-) -> Result<Record, RenderSetupError> {
+) -> Result<Record, FrameError> {
     let s = variant_scene(scene, variant);
     let face = bench_face(width, height);
     let eyes_of = |state: &FrameState| {
         let head = state.heads.first().copied().unwrap_or_default();
-        Observer::eyes(&head, s.observers.first().map_or(0.064, |o| o.ipd)).map(|e| e.as_dvec3())
+        Observer::eyes(
+            &head,
+            s.observers.first().map_or(Observer::DEFAULT_IPD, |o| o.ipd),
+        )
+        .map(|e| e.as_dvec3())
     };
     let state0 = bench_frame(&s, variant, 0);
     let first = FrameScene::resolve(&s, &state0)?;
@@ -568,8 +561,8 @@ fn bench_face_variant(
         height,
         scene_variant: variant.into(),
         passes_run,
-        median_ms: percentile(&times, 0.5),
-        p99_ms: percentile(&times, 0.99),
+        median_ms: percentile(&times, 50.0).unwrap_or(0.0),
+        p99_ms: percentile(&times, 99.0).unwrap_or(0.0),
         adapter: ctx.describe(),
         consistency_rel_rmse: None,
         gpu_cpu_rel_rmse: gpu_cpu,

@@ -1,12 +1,12 @@
 //! GPU-versus-CPU comparison of projector maps: relative RMSE of `L` over
 //! all surface pixels and away from edges, and where the outliers are.
 
-use super::projector::{IrradianceMap, PixelState, edge_mask};
 use super::projector_gpu::GpuIrradianceMap;
 use crate::gpu::irradiance_map::state;
-use crate::light::metrics::relative_rmse;
-use crate::light::{Image, MetricError, RgbImage};
 use glam::Vec3;
+use showcase_light::metrics::relative_rmse;
+use showcase_light::render::projector::{IrradianceMap, PixelState, edge_mask};
+use showcase_light::{Image, MetricError, RgbImage};
 
 /// A pixel differs "a lot" when its relative difference exceeds this.
 pub const OUTLIER_RELATIVE: f64 = 0.01;

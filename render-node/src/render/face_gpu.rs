@@ -3,7 +3,7 @@
 //! reflections (kept across frames while the lights and the geometry stay
 //! put), and the [`Renderer`] of a face node
 //! (both eyes of one observer, side by side). CPU reference:
-//! [`super::face::face_image_cpu`].
+//! [`showcase_light::render::face::face_image_cpu`].
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -11,13 +11,11 @@ use std::time::Instant;
 use glam::DVec3;
 use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
-use super::RenderSetupError;
-use super::cube_map::{DEFAULT_CUBE_RES, reflective_centres};
-use super::frame::{DEFAULT_IPD, FrameScene};
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
+use super::{FrameError, RenderSetupError};
 use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
 use crate::gpu::face_view::NO_OWN_EYE;
 use crate::gpu::face_view::{
@@ -30,10 +28,12 @@ use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVer
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
-use crate::mirror_view::FaceView;
 use crate::node::renderer::{
     Fnv64, OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
 };
+use showcase_light::mirror_view::FaceView;
+use showcase_light::render::cube_map::{DEFAULT_CUBE_RES, reflective_centres};
+use showcase_light::render::frame::FrameScene;
 
 /// Near and far clip distances of face views (metres along the screen normal).
 pub const FACE_NEAR: f64 = 0.01;
@@ -129,14 +129,11 @@ impl FacePipeline {
 
     /// Read the cube maps back (after a draw that ran
     /// [`Pass::CubeMaps`]): per map, its six faces of `res * res` texels
-    /// (linear RGB radiance, distance from the centre; `crate::render::cube_map`
+    /// (linear RGB radiance, distance from the centre; `showcase_light::render::cube_map`
     /// order), maps in object order.
-    pub fn read_cube_maps(
-        &self,
-        ctx: &GpuContext,
-    ) -> Result<Vec<Vec<Vec<[f32; 4]>>>, RenderSetupError> {
+    pub fn read_cube_maps(&self, ctx: &GpuContext) -> Result<Vec<Vec<Vec<[f32; 4]>>>, FrameError> {
         let Some(maps) = self.cubes.maps() else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
         let mut layers = maps.read(&ctx.device, &ctx.queue)?.into_iter();
         Ok((0..self.cube_count)
@@ -158,7 +155,7 @@ impl FacePipeline {
         other_eyes: &[DVec3],
         passes: &PassList,
         timed: bool,
-    ) -> Result<PassTimes, RenderSetupError> {
+    ) -> Result<PassTimes, FrameError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let start = Instant::now();
         self.scene.update(device, queue, &frame.showcase)?;
@@ -302,10 +299,10 @@ impl FacePipeline {
         self.cube_count = centres.len();
         let cube_generation = self.cubes.generation();
         let Some(cube_maps) = self.cubes.maps() else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
         let Some(maps) = self.maps.as_mut() else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
         // Per-eye uniforms, bind groups and targets.
         if self.eyes.len() < eyes.len()
@@ -323,7 +320,7 @@ impl FacePipeline {
                         readback: ColourReadback::new(device, face.width, face.height),
                     })
                 })
-                .collect::<Result<_, RenderSetupError>>()?;
+                .collect::<Result<_, FrameError>>()?;
         }
         for (k, (&eye, res)) in eyes.iter().zip(self.eyes.iter_mut()).enumerate() {
             let view =
@@ -365,7 +362,7 @@ impl FacePipeline {
             }
         }
         let Some((_, shadow_bind)) = &self.shadow_bind else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
 
         let mut times = Vec::new();
@@ -373,7 +370,7 @@ impl FacePipeline {
         let mut since = start;
         let mut flush = |encoder: &mut wgpu::CommandEncoder,
                          step: &'static str|
-         -> Result<(), RenderSetupError> {
+         -> Result<(), FrameError> {
             if timed {
                 let done =
                     std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
@@ -466,7 +463,7 @@ impl FacePipeline {
 
     /// Read the last frame's targets back: linear RGBA per eye, alpha 1
     /// where a virtual object is drawn; non-finite values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Vec<[f32; 4]>>, FrameError> {
         let drawn = &self.eyes[..self.drawn.min(self.eyes.len())];
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         for e in drawn {
@@ -486,7 +483,7 @@ impl FacePipeline {
         eyes: &[DVec3],
         other_eyes: &[DVec3],
         passes: &PassList,
-    ) -> Result<Vec<Vec<[f32; 4]>>, RenderSetupError> {
+    ) -> Result<Vec<Vec<[f32; 4]>>, FrameError> {
         self.draw(ctx, frame, face, eyes, other_eyes, passes, false)?;
         self.read(ctx)
     }
@@ -569,7 +566,7 @@ impl FaceRenderer {
         let ipd = scene
             .observers
             .get(self.observer)
-            .map_or(DEFAULT_IPD, |o| o.ipd);
+            .map_or(showcase_proto::Observer::DEFAULT_IPD, |o| o.ipd);
         let eyes = showcase_proto::Observer::eyes(head, ipd).map(|e| e.as_dvec3());
         let key = FrameKey::face(self.face, self.observer, frame);
         if let Some((last_key, output)) = &self.last

@@ -16,9 +16,9 @@
 //! face pipeline keeps its cube maps while the lights, the geometry and
 //! the albedos stay put (`crate::gpu::cube_map::CubeMapFrames`).
 
-use super::frame::FrameScene;
-use crate::node::renderer::Fnv64;
 use glam::DVec3;
+use showcase_light::digest::Fnv64;
+use showcase_light::render::frame::FrameScene;
 use showcase_proto::{FrameState, ObjectKind, Showcase};
 
 /// A GPU pass of the projector role.
@@ -108,7 +108,7 @@ impl PassList {
         if has_virtual && other_eyes > 0 {
             passes.push(Pass::EyeShadowViews);
         }
-        if !super::cube_map::reflective_centres(frame).is_empty() {
+        if !showcase_light::render::cube_map::reflective_centres(frame).is_empty() {
             passes.push(Pass::CubeMaps);
         }
         passes.push(Pass::FaceView);
@@ -148,7 +148,7 @@ pub fn coplanar(showcase: &Showcase) -> bool {
     for o in &showcase.objects {
         let (Some(mesh), Some(m)) = (
             showcase.mesh(&o.mesh),
-            crate::light::world_matrix(&o.transform),
+            showcase_light::world_matrix(&o.transform),
         ) else {
             return false;
         };

@@ -1,18 +1,16 @@
 //! The projector role on the GPU: the pass list's shadow views and the
 //! irradiance map for one projector, and the renderer a projector node
 //! runs (with whole-frame reuse). CPU reference:
-//! [`super::projector::irradiance_map_cpu`].
+//! [`showcase_light::render::projector::irradiance_map_cpu`].
 
 use std::time::Instant;
 
 use glam::Vec3;
 use showcase_proto::{ObjectKind, Projector};
 
-use super::RenderSetupError;
-use super::frame::FrameScene;
+use super::FrameError;
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{Pass, PassList, bounding_sphere};
-use super::projector::COS_FLOOR;
 use crate::gpu::frame_arrays::ARRAY_USAGE;
 use crate::gpu::irradiance_map::{
     self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
@@ -25,6 +23,8 @@ use crate::gpu::shadow_views::{
 use crate::gpu::target::{ColourReadback, read_colours, visit_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
+use showcase_light::render::frame::FrameScene;
+use showcase_light::render::projector::COS_FLOOR;
 
 mod blend_texture;
 mod inputs;
@@ -166,7 +166,7 @@ impl ProjectorPipeline {
         projector: &Projector,
         passes: &PassList,
         timed: bool,
-    ) -> Result<PassTimes, RenderSetupError> {
+    ) -> Result<PassTimes, FrameError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let start = Instant::now();
         self.scene.update(device, queue, &frame.showcase)?;
@@ -252,10 +252,10 @@ impl ProjectorPipeline {
             self.irradiance_bind = None;
         }
         let Some(blend) = self.blend.as_ref() else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
         let Some(maps) = self.maps.as_mut() else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
         let views_generation = self.views.generation();
         if self
@@ -314,7 +314,7 @@ impl ProjectorPipeline {
         let (Some(targets), Some((_, shadow_bind)), Some((_, irradiance_bind))) =
             (&self.targets, &self.shadow_bind, &self.irradiance_bind)
         else {
-            return Err(RenderSetupError::NothingDrawn);
+            return Err(FrameError::NothingDrawn);
         };
 
         let mut times = Vec::new();
@@ -322,7 +322,7 @@ impl ProjectorPipeline {
         let mut since = start;
         let mut flush = |encoder: &mut wgpu::CommandEncoder,
                          step: &'static str|
-         -> Result<(), RenderSetupError> {
+         -> Result<(), FrameError> {
             if timed {
                 let done =
                     std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
@@ -403,11 +403,8 @@ impl ProjectorPipeline {
 
     /// Copy both targets of the last drawn frame to their readback
     /// buffers and submit the copies.
-    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, RenderSetupError> {
-        let targets = self
-            .targets
-            .as_ref()
-            .ok_or(RenderSetupError::NothingDrawn)?;
+    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, FrameError> {
+        let targets = self.targets.as_ref().ok_or(FrameError::NothingDrawn)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
         targets.readback[1].encode_copy(&mut encoder, &targets.value);
@@ -417,7 +414,7 @@ impl ProjectorPipeline {
 
     /// Read the last drawn frame back (waits for the GPU). Non-finite
     /// values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderSetupError> {
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, FrameError> {
         let targets = self.submit_readback(ctx)?;
         let mut read = read_colours(&ctx.device, &[&targets.readback[0], &targets.readback[1]])?;
         let value = read.pop().unwrap_or_default();
@@ -440,7 +437,7 @@ impl ProjectorPipeline {
     /// the device values and the clipped fraction, equal to
     /// [`Self::read`]'s. The `L` target is copied back too, but only its
     /// state codes are looked at, in place, so no image of it is built.
-    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, RenderSetupError> {
+    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, FrameError> {
         let targets = self.submit_readback(ctx)?;
         let (w, h) = (targets.value.width(), targets.value.height());
         let mut value: Vec<[f32; 4]> = Vec::with_capacity(w as usize * h as usize);
@@ -480,7 +477,7 @@ impl ProjectorPipeline {
         frame: &FrameScene,
         projector: &Projector,
         passes: &PassList,
-    ) -> Result<GpuIrradianceMap, RenderSetupError> {
+    ) -> Result<GpuIrradianceMap, FrameError> {
         self.draw(ctx, frame, projector, passes, false)?;
         self.read(ctx)
     }

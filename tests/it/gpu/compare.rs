@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, bail, ensure};
-use showcase_render::light::raster::RasterImage;
+use showcase_light::raster::RasterImage;
 
 /// How far the GPU may stray from the CPU reference.
 pub(super) struct Tolerance {

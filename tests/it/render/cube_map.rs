@@ -10,22 +10,22 @@ use std::f64::consts::PI;
 
 use anyhow::{Result, ensure};
 use glam::{DVec2, DVec3, Quat, Vec3};
+use showcase_light::metrics::relative_rmse;
+use showcase_light::render::cube_map::{
+    CUBE_FACES, NO_SURFACE_DISTANCE, cube_map_cpu, cube_maps_cpu, reflect, reflective_centres,
+    texel_direction, world_to_face,
+};
+use showcase_light::render::face::{face_image_cpu_with, reflected_pixel};
+use showcase_light::render::projector::edge_mask;
+use showcase_light::render::{FrameScene, Occluders};
+use showcase_light::{Image, Ray};
 use showcase_proto::{CrtFace, Material, Mesh, Object, ObjectKind, Showcase, Transform};
-use showcase_render::light::metrics::relative_rmse;
-use showcase_render::light::{Image, Ray};
 use showcase_render::render::bench::{
     bench_face, bench_frame, bench_light, uv_sphere, variant_scene,
 };
 use showcase_render::render::compare::EDGE_RADIUS_PX;
-use showcase_render::render::cube_map::{
-    CUBE_FACES, NO_SURFACE_DISTANCE, cube_map_cpu, cube_maps_cpu, reflect, reflective_centres,
-    texel_direction, world_to_face,
-};
-use showcase_render::render::face::{face_image_cpu_with, reflected_pixel};
 use showcase_render::render::face_gpu::{FacePipeline, other_eyes};
 use showcase_render::render::passes::{Pass, PassList};
-use showcase_render::render::projector::edge_mask;
-use showcase_render::render::{FrameScene, Occluders};
 
 use super::gpu_or_skip;
 use super::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};

@@ -6,18 +6,18 @@ use std::sync::Arc;
 
 use anyhow::{Result, ensure};
 use glam::{DVec2, DVec3, Vec3};
+use showcase_light::metrics::relative_rmse;
+use showcase_light::render::face::{eyes_to_fill, face_image_cpu, reflected_pixel};
+use showcase_light::render::projector::edge_mask;
+use showcase_light::render::{FrameScene, Occluders};
+use showcase_light::{Image, Ray};
 use showcase_proto::{CrtFace, ObjectKind};
 use showcase_render::gpu::GpuContext;
-use showcase_render::light::metrics::relative_rmse;
-use showcase_render::light::{Image, Ray};
 use showcase_render::node::renderer::Renderer;
 use showcase_render::render::bench::{bench_face, bench_frame};
 use showcase_render::render::compare::EDGE_RADIUS_PX;
-use showcase_render::render::face::{eyes_to_fill, face_image_cpu, reflected_pixel};
 use showcase_render::render::face_gpu::{FacePipeline, FaceRenderer, other_eyes};
 use showcase_render::render::passes::{Pass, PassList};
-use showcase_render::render::projector::edge_mask;
-use showcase_render::render::{FrameScene, Occluders};
 
 use super::gpu_or_skip;
 use super::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};
@@ -46,7 +46,7 @@ fn face_pixels_lie_on_the_line_of_sight_through_their_reflection() -> Result<()>
             let through = reflected_pixel(&face, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
             let ray = Ray::new(eye, (through - eye).normalize());
             let hit = occ.all.closest_hit(&ray, 0.0, f64::INFINITY).unwrap();
-            let view = showcase_render::mirror_view::FaceView::new(&face, eye, 0.01, 20.0).unwrap();
+            let view = showcase_light::mirror_view::FaceView::new(&face, eye, 0.01, 20.0).unwrap();
             let px = view.pixel(hit.point, face.width, face.height).unwrap();
             ensure!(
                 (px - DVec2::new(x as f64 + 0.5, y as f64 + 0.5)).length() < 1e-6,

@@ -7,10 +7,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail, ensure};
 use glam::Vec3;
+use showcase_light::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 use showcase_render::render::bench::{bench_frame, bench_projector};
 use showcase_render::render::passes::PassList;
 use showcase_render::render::projector_gpu::ProjectorPipeline;
-use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 
 use super::gpu_or_skip;
 use super::scenes::bench;

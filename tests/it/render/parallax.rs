@@ -11,21 +11,21 @@
 
 use anyhow::{Result, bail, ensure};
 use glam::{DVec2, DVec3, Vec3};
-use showcase_proto::{Material, Mesh, ObjectKind, Showcase};
-use showcase_render::light::metrics::relative_rmse;
-use showcase_render::light::{Image, Ray};
-use showcase_render::render::bench::{bench_face, uv_sphere};
-use showcase_render::render::compare::EDGE_RADIUS_PX;
-use showcase_render::render::cube_map::{
+use showcase_light::metrics::relative_rmse;
+use showcase_light::render::cube_map::{
     CUBE_FACES, CubeMap, NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS,
     PARALLAX_SURFACE_TOLERANCE, cube_map_cpu, environment, reflect, reflective_centres,
     texel_direction, world_to_face,
 };
-use showcase_render::render::face::face_image_cpu_with;
+use showcase_light::render::face::face_image_cpu_with;
+use showcase_light::render::projector::edge_mask;
+use showcase_light::render::{FrameScene, Occluders};
+use showcase_light::{Image, Ray};
+use showcase_proto::{Material, Mesh, ObjectKind, Showcase};
+use showcase_render::render::bench::{bench_face, uv_sphere};
+use showcase_render::render::compare::EDGE_RADIUS_PX;
 use showcase_render::render::face_gpu::FacePipeline;
 use showcase_render::render::passes::PassList;
-use showcase_render::render::projector::edge_mask;
-use showcase_render::render::{FrameScene, Occluders};
 
 use super::gpu_or_skip;
 use super::projector::{GPU_CPU_REL_RMSE, OFF_EDGE_OUTLIERS};

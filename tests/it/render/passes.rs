@@ -7,9 +7,9 @@ use std::sync::Arc;
 
 use anyhow::{Result, ensure};
 use glam::Vec3;
+use showcase_light::render::FrameScene;
 use showcase_proto::{FrameState, Pose, Showcase};
 use showcase_render::node::renderer::Renderer;
-use showcase_render::render::FrameScene;
 use showcase_render::render::bench::{bench_frame, bench_light, bench_projector, variant_scene};
 use showcase_render::render::passes::{Pass, PassList};
 use showcase_render::render::projector_gpu::{

@@ -4,14 +4,14 @@
 
 use anyhow::{Result, ensure};
 use glam::{DVec3, Vec3};
+use showcase_light::DeviceRays;
+use showcase_light::render::consistency::direct_light_consistency;
+use showcase_light::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 use showcase_proto::{FrameState, Light, LightSource, ObjectKind, Observer, Pose};
-use showcase_render::light::DeviceRays;
 use showcase_render::render::bench::{bench_camera, bench_frame, bench_projector};
 use showcase_render::render::compare::{compare_maps, gpu_map_with_reference_state};
-use showcase_render::render::consistency::direct_light_consistency;
 use showcase_render::render::passes::{Pass, PassList};
 use showcase_render::render::projector_gpu::ProjectorPipeline;
-use showcase_render::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
 
 use super::gpu_or_skip;
 use super::scenes::{bench, plate_scene, point};
@@ -82,7 +82,7 @@ fn plate_irradiance_map_is_the_analytic_quotient() -> Result<()> {
 
 /// The wall point behind `blocker` as seen from `origin`, and its normal.
 fn behind(occ: &Occluders, origin: DVec3, blocker: DVec3) -> Option<(DVec3, DVec3)> {
-    let ray = showcase_render::light::Ray::new(origin, (blocker - origin).normalize());
+    let ray = showcase_light::Ray::new(origin, (blocker - origin).normalize());
     let hit = occ.real_only.closest_hit(&ray, 0.0, f64::INFINITY)?;
     let n = if hit.geometric_normal.dot(ray.direction) < 0.0 {
         hit.geometric_normal
@@ -111,7 +111,7 @@ fn virtual_objects_shadow_real_ones_and_cast_occlusion_shadows() -> Result<()> {
     // gets the ambient term only.
     let light = frame.samples[0].position;
     let (p, n) = behind(&occ, light, centre).unwrap();
-    let (e, lit) = showcase_render::render::projector::target_irradiance(&frame, &occ, p, n);
+    let (e, lit) = showcase_light::render::projector::target_irradiance(&frame, &occ, p, n);
     ensure!(lit == 0, "the light reaches the point behind the sphere");
     ensure!(
         (e - frame.ambient()).length() < 1e-12,

@@ -5,12 +5,12 @@
 use super::{BenchRecord, base, mesh_with};
 use glam::DVec3;
 use serde_json::json;
-use showcase_proto::{ObjectKind, PinholeDevice, Projector, ProjectorResponse, Showcase};
-use showcase_render::light::{ObjectFilter, SceneGeometry};
-use showcase_render::radiosity::{
+use showcase_light::radiosity::{
     self, B1Pass, GatherOptions, augmented_radiosity, augmented_radiosity_with,
     gathered_b2_vertices, irradiance_map,
 };
+use showcase_light::{ObjectFilter, SceneGeometry};
+use showcase_proto::{ObjectKind, PinholeDevice, Projector, ProjectorResponse, Showcase};
 use std::time::Instant;
 
 /// The figure-3 scene: the Cornell box with the blocks and the light

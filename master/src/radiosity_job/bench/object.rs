@@ -7,9 +7,9 @@ use super::{BenchRecord, gathered_config, mesh_with};
 use anyhow::Context;
 use glam::{DVec3, Vec3};
 use serde_json::json;
+use showcase_light::radiosity::{self, RadiosityMesh, Shooter};
+use showcase_light::{ObjectFilter, SceneGeometry};
 use showcase_proto::{ObjectKind, Showcase};
-use showcase_render::light::{ObjectFilter, SceneGeometry};
-use showcase_render::radiosity::{self, RadiosityMesh, Shooter};
 use std::time::Instant;
 
 /// The Cornell box with a virtual cube of side `side` (metres, albedo 0.5)
@@ -258,7 +258,7 @@ pub fn incremental_object_record(
         "entries_reciprocal": stats.entries_reciprocal,
         "entries_rescaled": stats.entries_rescaled,
         "speedup": full_seconds / inc_seconds.max(1e-9),
-        "speedup_paired_median": crate::cluster::metrics::percentile(&paired, 50.0),
+        "speedup_paired_median": showcase_light::metrics::percentile(&paired, 50.0),
         "speedup_without_scene": (full_seconds - scene_seconds)
             / (inc_seconds - scene_seconds).max(1e-9),
         "speedup_over_warm": warm_seconds / inc_seconds.max(1e-9),

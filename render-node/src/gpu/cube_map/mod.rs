@@ -10,7 +10,7 @@
 //! has its own uniform whose eye is the map's centre and whose
 //! `clip_from_world` is that face's view
 //! ([`super::shadow_views::cube_views`]). CPU reference:
-//! `crate::render::cube_map::cube_map_cpu`.
+//! `showcase_light::render::cube_map::cube_map_cpu`.
 
 use std::ops::Range;
 
@@ -21,8 +21,8 @@ use super::face_view::{FaceBindGroup, FaceBindings, FaceFrameUniform, Variants};
 use super::shadow_views::cube_views;
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, padded_bytes_per_row};
 use super::upload::UploadBuffer;
-use crate::node::renderer::Fnv64;
-use crate::render::cube_map::NO_SURFACE_DISTANCE;
+use showcase_light::digest::Fnv64;
+use showcase_light::render::cube_map::NO_SURFACE_DISTANCE;
 
 /// Near plane of the cube faces (metres from the centre).
 pub const CUBE_NEAR: f32 = 1e-3;

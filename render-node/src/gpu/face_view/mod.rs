@@ -2,7 +2,7 @@
 //! face, with phantom depth, shadow types 2 and 3 from the light shadow
 //! views, and reflective objects showing their cube maps
 //! ([`super::cube_map`] draws those with this module's shader). CPU
-//! reference: `crate::render::face::face_image_cpu`.
+//! reference: `showcase_light::render::face::face_image_cpu`.
 
 use std::sync::OnceLock;
 

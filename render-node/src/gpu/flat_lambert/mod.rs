@@ -1,7 +1,7 @@
-//! Flat Lambert pass: draws a [`FlatLambertScene`] into an [`OffscreenTarget`], one colour per triangle; the bring-up pass checked pixel-wise against `crate::light::raster`.
+//! Flat Lambert pass: draws a [`FlatLambertScene`] into an [`OffscreenTarget`], one colour per triangle; the bring-up pass checked pixel-wise against `showcase_light::raster`.
 //!
 //! The rules (clip mapping, culling, fill rule, depth, shading) are those
-//! documented in `crate::light::raster`; this pass must match that CPU
+//! documented in `showcase_light::raster`; this pass must match that CPU
 //! reference everywhere except at its `uncertain` pixels.
 
 use bytemuck::{Pod, Zeroable};
@@ -11,7 +11,7 @@ use wgpu::util::DeviceExt;
 use super::GpuError;
 use super::pipeline::{TrianglePipeline, entry, opaque, uniform_buffer};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
-use crate::light::raster::{FlatLambertScene, face_normal, normal_from_object};
+use showcase_light::raster::{FlatLambertScene, face_normal, normal_from_object};
 
 /// Mirrors WGSL `struct View` in `flat_lambert.wgsl`.
 #[repr(C)]

@@ -1,17 +1,17 @@
 //! GPU hemi-cube item buffers: every element triangle rasterised with its id into the five faces of a hemi-cube (R32Uint + depth), read back in the CPU hemi-cube's pixel order.
 //!
-//! This replaces [`HemiCube::item_buffer`](crate::radiosity::hemicube::HemiCube::item_buffer)
+//! This replaces [`HemiCube::item_buffer`](showcase_light::radiosity::hemicube::HemiCube::item_buffer)
 //! (one BVH ray per pixel centre) by rasterisation, which samples the same
 //! pixel centres: the two agree except at pixels whose centre falls on a
 //! triangle edge (fill rule against ray-triangle test, f32 against f64
 //! vertices). The delta form factors are then accumulated on the CPU in
-//! f64 by [`HemiCube::accumulate`](crate::radiosity::hemicube::HemiCube::accumulate).
+//! f64 by [`HemiCube::accumulate`](showcase_light::radiosity::hemicube::HemiCube::accumulate).
 //!
 //! Layout: one 2D-array layer per shot, `resolution` wide and
 //! `3 * resolution` tall: the top face in rows `0..n`, then the side faces
 //! `+x`, `-x`, `+y`, `-y` of the local frame, `n / 2` rows each, so that a
 //! layer read row by row is the item buffer as
-//! [`HemiCube::new`](crate::radiosity::hemicube::HemiCube::new) orders it.
+//! [`HemiCube::new`](showcase_light::radiosity::hemicube::HemiCube::new) orders it.
 //! Each face is one draw of all triangles with its own viewport and
 //! projection; a batch of shots is one submission and one readback.
 
@@ -23,7 +23,7 @@ use wgpu::util::DeviceExt;
 use super::pipeline::{TrianglePipeline, entry, one_group_layout, opaque, uniform_buffer};
 use super::target::padded_bytes_per_row;
 use super::{GpuContext, GpuError};
-use crate::radiosity::hemicube::{
+use showcase_light::radiosity::hemicube::{
     HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle, NO_ITEM,
 };
 
@@ -148,7 +148,7 @@ impl GpuHemiCube {
     ) -> Result<GpuHemiCubeScene, GpuError> {
         let device = &self.ctx.device;
         let limits = device.limits();
-        if crate::radiosity::hemicube::HemiCube::new(resolution).is_err()
+        if showcase_light::radiosity::hemicube::HemiCube::new(resolution).is_err()
             || 3 * resolution > limits.max_texture_dimension_2d
         {
             return Err(GpuError::BadTargetSize {
@@ -329,7 +329,7 @@ impl GpuHemiCubeScene {
         self.batch
     }
 
-    /// One item buffer per shot (in [`HemiCube`](crate::radiosity::hemicube::HemiCube)
+    /// One item buffer per shot (in [`HemiCube`](showcase_light::radiosity::hemicube::HemiCube)
     /// pixel order; [`NO_ITEM`] where no triangle is seen front-on), in
     /// batches of [`Self::batch`] shots per submission and readback.
     /// Shots with a non-finite origin or a normal that is not unit length
@@ -518,7 +518,7 @@ impl ItemBufferScene for GpuHemiCubeScene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::radiosity::hemicube::HemiCube;
+    use showcase_light::radiosity::hemicube::HemiCube;
 
     /// Every pixel-centre direction of the CPU hemi-cube, projected with
     /// its face's matrix, lands in the centre of the same pixel of the

@@ -1,7 +1,7 @@
 //! Irradiance map pass: the projector role's per-pixel `L` and device
 //! values from the real phantoms, the light samples, the eyes and the
 //! shadow views' distance maps. CPU reference:
-//! `crate::render::projector::irradiance_map_cpu` (units and rules there).
+//! `showcase_light::render::projector::irradiance_map_cpu` (units and rules there).
 
 use std::sync::OnceLock;
 

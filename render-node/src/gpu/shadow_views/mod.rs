@@ -4,7 +4,7 @@
 //! distances from the view's origin and compare against. Depth only (no
 //! fragment shader, no colour target): the cheapest fill a rasteriser has,
 //! which matters on a CPU one. CPU reference: visibility rays
-//! (`crate::render::projector`).
+//! (`showcase_light::render::projector`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
@@ -87,32 +87,6 @@ pub fn cube_views(origin: Vec3, near: f32, far: f32, res: u32) -> Vec<ShadowView
             v
         })
         .collect()
-}
-
-/// The face of [`cube_views`] (0 to 5) whose view holds direction `d`
-/// from the origin, and `d`'s (right, up, forward) components in that
-/// face's view: the major axis picks the face, and the view's axes are a
-/// signed permutation of `d`. Mirrors WGSL `visible_in_cube` of the
-/// passes that sample the maps (which so need not read the views).
-pub fn cube_coords(d: Vec3) -> (usize, Vec3) {
-    let a = d.abs();
-    if a.x >= a.y && a.x >= a.z {
-        if d.x > 0.0 {
-            (0, Vec3::new(d.z, d.y, d.x))
-        } else {
-            (1, Vec3::new(-d.z, d.y, -d.x))
-        }
-    } else if a.y >= a.z {
-        if d.y > 0.0 {
-            (2, Vec3::new(d.x, d.z, d.y))
-        } else {
-            (3, Vec3::new(-d.x, d.z, -d.y))
-        }
-    } else if d.z > 0.0 {
-        (4, Vec3::new(-d.x, d.y, d.z))
-    } else {
-        (5, Vec3::new(d.x, d.y, -d.z))
-    }
 }
 
 /// Views from `origin` covering the sphere `(centre, radius)`: one view
@@ -417,6 +391,7 @@ pub struct LayerDraw<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use showcase_light::render::cube_map::{texel_direction, world_to_face};
 
     fn ndc(v: &ShadowView, p: Vec3) -> Option<Vec3> {
         let c = Mat4::from_cols_array_2d(&v.clip_from_world) * p.extend(1.0);
@@ -446,7 +421,7 @@ mod tests {
     }
 
     #[test]
-    fn cube_coords_are_the_projection_of_the_major_axis_face() {
+    fn world_to_face_is_the_projection_of_the_major_axis_face() {
         use rand::{Rng, SeedableRng};
         let o = Vec3::new(0.3, -0.1, 0.2);
         let views = cube_views(o, 1e-3, 10.0, 256);
@@ -460,7 +435,8 @@ mod tests {
             if d.length() < 1e-3 {
                 continue;
             }
-            let (face, c) = cube_coords(d);
+            let (face, c) = world_to_face(d.as_dvec3());
+            let c = c.as_vec3();
             let n = ndc(&views[face], o + d).expect("in front of its face");
             assert!(
                 n.x.abs() <= 1.0 + 1e-6 && n.y.abs() <= 1.0 + 1e-6,
@@ -471,6 +447,22 @@ mod tests {
                 (analytic - n.truncate()).abs().max_element() < 1e-5,
                 "{d}: face {face} analytic {analytic} matrix {n}"
             );
+        }
+    }
+
+    #[test]
+    fn faces_match_the_shadow_cube_views() {
+        // The texel's direction projects into the same texel through the
+        // GPU pass's view matrices.
+        let views = cube_views(glam::Vec3::ZERO, 0.01, 10.0, 8);
+        for (face, v) in views.iter().enumerate() {
+            let m = glam::Mat4::from_cols_array_2d(&v.clip_from_world);
+            let d = texel_direction(face, 2, 5, 8).as_vec3();
+            let c = m * d.extend(1.0);
+            let ndc = glam::Vec2::new(c.x, c.y) / c.w;
+            let tx = ((ndc.x * 0.5 + 0.5) * 8.0).floor() as u32;
+            let ty = ((0.5 - ndc.y * 0.5) * 8.0).floor() as u32;
+            assert!(c.w > 0.0 && (tx, ty) == (2, 5), "face {face}: {ndc}");
         }
     }
 

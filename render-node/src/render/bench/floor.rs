@@ -13,24 +13,25 @@ use std::time::Instant;
 use serde::Serialize;
 use showcase_proto::Showcase;
 
-use super::{BenchOptions, bench_frame, bench_projector, percentile};
+use super::{BenchOptions, bench_frame, bench_projector};
 use crate::gpu::irradiance_map::floor::{FloorBindings, FloorError, FloorKind, FloorPass};
 use crate::gpu::shadow_views::occluders::cube_occluder_ranges;
 use crate::gpu::shadow_views::{LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowViewsPass};
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
-use crate::render::RenderSetupError;
-use crate::render::frame::FrameScene;
+use crate::render::FrameError;
 use crate::render::gpu_scene::{SceneBuffers, VertexSet, stable_far};
 use crate::render::projector_gpu::{light_inputs, shadow_far};
+use showcase_light::metrics::percentile;
+use showcase_light::render::frame::FrameScene;
 
 /// Why the floor could not be measured.
 #[derive(Debug, thiserror::Error)]
 pub enum FloorBenchError {
     /// The bench scene could not be set up or drawn.
     #[error(transparent)]
-    Setup(#[from] RenderSetupError),
+    Setup(#[from] FrameError),
     /// A GPU operation failed.
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
@@ -110,7 +111,10 @@ fn time_steps(
         }
     }
     times.sort_by(f64::total_cmp);
-    Ok((percentile(&times, 0.5), percentile(&times, 0.99)))
+    Ok((
+        percentile(&times, 50.0).unwrap_or(0.0),
+        percentile(&times, 99.0).unwrap_or(0.0),
+    ))
 }
 
 /// Measure the floor of both roles on the bench `scene` (from
@@ -131,7 +135,8 @@ pub fn bench_floor(
         let mut s = scene.clone();
         s.projectors = vec![bench_projector(width, height)];
         let projector = s.projectors[0].clone();
-        let frame = FrameScene::resolve(&s, &bench_frame(&s, "full", 1))?;
+        let frame =
+            FrameScene::resolve(&s, &bench_frame(&s, "full", 1)).map_err(FrameError::from)?;
         scene_buffers.update(device, queue, &frame.showcase)?;
         let far = stable_far(shadow_far(
             &frame,
@@ -337,7 +342,10 @@ pub fn bench_floor(
                 "projector",
                 0,
                 count as u32,
-                (percentile(&times, 0.5), percentile(&times, 0.99)),
+                (
+                    percentile(&times, 50.0).unwrap_or(0.0),
+                    percentile(&times, 99.0).unwrap_or(0.0),
+                ),
             ));
         }
     }

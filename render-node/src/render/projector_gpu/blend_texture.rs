@@ -1,11 +1,11 @@
-//! A projector's blend weights ([`crate::render::blend`]) as a texture,
+//! A projector's blend weights ([`showcase_light::render::blend`]) as a texture,
 //! kept until what they depend on changes.
 
 use showcase_proto::{ObjectKind, Projector};
 
 use crate::gpu::GpuContext;
-use crate::render::RenderSetupError;
-use crate::render::frame::FrameScene;
+use crate::render::FrameError;
+use showcase_light::render::frame::FrameScene;
 
 /// What a projector's blend weights depend on: the projectors, which one
 /// this is, and the real objects (meshes and transforms).
@@ -32,12 +32,12 @@ impl BlendTexture {
         frame: &FrameScene,
         projector: &Projector,
         key: BlendKey,
-    ) -> Result<Self, RenderSetupError> {
+    ) -> Result<Self, FrameError> {
         let (w, h) = (projector.device.width, projector.device.height);
         let weights: Vec<f32> = match key.projector {
             Some(i) if key.projectors.len() > 1 => {
-                let real = frame.geometry(&crate::light::ObjectFilter::Real)?;
-                crate::render::blend::Blend::new(&frame.showcase.projectors)?
+                let real = frame.geometry(&showcase_light::ObjectFilter::Real)?;
+                showcase_light::render::blend::Blend::new(&frame.showcase.projectors)?
                     .weight_image(i, &real)?
                     .data
             }
@@ -85,7 +85,7 @@ impl BlendTexture {
 pub(super) fn blend_key(frame: &FrameScene, projector: &Projector) -> BlendKey {
     let projectors = &frame.showcase.projectors;
     BlendKey {
-        projector: crate::render::blend::index_of(projectors, projector),
+        projector: showcase_light::render::blend::index_of(projectors, projector),
         projectors: projectors.iter().map(|p| p.device.clone()).collect(),
         real: frame
             .showcase

@@ -7,16 +7,16 @@ use showcase_proto::{ObjectKind, Showcase};
 
 use crate::gpu::irradiance_map::LightSampleGpu;
 use crate::gpu::shadow_views::{ShadowView, WorldVertex, cube_views};
-use crate::light::world_matrix;
-use crate::render::RenderSetupError;
-use crate::render::frame::{FrameScene, Lobe};
+use crate::render::FrameError;
+use showcase_light::render::frame::{FrameScene, Lobe};
+use showcase_light::world_matrix;
 
 /// World-space vertices (three per triangle, flat normals) of the objects
 /// of `kind` (`None`: all); degenerate triangles are left out.
 pub fn world_vertices(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<Vec<WorldVertex>, RenderSetupError> {
+) -> Result<Vec<WorldVertex>, FrameError> {
     Ok(world_vertices_by_object(showcase, kind)?.0)
 }
 
@@ -28,7 +28,7 @@ pub type ObjectRange = (usize, std::ops::Range<u32>);
 pub fn world_vertices_by_object(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderSetupError> {
+) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), FrameError> {
     let mut out = Vec::new();
     let mut ranges = Vec::new();
     for (oi, o) in showcase.objects.iter().enumerate() {
@@ -40,12 +40,12 @@ pub fn world_vertices_by_object(
         let mesh =
             showcase
                 .mesh(&o.mesh)
-                .ok_or_else(|| crate::light::GeometryError::MissingMesh {
+                .ok_or_else(|| showcase_light::GeometryError::MissingMesh {
                     object: oi,
                     name: name(),
                 })?;
         let m = world_matrix(&o.transform).ok_or_else(|| {
-            crate::light::GeometryError::BadTransform {
+            showcase_light::GeometryError::BadTransform {
                 object: oi,
                 name: name(),
             }
@@ -54,7 +54,7 @@ pub fn world_vertices_by_object(
             let mut v = [DVec3::ZERO; 3];
             for (k, &i) in tri.iter().enumerate() {
                 let p = mesh.positions.get(i as usize).ok_or_else(|| {
-                    crate::light::GeometryError::IndexOutOfRange {
+                    showcase_light::GeometryError::IndexOutOfRange {
                         object: oi,
                         name: name(),
                         triangle: ti,

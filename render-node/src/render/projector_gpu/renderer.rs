@@ -9,9 +9,9 @@ use crate::gpu::GpuContext;
 use crate::node::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
 };
-use crate::render::RenderSetupError;
-use crate::render::frame::FrameScene;
 use crate::render::passes::{FrameKey, Pass, PassList};
+use crate::render::{FrameError, RenderSetupError};
+use showcase_light::render::frame::FrameScene;
 
 use super::ProjectorPipeline;
 
@@ -75,7 +75,7 @@ impl ProjectorRenderer {
         &mut self,
         frame: &FrameState,
         scene: &Showcase,
-    ) -> Result<RenderOutput, RenderSetupError> {
+    ) -> Result<RenderOutput, FrameError> {
         let projector =
             scene
                 .projectors

@@ -1,0 +1,530 @@
+//! What an observer sees in the Virtual Showcase, simulated from the
+//! outputs the render nodes produced, and what it should see.
+//!
+//! The **composite** follows the light the way the cabinet does:
+//! - the real objects, lit only by the projectors (each projector a point
+//!   light at its centre emitting `eta * value^gamma + black_level` W/sr
+//!   along each pixel's ray, nearest pixel, true visibility; direct light
+//!   only, as paper section 5 assumes), with their true reflectance, seen
+//!   straight through the half-silvered mirror;
+//! - plus the CRT's image, reflected by the mirror: the eye's ray meets the
+//!   mirror plane, is reflected, and meets the screen at the pixel whose
+//!   radiance the face node drew (nearest pixel).
+//!
+//! Besides the figures' usual masks ([`ObserverView::edge`],
+//! [`ObserverView::reachable`]) the view marks what the method cannot
+//! get right by design, for a comparable figure that leaves it out:
+//! pixels next to a change of reachability ([`ObserverView::reach_edge`]),
+//! occlusion shadows of other eyes that the mirror image cannot fill
+//! ([`ObserverView::unfillable`]) and, given the projectors' edge masks,
+//! surfaces lit by a projector pixel that straddles an edge
+//! ([`projector_edge_pixels`]).
+//!
+//! The mirror is taken as an ideal combiner (transmission and reflection
+//! 1), so the composite is comparable with the target without a common
+//! attenuation factor.
+//!
+//! The **target** is the scene as if all lighting were virtual: the first
+//! surface on the eye's ray, real or virtual, shaded `rho / pi * E` by the
+//! virtual lights with every shadow (the irradiance the renderers aim
+//! for, [`target_irradiance`]). A reflective virtual object is a mirror
+//! tinted by its albedo, as the face view draws it
+//! ([`crate::render::cube_map`]), but its reflection is traced exactly
+//! from each surface point into the real environment: the cube map and
+//! its distance-corrected lookup (texel resolution, what the map's centre
+//! cannot see) are the approximation the target judges.
+//!
+//! Pure: no IO, no GPU.
+
+// `!(x > 0.0)` is deliberate: it is also true for NaN (as in `light`).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use crate::render::cube_map::{environment, reflect};
+use crate::render::projector::{
+    Occluders, emitted_intensity, in_occlusion_shadow, target_irradiance,
+};
+use crate::render::{FrameScene, RenderSetupError};
+use crate::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
+use glam::{DVec2, DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+use showcase_proto::{CrtFace, ObjectKind, PinholeDevice, Projector};
+use std::f64::consts::PI;
+
+/// Rays per eye pixel along each axis.
+pub const SUBSAMPLES: u32 = 2;
+
+/// One projector's output for a frame: the pixel values it shows.
+#[derive(Clone, Copy, Debug)]
+pub struct ProjectedLight<'a> {
+    /// The projector (its device and response).
+    pub projector: &'a Projector,
+    /// Its pixel values in `0..=1`, projector-sized.
+    pub value: &'a RgbImage,
+}
+
+/// The face image one eye sees through a mirror.
+#[derive(Clone, Copy, Debug)]
+pub struct MirrorImage<'a> {
+    /// The CRT face.
+    pub face: &'a CrtFace,
+    /// The radiance the face node drew for this eye, face-sized.
+    pub radiance: &'a RgbImage,
+}
+
+/// An observer's simulated view and its target.
+#[derive(Clone, Debug)]
+pub struct ObserverView {
+    /// Real objects under projected light plus the reflected CRT image.
+    pub composite: RgbImage,
+    /// The real part of [`Self::composite`].
+    pub real: RgbImage,
+    /// The reflected CRT part of [`Self::composite`].
+    pub reflected: RgbImage,
+    /// All lighting virtual.
+    pub target: RgbImage,
+    /// Pixels where the eye sees some object (real or virtual).
+    pub covered: Image<bool>,
+    /// Pixels whose centre ray meets a virtual object first (the CRT
+    /// image must show it; the projectors must leave the real surface
+    /// behind it dark).
+    pub sees_virtual: Image<bool>,
+    /// Pixels of [`Self::sees_virtual`] whose object is reflective.
+    pub sees_reflective: Image<bool>,
+    /// The object (index into the scene's objects) the centre ray meets
+    /// first, if any.
+    pub first_object: Image<Option<u32>>,
+    /// Pixels whose first real surface some projector reaches (the
+    /// projectors can light only these).
+    pub reachable: Image<bool>,
+    /// Pixels next to a change of the target's first surface or of the
+    /// virtual lights reaching it (silhouette, facet and shadow edges),
+    /// where one nearest-pixel sample cannot be right on both sides.
+    pub edge: Image<bool>,
+    /// Pixels next to a change of [`Self::reachable`]: reachability is
+    /// decided by the centre ray, but the pixel's radiance averages rays
+    /// across it, some of which meet surfaces no projector reaches.
+    pub reach_edge: Image<bool>,
+    /// Pixels whose first surface is real and lies in another tracked
+    /// eye's occlusion shadow (the projectors leave it dark) where the
+    /// mirror image cannot fill it in: this eye's ray through the mirror
+    /// misses the face's screen, or no face serves this eye.
+    pub unfillable: Image<bool>,
+}
+
+/// The target's first surface on a pixel's ray: object, triangle and the
+/// light samples reaching it.
+type SurfaceKey = Option<(u32, u32, u64)>;
+
+/// Why a view cannot be simulated.
+#[derive(Debug, thiserror::Error)]
+pub enum ObserverViewError {
+    /// The scene or a device cannot be set up.
+    #[error(transparent)]
+    Setup(#[from] RenderSetupError),
+    /// An output image does not have its device's size.
+    #[error("{what} is {width}x{height} but its device is {dw}x{dh}")]
+    SizeMismatch {
+        /// Which image.
+        what: String,
+        /// Image width.
+        width: u32,
+        /// Image height.
+        height: u32,
+        /// Device width.
+        dw: u32,
+        /// Device height.
+        dh: u32,
+    },
+}
+
+/// Simulate what the eye camera `eye` sees (see the module docs).
+pub fn observer_view(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    eye: &PinholeDevice,
+    projected: &[ProjectedLight<'_>],
+    mirror: Option<MirrorImage<'_>>,
+) -> Result<ObserverView, ObserverViewError> {
+    let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
+    let mut projectors = Vec::with_capacity(projected.len());
+    for p in projected {
+        let d = &p.projector.device;
+        check_size(&p.projector.name, p.value, d.width, d.height)?;
+        projectors.push((
+            DeviceRays::new(d).map_err(RenderSetupError::from)?,
+            p.value,
+            p.projector,
+        ));
+    }
+    if let Some(m) = &mirror {
+        check_size(&m.face.name, m.radiance, m.face.width, m.face.height)?;
+    }
+    let (w, h) = (eye.width, eye.height);
+    // The eyes whose occlusion shadows the projectors leave dark: every
+    // tracked eye but this one.
+    let others: Vec<DVec3> = frame
+        .eyes
+        .iter()
+        .copied()
+        .filter(|e| (*e - eye_rays.center()).length() > 1e-9)
+        .collect();
+    let pixels: Vec<([Vec3; 3], SurfaceKey, bool, bool)> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let (eye_rays, projectors, others) = (&eye_rays, &projectors, &others);
+            (0..w).map(move |x| {
+                let Some(ray) = eye_rays.pixel_ray(x, y) else {
+                    return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false, false);
+                };
+                // The pixel's own surface (its centre ray) decides what it
+                // shows and its edge key; its radiance is the mean over
+                // SUBSAMPLES x SUBSAMPLES rays across the pixel, as a
+                // camera pixel integrates its footprint (point samples of
+                // two pixel grids alias).
+                let (centre_target, key) = match target_radiance(frame, occluders, &ray) {
+                    Some((t, key)) => (Some(t), key),
+                    None => (None, None),
+                };
+                let (_, reachable) = real_radiance(frame, &occluders.real_only, projectors, &ray);
+                let unfillable = cannot_fill(frame, occluders, others, mirror.as_ref(), &ray);
+                let (mut real, mut reflected, mut target) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+                let n = SUBSAMPLES * SUBSAMPLES;
+                for k in 0..n {
+                    let offset = DVec2::new(
+                        ((k % SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+                        ((k / SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+                    );
+                    let Some(sub) = eye_rays.ray_through(DVec2::new(x as f64, y as f64) + offset)
+                    else {
+                        continue;
+                    };
+                    real += real_radiance(frame, &occluders.real_only, projectors, &sub).0;
+                    reflected += mirror
+                        .and_then(|m| reflected_radiance(&m, &sub))
+                        .unwrap_or(DVec3::ZERO);
+                    target += target_radiance(frame, occluders, &sub).map_or(DVec3::ZERO, |t| t.0);
+                }
+                let scale = 1.0 / n as f64;
+                let (real, reflected) = (real * scale, reflected * scale);
+                let target = centre_target.map_or(Vec3::NAN, |_| (target * scale).as_vec3());
+                (
+                    [real.as_vec3(), reflected.as_vec3(), target],
+                    key,
+                    reachable,
+                    unfillable,
+                )
+            })
+        })
+        .collect();
+    let mut view = ObserverView {
+        composite: Image::new(w, h, Vec3::ZERO),
+        real: Image::new(w, h, Vec3::ZERO),
+        reflected: Image::new(w, h, Vec3::ZERO),
+        target: Image::new(w, h, Vec3::ZERO),
+        covered: Image::new(w, h, false),
+        sees_virtual: Image::new(w, h, false),
+        sees_reflective: Image::new(w, h, false),
+        first_object: Image::new(w, h, None),
+        edge: Image::new(w, h, false),
+        reachable: Image::new(w, h, false),
+        reach_edge: Image::new(w, h, false),
+        unfillable: Image::new(w, h, false),
+    };
+    let mut keys = Image::new(w, h, None);
+    for (i, ([real, reflected, target], key, reachable, unfillable)) in
+        pixels.into_iter().enumerate()
+    {
+        view.unfillable.data[i] = unfillable;
+        keys.data[i] = key;
+        let seen = key.and_then(|(object, _, _)| frame.showcase.objects.get(object as usize));
+        let virtual_ = seen.filter(|o| o.kind == ObjectKind::Virtual);
+        view.first_object.data[i] = key.map(|(object, _, _)| object);
+        view.sees_virtual.data[i] = virtual_.is_some();
+        view.sees_reflective.data[i] = virtual_.is_some_and(|o| o.material.reflective);
+        view.reachable.data[i] = reachable;
+        view.real.data[i] = real;
+        view.reflected.data[i] = reflected;
+        view.composite.data[i] = real + reflected;
+        view.covered.data[i] = !target.is_nan();
+        view.target.data[i] = if target.is_nan() { Vec3::ZERO } else { target };
+    }
+    for y in 0..h {
+        for x in 0..w {
+            let k = keys.get(x, y).copied().flatten();
+            let differs = |dx: i64, dy: i64| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                nx >= 0
+                    && ny >= 0
+                    && keys
+                        .get(nx as u32, ny as u32)
+                        .is_some_and(|n| n.map(|n| (n.0, n.2)) != k.map(|k| (k.0, k.2)))
+            };
+            let on_edge = (-1..=1).any(|dy| (-1..=1).any(|dx| differs(dx, dy)));
+            if let Some(e) = view.edge.get_mut(x, y) {
+                *e = on_edge;
+            }
+        }
+    }
+    view.reach_edge = next_to_change(&view.reachable);
+    Ok(view)
+}
+
+/// Pixels with a 3x3 neighbour whose value differs from their own.
+pub fn next_to_change(mask: &Image<bool>) -> Image<bool> {
+    Image::from_fn(mask.width, mask.height, |x, y| {
+        let here = mask.get(x, y).copied().unwrap_or(false);
+        (-1i64..=1).any(|dy| {
+            (-1i64..=1).any(|dx| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                nx >= 0 && ny >= 0 && mask.get(nx as u32, ny as u32).is_some_and(|n| *n != here)
+            })
+        })
+    })
+}
+
+/// True when `ray`'s first surface is real, lies in the occlusion shadow
+/// of one of `other_eyes`, and the mirror image cannot show it (no face,
+/// or the ray through the mirror misses the screen).
+fn cannot_fill(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    other_eyes: &[DVec3],
+    mirror: Option<&MirrorImage<'_>>,
+    ray: &Ray,
+) -> bool {
+    if mirror.is_some_and(|m| mirror_pixel(m.face, ray).is_some()) {
+        return false;
+    }
+    let Some(hit) = occluders.all.closest_hit(ray, 0.0, f64::INFINITY) else {
+        return false;
+    };
+    let real = frame
+        .showcase
+        .objects
+        .get(hit.object as usize)
+        .is_some_and(|o| o.kind == ObjectKind::Real);
+    real && hit.geometric_normal != DVec3::ZERO
+        && in_occlusion_shadow(
+            &occluders.virtual_only,
+            other_eyes,
+            hit.point,
+            facing_origin(hit.geometric_normal, ray),
+        )
+}
+
+/// The eye pixels whose first real surface some projector lights from a
+/// pixel marked in that projector's `edges` (for example
+/// [`crate::render::projector::edge_mask`] of the map it showed: one
+/// projector pixel cannot be right on both sides of a silhouette, shadow
+/// or occlusion-shadow edge). Each entry pairs a projector (its true
+/// device: which pixel physically lights a point) with its edge mask.
+pub fn projector_edge_pixels(
+    occluders: &Occluders,
+    eye: &PinholeDevice,
+    projectors: &[(&Projector, &Image<bool>)],
+) -> Result<Image<bool>, ObserverViewError> {
+    let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
+    let mut rays = Vec::with_capacity(projectors.len());
+    for (p, edges) in projectors {
+        let d = &p.device;
+        if edges.width != d.width || edges.height != d.height {
+            return Err(ObserverViewError::SizeMismatch {
+                what: format!("{} edge mask", p.name),
+                width: edges.width,
+                height: edges.height,
+                dw: d.width,
+                dh: d.height,
+            });
+        }
+        rays.push((DeviceRays::new(d).map_err(RenderSetupError::from)?, *edges));
+    }
+    let (w, h) = (eye.width, eye.height);
+    let data: Vec<bool> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let (eye_rays, rays) = (&eye_rays, &rays);
+            (0..w).map(move |x| {
+                let Some(ray) = eye_rays.pixel_ray(x, y) else {
+                    return false;
+                };
+                let Some(hit) = occluders.real_only.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                    return false;
+                };
+                if hit.geometric_normal == DVec3::ZERO {
+                    return false;
+                }
+                let facing = facing_origin(hit.geometric_normal, &ray);
+                rays.iter().any(|(r, edges)| {
+                    r.sees(&occluders.real_only, hit.point, facing)
+                        && r.pixel_of(hit.point)
+                            .is_some_and(|(px, py)| edges.get(px, py).copied().unwrap_or(false))
+                })
+            })
+        })
+        .collect();
+    Ok(Image {
+        width: w,
+        height: h,
+        data,
+    })
+}
+
+fn check_size(what: &str, image: &RgbImage, dw: u32, dh: u32) -> Result<(), ObserverViewError> {
+    if image.width != dw || image.height != dh {
+        return Err(ObserverViewError::SizeMismatch {
+            what: what.into(),
+            width: image.width,
+            height: image.height,
+            dw,
+            dh,
+        });
+    }
+    Ok(())
+}
+
+/// The side of a hit surface facing the ray's origin.
+fn facing_origin(normal: DVec3, ray: &Ray) -> DVec3 {
+    if normal.dot(ray.direction) <= 0.0 {
+        normal
+    } else {
+        -normal
+    }
+}
+
+/// Radiance of the first real surface on `ray` under the projectors, and
+/// whether any projector reaches that surface.
+fn real_radiance(
+    frame: &FrameScene,
+    real_only: &SceneGeometry,
+    projectors: &[(DeviceRays, &RgbImage, &Projector)],
+    ray: &Ray,
+) -> (DVec3, bool) {
+    let Some(hit) = real_only.closest_hit(ray, 0.0, f64::INFINITY) else {
+        return (DVec3::ZERO, false);
+    };
+    if hit.geometric_normal == DVec3::ZERO
+        || real_only.object_kind(hit.object) != Some(ObjectKind::Real)
+    {
+        return (DVec3::ZERO, false);
+    }
+    let Some(object) = frame.showcase.objects.get(hit.object as usize) else {
+        return (DVec3::ZERO, false);
+    };
+    let facing = facing_origin(hit.geometric_normal, ray);
+    let rho = object
+        .material
+        .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
+        .as_dvec3();
+    let mut e = DVec3::ZERO;
+    let mut reachable = false;
+    for (rays, value, projector) in projectors {
+        // Light reaches the side the eye sees only from a projector on
+        // that side (`sees` checks the side, the image and visibility).
+        if !rays.sees(real_only, hit.point, facing) {
+            continue;
+        }
+        reachable = true;
+        let Some((px, py)) = rays.pixel_of(hit.point) else {
+            continue;
+        };
+        let Some(v) = value.get(px, py) else {
+            continue;
+        };
+        let j = emitted_intensity(v.as_dvec3(), &projector.response);
+        let to = rays.center() - hit.point;
+        let r2 = to.length_squared();
+        e += j * (facing.dot(to) / r2.sqrt() / r2);
+    }
+    let l = rho / PI * e;
+    (if l.is_finite() { l } else { DVec3::ZERO }, reachable)
+}
+
+/// Radiance of the CRT pixel the eye sees along `ray` via the mirror.
+fn reflected_radiance(m: &MirrorImage<'_>, ray: &Ray) -> Option<DVec3> {
+    let pixel = mirror_pixel(m.face, ray)?;
+    m.radiance
+        .get(pixel.x as u32, pixel.y as u32)
+        .map(|c| c.as_dvec3())
+}
+
+/// The CRT pixel coordinates (continuous) that `ray` from an eye sees by
+/// way of the face's mirror: the ray meets the mirror plane, is
+/// reflected, and meets the screen. `None` when it misses the screen.
+pub fn mirror_pixel(face: &CrtFace, ray: &Ray) -> Option<DVec2> {
+    let n = face.mirror.normal.as_dvec3();
+    let denom = n.dot(ray.direction);
+    if denom == 0.0 {
+        return None;
+    }
+    let t = (f64::from(face.mirror.offset) - n.dot(ray.origin)) / denom;
+    if !(t > 0.0) {
+        return None;
+    }
+    let at = ray.at(t);
+    let dir = ray.direction - 2.0 * denom * n;
+    let s = face.screen;
+    let (origin, right, down) = (s.origin.as_dvec3(), s.right.as_dvec3(), s.down.as_dvec3());
+    let sn = down.cross(right);
+    let dd = sn.dot(dir);
+    if dd == 0.0 {
+        return None;
+    }
+    let ts = sn.dot(origin - at) / dd;
+    if !(ts > 0.0) {
+        return None;
+    }
+    let q = at + ts * dir - origin;
+    // Solve q = a * right + b * down (least squares on the plane).
+    let (rr, rd, dd2) = (right.dot(right), right.dot(down), down.dot(down));
+    let det = rr * dd2 - rd * rd;
+    if !(det > 0.0) {
+        return None;
+    }
+    let (qr, qd) = (q.dot(right), q.dot(down));
+    let a = (qr * dd2 - qd * rd) / det;
+    let b = (qd * rr - qr * rd) / det;
+    let pixel = DVec2::new(a * face.width as f64, b * face.height as f64);
+    (pixel.x >= 0.0
+        && pixel.y >= 0.0
+        && pixel.x < face.width as f64
+        && pixel.y < face.height as f64)
+        .then_some(pixel)
+}
+
+/// Radiance of the first surface (real or virtual) on `ray` with all
+/// lighting virtual, and the surface's key; `None` when the ray meets
+/// nothing.
+fn target_radiance(
+    frame: &FrameScene,
+    occluders: &Occluders,
+    ray: &Ray,
+) -> Option<(DVec3, SurfaceKey)> {
+    let hit = occluders.all.closest_hit(ray, 0.0, f64::INFINITY)?;
+    if hit.geometric_normal == DVec3::ZERO {
+        return Some((DVec3::ZERO, None));
+    }
+    let object = frame.showcase.objects.get(hit.object as usize)?;
+    let facing = facing_origin(hit.geometric_normal, ray);
+    let rho = object
+        .material
+        .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
+        .as_dvec3();
+    let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    let l = if object.material.reflective && object.kind == ObjectKind::Virtual {
+        // A mirror tinted by its albedo (render::cube_map's model), traced
+        // exactly from the surface point: the cube map's distance-corrected
+        // lookup is the approximation under test.
+        let dir = reflect(ray.direction, facing);
+        let from = hit.point + facing * 1e-6;
+        rho * environment(frame, occluders, from, dir).0.as_dvec3()
+    } else {
+        rho / PI * e
+    };
+    Some((
+        if l.is_finite() { l } else { DVec3::ZERO },
+        Some((hit.object, hit.primitive, lit)),
+    ))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,643 @@
+//! The two-level radiosity mesh: every scene triangle (a *primitive*) is
+//! split by midpoint subdivision into *patches* no larger than a maximum
+//! area (the shooters), and each patch into *elements* (the receivers),
+//! which are refined further where the radiosity changes fast.
+//!
+//! Each primitive owns a quadtree in its barycentric coordinates, so a ray
+//! hit `(primitive, barycentric)` finds its element by descending the tree,
+//! and patches and elements keep the winding (front side) of their
+//! primitive. Vertices are shared between elements of one object with the
+//! same plane orientation, for per-vertex (Gouraud) interpolation.
+
+use crate::SceneGeometry;
+use glam::{DVec2, DVec3};
+use showcase_proto::{ObjectKind, Showcase};
+use std::collections::HashMap;
+
+/// Sentinel for "no element / no child".
+const NONE: u32 = u32::MAX;
+/// Largest albedo used, so that energy always decays.
+pub const MAX_REFLECTANCE: f64 = 0.999;
+/// Vertex positions are merged on a grid of this size (metres).
+const VERTEX_WELD: f64 = 1e-7;
+
+/// Why a radiosity mesh could not be built.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MeshError {
+    /// The maximum patch area is not a positive finite number.
+    #[error("maximum patch area {0} must be positive and finite")]
+    BadPatchArea(f64),
+    /// The element subdivision depth is too large (at most 6).
+    #[error("element depth {0} is above the maximum of 6")]
+    BadElementDepth(u32),
+    /// The mesh would have more elements than the limit.
+    #[error("the mesh would have {count} elements, above the limit {limit}")]
+    TooManyElements {
+        /// Elements requested.
+        count: usize,
+        /// The limit.
+        limit: usize,
+    },
+}
+
+/// How a scene is meshed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshOptions {
+    /// Patches are split until their area is at most this (m^2).
+    pub max_patch_area: f64,
+    /// Each patch starts as `4^element_depth` elements.
+    pub element_depth: u32,
+    /// Hard limit on the number of elements (a guard against runaway input).
+    pub max_elements: usize,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self {
+            max_patch_area: 0.01,
+            element_depth: 1,
+            max_elements: 2_000_000,
+        }
+    }
+}
+
+/// One scene triangle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Primitive {
+    /// Index into `Showcase::objects`.
+    pub object: u32,
+    /// Triangle index within the object's mesh.
+    pub triangle: u32,
+    /// World-space vertices, counter-clockwise seen from the front.
+    pub vertices: [DVec3; 3],
+    /// Unit front normal.
+    pub normal: DVec3,
+    root: u32,
+}
+
+/// A shooter: a node of a primitive's quadtree at patch level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Patch {
+    /// Its primitive.
+    pub primitive: u32,
+    /// Its object.
+    pub object: u32,
+    /// World-space corners (counter-clockwise from the front).
+    pub vertices: [DVec3; 3],
+    /// Centroid.
+    pub center: DVec3,
+    /// Unit front normal.
+    pub normal: DVec3,
+    /// Area (m^2).
+    pub area: f64,
+    /// The elements of this patch.
+    pub elements: Vec<u32>,
+}
+
+/// A receiver: a leaf of a primitive's quadtree.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Element {
+    /// Its primitive.
+    pub primitive: u32,
+    /// Its object.
+    pub object: u32,
+    /// The patch it belongs to.
+    pub patch: u32,
+    /// Corners in the primitive's barycentric coordinates `(u, v)`.
+    pub barycentric: [DVec2; 3],
+    /// World-space corners.
+    pub vertices: [DVec3; 3],
+    /// Indices of the corners into [`RadiosityMesh::vertices`].
+    pub vertex_ids: [u32; 3],
+    /// Centroid.
+    pub center: DVec3,
+    /// Unit front normal.
+    pub normal: DVec3,
+    /// Area (m^2).
+    pub area: f64,
+    /// Diffuse reflectance rho per channel, in `[0, MAX_REFLECTANCE]`.
+    pub reflectance: DVec3,
+    /// Emitted exitance (W/m^2): `pi * Ke`.
+    pub emission: DVec3,
+    /// True for a real (physical) object's surface.
+    pub real: bool,
+    node: u32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct Node {
+    barycentric: [DVec2; 3],
+    /// First of four consecutive children, or `NONE` for a leaf.
+    children: u32,
+    /// The element of a leaf, or `NONE`.
+    element: u32,
+}
+
+/// A shared mesh vertex for interpolated rendering.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshVertex {
+    /// World position.
+    pub position: DVec3,
+    /// Unit normal (of the plane the vertex is shared in).
+    pub normal: DVec3,
+}
+
+/// The patch/element hierarchy of a scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RadiosityMesh {
+    /// Scene triangles (non-degenerate ones).
+    pub primitives: Vec<Primitive>,
+    /// Shooters.
+    pub patches: Vec<Patch>,
+    /// Receivers.
+    pub elements: Vec<Element>,
+    /// Shared corners of the elements.
+    pub vertices: Vec<MeshVertex>,
+    nodes: Vec<Node>,
+    /// `(object, triangle)` to primitive.
+    lookup: HashMap<(u32, u32), u32>,
+}
+
+fn sanitize(v: DVec3, max: f64) -> DVec3 {
+    let v = DVec3::from_array(v.to_array().map(|c| if c.is_finite() { c } else { 0.0 }));
+    v.clamp(DVec3::ZERO, DVec3::splat(max))
+}
+
+fn split(b: [DVec2; 3]) -> [[DVec2; 3]; 4] {
+    let m01 = 0.5 * (b[0] + b[1]);
+    let m12 = 0.5 * (b[1] + b[2]);
+    let m20 = 0.5 * (b[2] + b[0]);
+    [
+        [b[0], m01, m20],
+        [m01, b[1], m12],
+        [m20, m12, b[2]],
+        [m12, m20, m01],
+    ]
+}
+
+impl Primitive {
+    /// World point at barycentric `(u, v)` (weights of the second and third
+    /// vertex).
+    pub fn point(&self, b: DVec2) -> DVec3 {
+        barycentric_point(&self.vertices, b)
+    }
+
+    /// Area of the primitive (m^2).
+    pub fn area(&self) -> f64 {
+        triangle_area(&self.vertices)
+    }
+}
+
+/// Area of a triangle.
+pub fn triangle_area(v: &[DVec3; 3]) -> f64 {
+    0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
+}
+
+impl RadiosityMesh {
+    /// Mesh the objects of `geometry` (built from `showcase`) with their
+    /// materials: albedo (sampled at the element centre where textured) as
+    /// rho, and `pi * emission` as emitted exitance.
+    pub fn build(
+        showcase: &Showcase,
+        geometry: &SceneGeometry,
+        options: &MeshOptions,
+    ) -> Result<Self, MeshError> {
+        if !(options.max_patch_area > 0.0 && options.max_patch_area.is_finite()) {
+            return Err(MeshError::BadPatchArea(options.max_patch_area));
+        }
+        if options.element_depth > 6 {
+            return Err(MeshError::BadElementDepth(options.element_depth));
+        }
+        let mut mesh = Self {
+            primitives: Vec::new(),
+            patches: Vec::new(),
+            elements: Vec::new(),
+            vertices: Vec::new(),
+            nodes: Vec::new(),
+            lookup: HashMap::new(),
+        };
+        // Count first, so a huge request fails before allocating.
+        let mut count = 0usize;
+        for t in geometry.triangles().filter(|t| t.area > 0.0) {
+            let depth = patch_depth(t.area, options.max_patch_area);
+            count = count.saturating_add(4usize.saturating_pow(depth + options.element_depth));
+        }
+        if count > options.max_elements {
+            return Err(MeshError::TooManyElements {
+                count,
+                limit: options.max_elements,
+            });
+        }
+        for t in geometry.triangles().filter(|t| t.area > 0.0) {
+            let pi = mesh.primitives.len() as u32;
+            let root = mesh.nodes.len() as u32;
+            mesh.nodes.push(Node {
+                barycentric: [DVec2::ZERO, DVec2::X, DVec2::Y],
+                children: NONE,
+                element: NONE,
+            });
+            mesh.primitives.push(Primitive {
+                object: t.object,
+                triangle: t.triangle,
+                vertices: t.vertices,
+                normal: t.normal,
+                root,
+            });
+            mesh.lookup.insert((t.object, t.triangle), pi);
+            let depth = patch_depth(t.area, options.max_patch_area);
+            mesh.grow_patches(showcase, pi, root, depth, options.element_depth);
+        }
+        mesh.rebuild_vertices();
+        Ok(mesh)
+    }
+
+    fn grow_patches(
+        &mut self,
+        showcase: &Showcase,
+        primitive: u32,
+        node: u32,
+        depth: u32,
+        element_depth: u32,
+    ) {
+        if depth > 0 {
+            let first = self.subdivide(node);
+            for c in 0..4 {
+                self.grow_patches(showcase, primitive, first + c, depth - 1, element_depth);
+            }
+            return;
+        }
+        let prim = &self.primitives[primitive as usize];
+        let b = self.nodes[node as usize].barycentric;
+        let vertices = b.map(|x| prim.point(x));
+        let pi = self.patches.len() as u32;
+        self.patches.push(Patch {
+            primitive,
+            object: prim.object,
+            vertices,
+            center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
+            normal: prim.normal,
+            area: triangle_area(&vertices),
+            elements: Vec::new(),
+        });
+        self.grow_elements(showcase, pi, node, element_depth);
+    }
+
+    fn grow_elements(&mut self, showcase: &Showcase, patch: u32, node: u32, depth: u32) {
+        if depth > 0 {
+            let first = self.subdivide(node);
+            for c in 0..4 {
+                self.grow_elements(showcase, patch, first + c, depth - 1);
+            }
+            return;
+        }
+        let p = &self.patches[patch as usize];
+        let prim = &self.primitives[p.primitive as usize];
+        let b = self.nodes[node as usize].barycentric;
+        let (reflectance, emission, real) = material(showcase, prim, (b[0] + b[1] + b[2]) / 3.0);
+        let e = self.make_element(patch, node, reflectance, emission, real);
+        self.patches[patch as usize].elements.push(e);
+    }
+
+    fn make_element(
+        &mut self,
+        patch: u32,
+        node: u32,
+        reflectance: DVec3,
+        emission: DVec3,
+        real: bool,
+    ) -> u32 {
+        let p = &self.patches[patch as usize];
+        let prim = &self.primitives[p.primitive as usize];
+        let b = self.nodes[node as usize].barycentric;
+        let vertices = b.map(|x| prim.point(x));
+        let ei = self.elements.len() as u32;
+        self.elements.push(Element {
+            primitive: p.primitive,
+            object: p.object,
+            patch,
+            barycentric: b,
+            vertices,
+            vertex_ids: [NONE; 3],
+            center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
+            normal: prim.normal,
+            area: triangle_area(&vertices),
+            reflectance,
+            emission,
+            real,
+            node,
+        });
+        self.nodes[node as usize].element = ei;
+        ei
+    }
+
+    /// Split a leaf node into four children; returns the first child.
+    fn subdivide(&mut self, node: u32) -> u32 {
+        let first = self.nodes.len() as u32;
+        for b in split(self.nodes[node as usize].barycentric) {
+            self.nodes.push(Node {
+                barycentric: b,
+                children: NONE,
+                element: NONE,
+            });
+        }
+        self.nodes[node as usize].children = first;
+        self.nodes[node as usize].element = NONE;
+        first
+    }
+
+    /// Split element `element` into four (its slot becomes the first child,
+    /// three new elements are appended). Returns the indices of the four.
+    /// Vertices are not rebuilt: call [`Self::rebuild_vertices`] after a
+    /// round of splits.
+    pub fn split_element(&mut self, element: u32) -> Option<[u32; 4]> {
+        let e = self.elements.get(element as usize)?.clone();
+        let first = self.subdivide(e.node);
+        let prim = &self.primitives[e.primitive as usize];
+        let mut out = [element; 4];
+        for c in 0..4u32 {
+            let node = first + c;
+            let b = self.nodes[node as usize].barycentric;
+            let vertices = b.map(|x| prim.point(x));
+            let child = Element {
+                barycentric: b,
+                vertices,
+                vertex_ids: [NONE; 3],
+                center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
+                area: triangle_area(&vertices),
+                node,
+                ..e.clone()
+            };
+            let index = if c == 0 {
+                self.elements[element as usize] = child;
+                element
+            } else {
+                self.elements.push(child);
+                let i = self.elements.len() as u32 - 1;
+                self.patches[e.patch as usize].elements.push(i);
+                i
+            };
+            self.nodes[node as usize].element = index;
+            out[c as usize] = index;
+        }
+        Some(out)
+    }
+
+    /// Recompute the shared vertices of all elements.
+    pub fn rebuild_vertices(&mut self) {
+        let mut map: HashMap<(u32, [i64; 3], [i64; 3]), u32> = HashMap::new();
+        self.vertices.clear();
+        for e in &mut self.elements {
+            let nkey = (e.normal * 1e4).round().as_i64vec3().to_array();
+            for (k, v) in e.vertices.iter().enumerate() {
+                let pkey = (*v / VERTEX_WELD).round().as_i64vec3().to_array();
+                let id = *map.entry((e.object, nkey, pkey)).or_insert_with(|| {
+                    self.vertices.push(MeshVertex {
+                        position: *v,
+                        normal: e.normal,
+                    });
+                    self.vertices.len() as u32 - 1
+                });
+                e.vertex_ids[k] = id;
+            }
+        }
+    }
+
+    /// The primitive of scene triangle `triangle` of object `object`.
+    pub fn primitive_of(&self, object: u32, triangle: u32) -> Option<u32> {
+        self.lookup.get(&(object, triangle)).copied()
+    }
+
+    /// The element containing barycentric point `b` of `primitive`, and the
+    /// point's barycentric weights `(w0, w1, w2)` within that element.
+    pub fn locate(&self, primitive: u32, b: DVec2) -> Option<(u32, DVec3)> {
+        let mut node = self.primitives.get(primitive as usize)?.root;
+        loop {
+            let n = &self.nodes[node as usize];
+            let w = local_weights(n.barycentric, b);
+            if n.children == NONE {
+                return (n.element != NONE).then_some((n.element, w));
+            }
+            node = n.children
+                + if w.x >= 0.5 {
+                    0
+                } else if w.y >= 0.5 {
+                    1
+                } else if w.z >= 0.5 {
+                    2
+                } else {
+                    3
+                };
+        }
+    }
+
+    /// Per-vertex values from per-element values: the area-weighted mean of
+    /// the elements sharing each vertex.
+    pub fn vertex_values(&self, element_values: &[DVec3]) -> Vec<DVec3> {
+        let mut sum = vec![DVec3::ZERO; self.vertices.len()];
+        let mut weight = vec![0.0; self.vertices.len()];
+        for (e, value) in self.elements.iter().zip(element_values) {
+            for &v in &e.vertex_ids {
+                if let (Some(s), Some(w)) = (sum.get_mut(v as usize), weight.get_mut(v as usize)) {
+                    *s += *value * e.area;
+                    *w += e.area;
+                }
+            }
+        }
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, &w)| if w > 0.0 { *s / w } else { DVec3::ZERO })
+            .collect()
+    }
+
+    /// The interpolated value at barycentric point `b` of `primitive`
+    /// (Gouraud over the element's corners), from [`Self::vertex_values`].
+    pub fn interpolate(&self, primitive: u32, b: DVec2, vertex_values: &[DVec3]) -> Option<DVec3> {
+        let (e, w) = self.locate(primitive, b)?;
+        let ids = self.elements[e as usize].vertex_ids;
+        let w = w.clamp(DVec3::ZERO, DVec3::ONE);
+        let w = w / (w.x + w.y + w.z).max(1e-300);
+        let mut out = DVec3::ZERO;
+        for (k, id) in ids.iter().enumerate() {
+            out += w[k] * *vertex_values.get(*id as usize)?;
+        }
+        Some(out)
+    }
+
+    /// Total area of the elements (m^2).
+    pub fn total_area(&self) -> f64 {
+        self.elements.iter().map(|e| e.area).sum()
+    }
+}
+
+/// Barycentric `(u, v)` centroids of the `n^2` equal sub-triangles of a
+/// regular `n`-fold split of a triangle.
+pub fn sub_centroids(n: u32) -> Vec<DVec2> {
+    let n = n.max(1);
+    let mut out = Vec::with_capacity((n * n) as usize);
+    for i in 0..n {
+        for j in 0..n - i {
+            out.push(DVec2::new(i as f64 + 1.0 / 3.0, j as f64 + 1.0 / 3.0) / n as f64);
+            if i + j + 1 < n {
+                out.push(DVec2::new(i as f64 + 2.0 / 3.0, j as f64 + 2.0 / 3.0) / n as f64);
+            }
+        }
+    }
+    out
+}
+
+/// The point of triangle `v` at barycentric `(u, v)`.
+pub fn barycentric_point(v: &[DVec3; 3], b: DVec2) -> DVec3 {
+    (1.0 - b.x - b.y) * v[0] + b.x * v[1] + b.y * v[2]
+}
+
+/// Patch subdivision depth: each level quarters the area.
+fn patch_depth(area: f64, max_area: f64) -> u32 {
+    let mut depth = 0;
+    let mut a = area;
+    while a > max_area && depth < 12 {
+        a *= 0.25;
+        depth += 1;
+    }
+    depth
+}
+
+/// Barycentric weights of uv point `b` in the uv triangle `t`.
+fn local_weights(t: [DVec2; 3], b: DVec2) -> DVec3 {
+    let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], b - t[0]);
+    let det = e1.perp_dot(e2);
+    if det == 0.0 {
+        return DVec3::new(1.0, 0.0, 0.0);
+    }
+    let w1 = d.perp_dot(e2) / det;
+    let w2 = e1.perp_dot(d) / det;
+    DVec3::new(1.0 - w1 - w2, w1, w2)
+}
+
+/// Reflectance, emitted exitance and realness of a primitive's material at
+/// barycentric point `b`.
+fn material(showcase: &Showcase, prim: &Primitive, b: DVec2) -> (DVec3, DVec3, bool) {
+    let Some(object) = showcase.objects.get(prim.object as usize) else {
+        return (DVec3::ZERO, DVec3::ZERO, false);
+    };
+    let m = &object.material;
+    let mut albedo = m.albedo.as_dvec3();
+    if m.texture.is_some() {
+        let uv = showcase.mesh(&object.mesh).and_then(|mesh| {
+            let tri = mesh.triangles.get(prim.triangle as usize)?;
+            let uvs = tri.map(|i| mesh.uvs.get(i as usize).copied());
+            let [Some(a), Some(b1), Some(c)] = uvs else {
+                return None;
+            };
+            Some((1.0 - b.x - b.y) * a.as_dvec2() + b.x * b1.as_dvec2() + b.y * c.as_dvec2())
+        });
+        if let Some(uv) = uv {
+            albedo = m.albedo_at(uv.as_vec2()).as_dvec3();
+        }
+    }
+    let emission = sanitize(m.emission.as_dvec3(), f64::MAX) * std::f64::consts::PI;
+    (
+        sanitize(albedo, MAX_REFLECTANCE),
+        sanitize(emission, f64::MAX),
+        object.kind == ObjectKind::Real,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ObjectFilter;
+    use glam::Vec3;
+    use showcase_proto::{Material, Mesh, Object, Transform};
+
+    pub(crate) fn quad_scene(size: f32) -> Showcase {
+        let mut s = Showcase::default();
+        let id = s.add_mesh(Mesh {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::new(size, 0.0, 0.0),
+                Vec3::new(size, size, 0.0),
+                Vec3::new(0.0, size, 0.0),
+            ],
+            normals: vec![],
+            uvs: vec![],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        });
+        s.objects.push(Object {
+            name: "quad".into(),
+            mesh: id,
+            material: Material::diffuse(Vec3::splat(0.5)),
+            kind: ObjectKind::Real,
+            transform: Transform::IDENTITY,
+        });
+        s
+    }
+
+    #[test]
+    fn patches_respect_the_maximum_area_and_tile_the_surface() {
+        let s = quad_scene(1.0);
+        let g = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
+        for max in [1.0, 0.1, 0.01] {
+            let m = RadiosityMesh::build(
+                &s,
+                &g,
+                &MeshOptions {
+                    max_patch_area: max,
+                    element_depth: 1,
+                    ..MeshOptions::default()
+                },
+            )
+            .unwrap();
+            assert!(m.patches.iter().all(|p| p.area <= max * (1.0 + 1e-12)));
+            let pa: f64 = m.patches.iter().map(|p| p.area).sum();
+            assert!((pa - 1.0).abs() < 1e-12 && (m.total_area() - 1.0).abs() < 1e-12);
+            assert_eq!(m.elements.len(), 4 * m.patches.len());
+            // A regular grid of 2 * 4^d triangles has (2^d + 1)^2 vertices.
+            let side = (m.elements.len() as f64 / 2.0).sqrt() as usize;
+            assert_eq!(m.vertices.len(), (side + 1) * (side + 1));
+        }
+        assert!(matches!(
+            RadiosityMesh::build(
+                &s,
+                &g,
+                &MeshOptions {
+                    max_patch_area: 0.0,
+                    ..MeshOptions::default()
+                }
+            ),
+            Err(MeshError::BadPatchArea(_))
+        ));
+        assert!(matches!(
+            RadiosityMesh::build(
+                &s,
+                &g,
+                &MeshOptions {
+                    max_patch_area: 1e-9,
+                    ..MeshOptions::default()
+                }
+            ),
+            Err(MeshError::TooManyElements { .. })
+        ));
+    }
+
+    #[test]
+    fn locate_finds_the_element_containing_a_point() {
+        let s = quad_scene(1.0);
+        let g = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
+        let mut m = RadiosityMesh::build(&s, &g, &MeshOptions::default()).unwrap();
+        m.split_element(3).unwrap();
+        m.rebuild_vertices();
+        for (i, e) in m.elements.iter().enumerate() {
+            let c = (e.barycentric[0] + e.barycentric[1] + e.barycentric[2]) / 3.0;
+            let (found, w) = m.locate(e.primitive, c).unwrap();
+            assert_eq!(found as usize, i);
+            assert!((w - DVec3::splat(1.0 / 3.0)).abs().max_element() < 1e-12);
+        }
+        // Interpolating a linear field at vertices reproduces it exactly.
+        let f = |p: DVec3| DVec3::new(p.x + 2.0 * p.y, 1.0, p.y);
+        let values: Vec<DVec3> = m.vertices.iter().map(|v| f(v.position)).collect();
+        let prim = &m.primitives[1];
+        let b = DVec2::new(0.21, 0.33);
+        let got = m.interpolate(1, b, &values).unwrap();
+        assert!((got - f(prim.point(b))).abs().max_element() < 1e-12);
+    }
+}

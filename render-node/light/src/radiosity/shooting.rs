@@ -1,0 +1,768 @@
+//! Progressive refinement (Cohen et al. 1988): the patch with the most
+//! unshot power shoots it to every element, until the unshot fraction of
+//! all power ever injected falls below a threshold.
+//!
+//! Patches shoot, elements receive: element `j` gains
+//! `rho_j * dB_p * F_pj * A_p / A_j`, and its patch's unshot exitance grows
+//! by the area-weighted share. Shots may carry negative power, which is how
+//! an incremental update removes the light of a source that moved.
+//!
+//! Form factors are cached per shooting patch (up to
+//! [`SolveOptions::form_factor_cache_bytes`]): a patch shoots several times
+//! in a solve (it keeps receiving), and every later shot reuses its row.
+//! A row depends only on the mesh, the geometry and the patch (its jitter
+//! and hemi-cube rotation are seeded by the patch index), so a cached row
+//! equals a recomputed one, and an incremental update after a virtual light
+//! moves reuses every row.
+//! After a virtual object moves, [`Shooter::move_object`] corrects the rows
+//! (only the entries whose rays may see the move) and shoots the difference
+//! (see `moving`).
+//!
+//! Energy: the form factors of one shot are scaled down if they sum above 1,
+//! and rho is at most [`MAX_REFLECTANCE`](super::mesh::MAX_REFLECTANCE), so
+//! every shot passes on strictly less power than it takes: the unshot power
+//! falls monotonically and B stays finite.
+//!
+//! Item buffers: the hemi-cube's item buffer is cast with rays on the CPU
+//! ([`ItemBufferBackend::Cpu`]) or rasterised by an
+//! [`ItemBufferRasteriser`] such as the GPU hemi-cube
+//! ([`ItemBufferBackend::Raster`]). A rasteriser renders a batch of
+//! shooters per call: when a shooter's row is missing, the rows of the
+//! next patches by unshot power that have none yet are computed with it
+//! and cached (rows do not depend on when they are computed).
+
+use super::hemicube::{
+    HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle,
+    NO_ITEM,
+};
+use super::mesh::{Element, RadiosityMesh};
+use super::sources::direct_irradiance;
+use crate::SceneGeometry;
+use crate::sampling::{hash64, stratified, unit};
+use glam::DVec3;
+use rayon::prelude::*;
+use showcase_proto::Light;
+use std::sync::Arc;
+
+mod moving;
+mod ray_cast;
+pub use moving::{MoveError, MoveStats};
+pub(crate) use ray_cast::RayMask;
+use ray_cast::{normalise, ray_cast_entry};
+
+/// How a shot's form factors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum FormFactorMethod {
+    /// Hemi-cube at the shooter's centre for every receiver.
+    HemiCube,
+    /// Ray-cast form factors for every receiver (Wallace-style): the
+    /// closed-form point-to-polygon form factor to the whole shooting patch,
+    /// averaged over `n^2` sub-triangle centroids of the receiver (`n` from
+    /// 1 to 8, growing as the pair gets close relative to its size), times
+    /// the visible fraction of `visibility_samples` rays between paired
+    /// jittered points of the receiver and the patch.
+    RayCast,
+    /// The hemi-cube, except for receivers where it is known to fail: close
+    /// to the shooter (distance below `proximity * sqrt(A_shooter)`, where
+    /// the shooter is not a point) and small receivers (expected to cover
+    /// fewer than `min_pixels` hemi-cube pixels, where it aliases); those
+    /// are ray-cast.
+    Hybrid,
+}
+
+/// Who makes the hemi-cube's item buffers (where [`FormFactorMethod`]
+/// uses the hemi-cube: `HemiCube` and `Hybrid`).
+#[derive(Clone, Default)]
+pub enum ItemBufferBackend {
+    /// One ray per pixel centre into the shared BVH, on the CPU.
+    #[default]
+    Cpu,
+    /// A rasteriser, e.g. `showcase_render::gpu::hemicube::GpuHemiCube`.
+    Raster(Arc<dyn ItemBufferRasteriser>),
+}
+
+impl std::fmt::Debug for ItemBufferBackend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Cpu => f.write_str("Cpu"),
+            Self::Raster(r) => write!(f, "Raster({})", r.describe()),
+        }
+    }
+}
+
+impl PartialEq for ItemBufferBackend {
+    /// Equal when both are the CPU or both the same rasteriser object.
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Cpu, Self::Cpu) => true,
+            (Self::Raster(a), Self::Raster(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
+/// Why a solve cannot start.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SolveError {
+    /// The hemi-cube resolution is invalid.
+    #[error(transparent)]
+    HemiCube(#[from] super::hemicube::HemiCubeError),
+    /// The threshold is not in `(0, 1)`.
+    #[error("unshot-energy threshold {0} must be in (0, 1)")]
+    BadThreshold(f64),
+    /// The item-buffer rasteriser could not take the mesh.
+    #[error(transparent)]
+    ItemBuffer(#[from] ItemBufferError),
+    /// The active mask does not have one entry per element.
+    #[error("active mask has {got} entries for {elements} elements")]
+    MaskLength {
+        /// Entries given.
+        got: usize,
+        /// Elements in the mesh.
+        elements: usize,
+    },
+}
+
+/// Settings of a progressive-refinement solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// Hemi-cube top-face resolution (even).
+    pub hemicube: u32,
+    /// Stop when unshot power / injected power falls below this.
+    pub threshold: f64,
+    /// Form-factor method.
+    pub method: FormFactorMethod,
+    /// Hard limit on shots.
+    pub max_shots: usize,
+    /// Seed of the per-shot hemi-cube rotation and sample jitter.
+    pub seed: u64,
+    /// Hybrid: receivers closer than `proximity * sqrt(A_shooter)` are ray-cast.
+    pub proximity: f64,
+    /// Hybrid: receivers expected to cover fewer pixels are ray-cast.
+    pub min_pixels: f64,
+    /// Visibility rays per ray-cast form factor (and per area light).
+    pub visibility_samples: u32,
+    /// Memory for cached form-factor rows (bytes); 0 disables the cache.
+    pub form_factor_cache_bytes: usize,
+    /// Who makes the hemi-cube item buffers.
+    pub item_buffer: ItemBufferBackend,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        Self {
+            hemicube: 64,
+            threshold: 1e-3,
+            method: FormFactorMethod::Hybrid,
+            max_shots: 1_000_000,
+            seed: 1,
+            proximity: 2.0,
+            min_pixels: 4.0,
+            visibility_samples: 4,
+            form_factor_cache_bytes: 1 << 30,
+            item_buffer: ItemBufferBackend::Cpu,
+        }
+    }
+}
+
+/// One point of the convergence curve.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ConvergencePoint {
+    /// Shots so far.
+    pub shots: usize,
+    /// Unshot power over injected power.
+    pub unshot_fraction: f64,
+}
+
+/// Sum of the channels times area: the power measure of the solver.
+fn power(v: DVec3, area: f64) -> f64 {
+    (v.x.abs() + v.y.abs() + v.z.abs()) * area
+}
+
+fn finite(v: DVec3) -> DVec3 {
+    if v.is_finite() { v } else { DVec3::ZERO }
+}
+
+/// A computed form-factor row: `(element, F)` sorted by element, the scale
+/// it was normalised with, and its entries' [`RayMask`]s when every entry
+/// was ray-cast.
+type ComputedRow = (Vec<(u32, f64)>, f64, Option<Vec<RayMask>>);
+
+/// A progressive-refinement solve in progress over the active elements of
+/// a mesh, with visibility in `geometry` (which must hold exactly the
+/// active elements' objects, e.g. only the real ones for pass B1).
+pub struct Shooter<'a> {
+    mesh: &'a RadiosityMesh,
+    geometry: &'a SceneGeometry,
+    active: Vec<bool>,
+    patch_active: Vec<bool>,
+    options: SolveOptions,
+    hemicube: Option<HemiCube>,
+    radiosity: Vec<DVec3>,
+    unshot: Vec<DVec3>,
+    injected: f64,
+    shots: usize,
+    curve: Vec<ConvergencePoint>,
+    /// Cached form-factor rows per patch.
+    rows: Vec<Option<Vec<(u32, f64)>>>,
+    /// The scale each cached row was normalised with (at most 1): the
+    /// raw form factors are the row over it.
+    row_scale: Vec<f64>,
+    /// Per cached ray-cast row, the visibility of each entry's rays
+    /// (aligned with the row's entries), which lets an object move update
+    /// an entry from the rays it may change alone.
+    row_rays: Vec<Option<Vec<RayMask>>>,
+    /// Exitance each patch has shot so far (sum of its shots' deltas).
+    shot: Vec<DVec3>,
+    /// Bytes held in `rows`.
+    row_bytes: usize,
+    /// Rows computed (cache misses).
+    rows_computed: usize,
+    /// The active elements uploaded to the rasteriser, if one is used.
+    raster: Option<Box<dyn ItemBufferScene>>,
+    /// Rows whose rasterised item buffer failed and were cast on the CPU.
+    raster_fallbacks: usize,
+}
+
+impl<'a> Shooter<'a> {
+    /// A solve with no energy yet. `active` (one flag per element, all when
+    /// `None`) selects the receivers and shooters.
+    pub fn new(
+        mesh: &'a RadiosityMesh,
+        geometry: &'a SceneGeometry,
+        active: Option<Vec<bool>>,
+        options: &SolveOptions,
+    ) -> Result<Self, SolveError> {
+        if !(options.threshold > 0.0 && options.threshold < 1.0) {
+            return Err(SolveError::BadThreshold(options.threshold));
+        }
+        let active = active.unwrap_or_else(|| vec![true; mesh.elements.len()]);
+        if active.len() != mesh.elements.len() {
+            return Err(SolveError::MaskLength {
+                got: active.len(),
+                elements: mesh.elements.len(),
+            });
+        }
+        let hemicube = match options.method {
+            FormFactorMethod::RayCast => None,
+            _ => Some(HemiCube::new(options.hemicube)?),
+        };
+        let raster = match (&hemicube, &options.item_buffer) {
+            (Some(h), ItemBufferBackend::Raster(r)) => {
+                let triangles: Vec<ItemTriangle> = mesh
+                    .elements
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| active[*j])
+                    .map(|(j, e)| ItemTriangle {
+                        item: j as u32,
+                        vertices: e.vertices,
+                        normal: e.normal,
+                    })
+                    .collect();
+                Some(r.upload(h.resolution(), &triangles)?)
+            }
+            _ => None,
+        };
+        let patch_active = mesh
+            .patches
+            .iter()
+            .map(|p| p.elements.iter().any(|&e| active[e as usize]))
+            .collect();
+        Ok(Self {
+            mesh,
+            geometry,
+            active,
+            patch_active,
+            options: options.clone(),
+            hemicube,
+            radiosity: vec![DVec3::ZERO; mesh.elements.len()],
+            unshot: vec![DVec3::ZERO; mesh.patches.len()],
+            injected: 0.0,
+            shots: 0,
+            curve: Vec::new(),
+            rows: vec![None; mesh.patches.len()],
+            row_scale: vec![1.0; mesh.patches.len()],
+            row_rays: vec![None; mesh.patches.len()],
+            shot: vec![DVec3::ZERO; mesh.patches.len()],
+            row_bytes: 0,
+            rows_computed: 0,
+            raster,
+            raster_fallbacks: 0,
+        })
+    }
+
+    /// Add self-emitted exitance per element (W/m^2) to B and to the unshot
+    /// energy, scaled by `scale` (-1 removes it). Inactive elements and
+    /// non-finite values are skipped.
+    pub fn add_emission(&mut self, exitance: &[DVec3], scale: f64) {
+        let deposits: Vec<DVec3> = exitance.iter().map(|e| finite(*e * scale)).collect();
+        self.deposit(&deposits);
+    }
+
+    /// Add the elements' own emission (`Element::emission`).
+    pub fn add_surface_emission(&mut self) {
+        let e: Vec<DVec3> = self.mesh.elements.iter().map(|e| e.emission).collect();
+        self.add_emission(&e, 1.0);
+    }
+
+    /// Shoot a virtual light directly to every active element (at its
+    /// centre): B gains `scale * rho * E_direct`, which also becomes unshot.
+    pub fn add_light(&mut self, light: &Light, scale: f64) {
+        let deposits = self.light_deposits(light, scale);
+        self.deposit(&deposits);
+    }
+
+    /// What [`Self::add_light`] deposits per element.
+    fn light_deposits(&self, light: &Light, scale: f64) -> Vec<DVec3> {
+        let samples = self.options.visibility_samples.max(16);
+        let seed = self.options.seed;
+        self.mesh
+            .elements
+            .par_iter()
+            .enumerate()
+            .map(|(j, e)| {
+                if !self.active[j] {
+                    return DVec3::ZERO;
+                }
+                let irradiance = direct_irradiance(
+                    light,
+                    self.geometry,
+                    e.center,
+                    e.normal,
+                    samples,
+                    seed ^ j as u64,
+                );
+                finite(scale * e.reflectance * irradiance)
+            })
+            .collect()
+    }
+
+    fn deposit(&mut self, deposits: &[DVec3]) {
+        for (j, d) in deposits.iter().enumerate() {
+            if !self.active.get(j).copied().unwrap_or(false) || *d == DVec3::ZERO {
+                continue;
+            }
+            let e = &self.mesh.elements[j];
+            let p = &self.mesh.patches[e.patch as usize];
+            self.radiosity[j] += *d;
+            self.unshot[e.patch as usize] += *d * (e.area / p.area);
+            self.injected += power(*d, e.area);
+        }
+    }
+
+    /// Forget all energy (B, unshot, injected, shots, curve) but keep the
+    /// cached form-factor rows: a fresh solve of the same geometry.
+    pub fn restart(&mut self) {
+        self.radiosity.iter_mut().for_each(|b| *b = DVec3::ZERO);
+        self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        self.shot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        self.injected = 0.0;
+        self.shots = 0;
+        self.curve.clear();
+    }
+
+    /// Power injected so far (sum of channels, W).
+    pub fn injected_power(&self) -> f64 {
+        self.injected
+    }
+
+    /// Unshot power now (sum of channels, W).
+    pub fn unshot_power(&self) -> f64 {
+        self.mesh
+            .patches
+            .iter()
+            .zip(&self.unshot)
+            .map(|(p, u)| power(*u, p.area))
+            .sum()
+    }
+
+    /// Unshot power over injected power (0 when nothing was injected).
+    pub fn unshot_fraction(&self) -> f64 {
+        if self.injected > 0.0 {
+            self.unshot_power() / self.injected
+        } else {
+            0.0
+        }
+    }
+
+    /// Shoot until the unshot power is at most `threshold * reference` (W),
+    /// or the shot limit. Returns the shots taken.
+    pub fn run_to_power(&mut self, limit: f64) -> usize {
+        let start = self.shots;
+        while self.shots < self.options.max_shots && self.unshot_power() > limit {
+            if !self.step() {
+                break;
+            }
+        }
+        self.shots - start
+    }
+
+    /// Shoot until the unshot fraction is below the threshold of the
+    /// options. Returns the shots taken.
+    pub fn run(&mut self) -> usize {
+        let limit = self.options.threshold * self.injected;
+        self.run_to_power(limit)
+    }
+
+    /// One shot from the patch with the most unshot power; false when no
+    /// patch has any.
+    pub fn step(&mut self) -> bool {
+        let mut best = None;
+        let mut best_power = 0.0;
+        for (i, (p, u)) in self.mesh.patches.iter().zip(&self.unshot).enumerate() {
+            let w = power(*u, p.area);
+            if self.patch_active[i] && w > best_power {
+                best_power = w;
+                best = Some(i);
+            }
+        }
+        match best {
+            Some(shooter) => self.shoot_patch(shooter),
+            None => false,
+        }
+    }
+
+    /// One bounce of the current unshot energy: every patch shoots what it
+    /// holds now, and what arrives stays unshot (it is not passed on in
+    /// this call). Afterwards B holds `B + K U` for the unshot `U` before.
+    pub fn shoot_each_once(&mut self) {
+        let before = self.unshot.clone();
+        self.unshot.iter_mut().for_each(|u| *u = DVec3::ZERO);
+        for (p, initial) in before.iter().enumerate() {
+            if *initial == DVec3::ZERO {
+                continue;
+            }
+            let received = self.unshot[p];
+            self.unshot[p] = *initial;
+            self.shoot_patch(p);
+            self.unshot[p] += received;
+        }
+    }
+
+    /// Shoot the unshot energy of patch `shooter` now (false when it has
+    /// none, is inactive or does not exist).
+    pub fn shoot_patch(&mut self, shooter: usize) -> bool {
+        if !self.patch_active.get(shooter).copied().unwrap_or(false) {
+            return false;
+        }
+        let delta = self.unshot[shooter];
+        if delta == DVec3::ZERO {
+            return false;
+        }
+        self.unshot[shooter] = DVec3::ZERO;
+        self.shot[shooter] += delta;
+        let ((ff, scale, rays), cached) = match self.rows[shooter].take() {
+            Some(row) => {
+                let rays = self.row_rays[shooter].take();
+                ((row, self.row_scale[shooter], rays), true)
+            }
+            None if self.raster.is_some() => (self.rasterised_rows(shooter), false),
+            None => {
+                self.rows_computed += 1;
+                (
+                    self.form_factors(shooter, self.row_seed(shooter), None),
+                    false,
+                )
+            }
+        };
+        let p_area = self.mesh.patches[shooter].area;
+        for &(j, f) in &ff {
+            let e = &self.mesh.elements[j as usize];
+            let gain = finite(e.reflectance * delta * (f * p_area / e.area));
+            self.radiosity[j as usize] += gain;
+            let q = &self.mesh.patches[e.patch as usize];
+            self.unshot[e.patch as usize] += gain * (e.area / q.area);
+        }
+        if cached {
+            self.rows[shooter] = Some(ff);
+            self.row_rays[shooter] = rays;
+        } else {
+            self.cache_row(shooter, (ff, scale, rays));
+        }
+        self.shots += 1;
+        self.curve.push(ConvergencePoint {
+            shots: self.shots,
+            unshot_fraction: self.unshot_fraction(),
+        });
+        true
+    }
+
+    /// Seed of patch `p`'s hemi-cube rotation and sample jitter.
+    fn row_seed(&self, p: usize) -> u64 {
+        hash64(self.options.seed ^ (p as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+    }
+
+    /// The hemi-cube of patch `p` (its centre, normal and seeded rotation).
+    fn shot_of(&self, p: usize) -> HemiCubeShot {
+        let patch = &self.mesh.patches[p];
+        HemiCubeShot {
+            origin: patch.center,
+            normal: patch.normal,
+            rotation: unit(self.row_seed(p)) * std::f64::consts::TAU,
+        }
+    }
+
+    /// The row of `shooter` through the rasteriser, computed in one batch
+    /// with the rows of the patches with most unshot power that have no
+    /// cached row yet (those are cached here while the cache has room;
+    /// without a cache the batch is the shooter alone).
+    fn rasterised_rows(&mut self, shooter: usize) -> ComputedRow {
+        let Some(raster) = self.raster.as_ref() else {
+            return self.form_factors(shooter, self.row_seed(shooter), None);
+        };
+        let mut batch = vec![shooter];
+        if self.options.form_factor_cache_bytes > 0 {
+            let mut others: Vec<(f64, usize)> = (0..self.mesh.patches.len())
+                .filter(|&p| p != shooter && self.patch_active[p] && self.rows[p].is_none())
+                .map(|p| (power(self.unshot[p], self.mesh.patches[p].area), p))
+                .collect();
+            others.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            batch.extend(
+                others
+                    .iter()
+                    .take(raster.batch_size().max(1) - 1)
+                    .map(|&(_, p)| p),
+            );
+        }
+        let shots: Vec<HemiCubeShot> = batch.iter().map(|&p| self.shot_of(p)).collect();
+        let buffers = match raster.render(&shots) {
+            Ok(b) if b.len() == shots.len() => Some(b),
+            Ok(b) => {
+                tracing::warn!(
+                    got = b.len(),
+                    shots = shots.len(),
+                    "item-buffer rasteriser returned the wrong number of buffers; casting rays"
+                );
+                None
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "item-buffer rasteriser failed; casting rays");
+                None
+            }
+        };
+        let Some(buffers) = buffers else {
+            self.raster_fallbacks += 1;
+            self.rows_computed += 1;
+            return self.form_factors(shooter, self.row_seed(shooter), None);
+        };
+        let rows: Vec<ComputedRow> = batch
+            .iter()
+            .zip(&buffers)
+            .map(|(&p, items)| self.form_factors(p, self.row_seed(p), Some(items)))
+            .collect();
+        self.rows_computed += rows.len();
+        let mut rows = rows.into_iter();
+        let own = rows.next().unwrap_or((Vec::new(), 1.0, None));
+        for (&p, row) in batch[1..].iter().zip(rows) {
+            self.cache_row(p, row);
+        }
+        own
+    }
+
+    /// Keep `row` as patch `p`'s cached row while the cache has room.
+    fn cache_row(&mut self, p: usize, (row, scale, rays): ComputedRow) {
+        let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>()
+            + rays
+                .as_ref()
+                .map_or(0, |r| r.capacity() * std::mem::size_of::<RayMask>());
+        if self.options.form_factor_cache_bytes > 0
+            && self.row_bytes + bytes <= self.options.form_factor_cache_bytes
+        {
+            self.row_bytes += bytes;
+            self.rows[p] = Some(row);
+            self.row_scale[p] = scale;
+            self.row_rays[p] = rays;
+        }
+    }
+
+    /// Form factors `F_pj` from patch `shooter` to the active receivers,
+    /// scaled to sum to at most 1, and the scale applied. `raster_items` is
+    /// the shooter's rasterised item buffer (active elements seen front-on),
+    /// or `None` to cast it on the CPU.
+    fn form_factors(&self, shooter: usize, seed: u64, raster_items: Option<&[u32]>) -> ComputedRow {
+        let mesh = self.mesh;
+        let p = &mesh.patches[shooter];
+        let method = self.options.method;
+        let pixels = self
+            .hemicube
+            .as_ref()
+            .map_or(1.0, |h| h.pixel_count() as f64);
+        let near2 = self.options.proximity * self.options.proximity * p.area;
+        let small = self.options.min_pixels / pixels;
+        let use_ray = |e: &Element| -> bool {
+            match method {
+                FormFactorMethod::RayCast => true,
+                FormFactorMethod::HemiCube => false,
+                FormFactorMethod::Hybrid => {
+                    let d = e.center - p.center;
+                    let r2 = d.length_squared();
+                    if r2 < near2 {
+                        return true;
+                    }
+                    let r = r2.sqrt();
+                    let estimate =
+                        (p.normal.dot(d) / r).max(0.0) * (-e.normal.dot(d) / r).max(0.0) * e.area
+                            / (std::f64::consts::PI * r2);
+                    estimate > 0.0 && estimate < small
+                }
+            }
+        };
+        let receivers: Vec<u32> = (0..mesh.elements.len() as u32)
+            .filter(|&j| {
+                let e = &mesh.elements[j as usize];
+                self.active[j as usize] && e.patch as usize != shooter && use_ray(e)
+            })
+            .collect();
+        let samples = stratified(self.options.visibility_samples, seed);
+        let cast: Vec<(u32, f64, RayMask)> = receivers
+            .par_iter()
+            .filter_map(|&j| {
+                ray_cast_entry(mesh, self.geometry, shooter, j, &samples, seed)
+                    .map(|(f, mask)| (j, f, mask))
+            })
+            .collect();
+        let rays = (method == FormFactorMethod::RayCast)
+            .then(|| cast.iter().map(|&(_, _, mask)| mask).collect());
+        let mut out: Vec<(u32, f64)> = cast.into_iter().map(|(j, f, _)| (j, f)).collect();
+        if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
+            let rotation = unit(seed) * std::f64::consts::TAU;
+            let active = &self.active;
+            let keep = |e: u32| -> bool {
+                let Some(el) = mesh.elements.get(e as usize) else {
+                    return false;
+                };
+                active[e as usize] && el.patch as usize != shooter && !use_ray(el)
+            };
+            let items = match raster_items {
+                Some(items) => items
+                    .iter()
+                    .map(|&e| if keep(e) { e } else { NO_ITEM })
+                    .collect(),
+                None => h.item_buffer(self.geometry, p.center, p.normal, rotation, |hit| {
+                    if !hit.front_face {
+                        return None;
+                    }
+                    let prim = mesh.primitive_of(hit.object, hit.triangle)?;
+                    let (e, _) = mesh.locate(prim, hit.barycentric)?;
+                    keep(e).then_some(e)
+                }),
+            };
+            let mut ff = vec![0.0; mesh.elements.len()];
+            debug_assert!(
+                items
+                    .iter()
+                    .all(|&i| i == NO_ITEM || (i as usize) < ff.len())
+            );
+            for j in h.accumulate(&items, &mut ff) {
+                out.push((j, ff[j as usize]));
+            }
+        }
+        let scale = normalise(&mut out);
+        (out, scale, rays)
+    }
+
+    /// Element radiosity B (exitance, W/m^2) so far.
+    pub fn radiosity(&self) -> &[DVec3] {
+        &self.radiosity
+    }
+
+    /// Unshot exitance per patch.
+    pub fn unshot(&self) -> &[DVec3] {
+        &self.unshot
+    }
+
+    /// Shots so far.
+    pub fn shots(&self) -> usize {
+        self.shots
+    }
+
+    /// Form-factor rows computed so far (shots that found no cached row,
+    /// plus rows computed ahead in a rasterised batch).
+    pub fn rows_computed(&self) -> usize {
+        self.rows_computed
+    }
+
+    /// Rows whose rasterised item buffer failed and that were cast on the
+    /// CPU instead (0 unless the rasteriser failed).
+    pub fn item_buffer_fallbacks(&self) -> usize {
+        self.raster_fallbacks
+    }
+
+    /// The form-factor row of patch `p`: `(element, F_pj)` for every
+    /// active receiver with a non-zero form factor, from the cache or
+    /// computed now (not cached); `None` for an inactive or missing patch.
+    pub fn form_factor_row(&self, p: usize) -> Option<Vec<(u32, f64)>> {
+        if !self.patch_active.get(p).copied().unwrap_or(false) {
+            return None;
+        }
+        if let Some(row) = &self.rows[p] {
+            return Some(row.clone());
+        }
+        let items = match &self.raster {
+            Some(r) => match r.render(&[self.shot_of(p)]) {
+                Ok(mut b) if b.len() == 1 => b.pop(),
+                _ => None,
+            },
+            None => None,
+        };
+        Some(self.form_factors(p, self.row_seed(p), items.as_deref()).0)
+    }
+
+    /// The [`RayMask`] of each entry of [`Self::form_factor_row`] (bit `r`:
+    /// ray `r` saw the shooter), from the cache or computed now; `None`
+    /// where the row has none (not every entry was ray-cast).
+    #[cfg(test)]
+    pub(crate) fn row_rays(&self, p: usize) -> Option<Vec<RayMask>> {
+        if self.rows[p].is_some() {
+            return self.row_rays[p].clone();
+        }
+        self.form_factors(p, self.row_seed(p), None).2
+    }
+
+    /// The unshot fraction after every shot.
+    pub fn convergence(&self) -> &[ConvergencePoint] {
+        &self.curve
+    }
+
+    /// The ambient exitance estimate of Cohen et al. (1988): the unshot
+    /// power spread evenly over the active area, times the interreflection
+    /// factor `1 / (1 - rho_avg)`.
+    pub fn ambient(&self) -> DVec3 {
+        let (mut area, mut rho_area, mut unshot) = (0.0, DVec3::ZERO, DVec3::ZERO);
+        for (j, e) in self.mesh.elements.iter().enumerate() {
+            if self.active[j] {
+                area += e.area;
+                rho_area += e.reflectance * e.area;
+            }
+        }
+        for (i, p) in self.mesh.patches.iter().enumerate() {
+            if self.patch_active[i] {
+                unshot += self.unshot[i] * p.area;
+            }
+        }
+        if !(area > 0.0) {
+            return DVec3::ZERO;
+        }
+        let rho = (rho_area / area).min(DVec3::splat(super::mesh::MAX_REFLECTANCE));
+        finite(unshot / area / (DVec3::ONE - rho))
+    }
+
+    /// B plus the reflected ambient term, for display before convergence.
+    pub fn display_radiosity(&self) -> Vec<DVec3> {
+        let ambient = self.ambient();
+        self.mesh
+            .elements
+            .iter()
+            .zip(&self.radiosity)
+            .enumerate()
+            .map(|(j, (e, b))| {
+                if self.active[j] {
+                    *b + e.reflectance * ambient
+                } else {
+                    *b
+                }
+            })
+            .collect()
+    }
+}
