@@ -1,0 +1,216 @@
+//! Projectors and cameras: the OpenCV pinhole model with its one mapping
+//! to wgpu clip space, and each device's photometric response.
+
+use glam::{DMat3, DMat4, DVec3, DVec4, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// A pinhole device in the OpenCV convention: `x_cam = R X + t`,
+/// pixel `~ K x_cam`, x right, y down, z forward, pixel centres at
+/// integer + 0.5 with the origin at the top-left.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PinholeDevice {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Intrinsic matrix K (upper triangular, includes skew).
+    pub k: DMat3,
+    /// World-to-device rotation R.
+    pub rotation: DMat3,
+    /// World-to-device translation t.
+    pub translation: DVec3,
+    /// Distortion `[k1, k2, p1, p2, k3]` (OpenCV order).
+    pub dist_coeffs: [f64; 5],
+    /// Near plane distance (metres, along +z).
+    pub near: f64,
+    /// Far plane distance (metres, along +z).
+    pub far: f64,
+}
+
+impl PinholeDevice {
+    /// A device at `eye` looking at `target`, with `up` roughly up and a
+    /// horizontal field of view of `fov_x_deg` degrees; square pixels, no
+    /// skew, principal point at the image centre.
+    pub fn look_at(
+        eye: DVec3,
+        target: DVec3,
+        up: DVec3,
+        fov_x_deg: f64,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let z = (target - eye).normalize();
+        // OpenCV y points down, so x = z x up points right.
+        let x = z.cross(up).normalize();
+        let y = z.cross(x);
+        let rotation = DMat3::from_cols(x, y, z).transpose();
+        let f = 0.5 * width as f64 / (0.5 * fov_x_deg.to_radians()).tan();
+        let k = DMat3::from_cols(
+            DVec3::new(f, 0.0, 0.0),
+            DVec3::new(0.0, f, 0.0),
+            DVec3::new(0.5 * width as f64, 0.5 * height as f64, 1.0),
+        );
+        Self {
+            width,
+            height,
+            k,
+            rotation,
+            translation: -(rotation * eye),
+            dist_coeffs: [0.0; 5],
+            near: 0.01,
+            far: 100.0,
+        }
+    }
+
+    /// Centre of projection in world space, `-R^T t`.
+    pub fn center(&self) -> DVec3 {
+        -(self.rotation.transpose() * self.translation)
+    }
+
+    /// The 3x4 projection matrix `P = K [R | t]`, as rows.
+    pub fn projection(&self) -> [[f64; 4]; 3] {
+        let kr = self.k * self.rotation;
+        let kt = self.k * self.translation;
+        std::array::from_fn(|r| {
+            let row = kr.row(r);
+            [row.x, row.y, row.z, kt[r]]
+        })
+    }
+
+    /// World point to device coordinates `x_cam = R X + t`.
+    pub fn to_device(&self, world: DVec3) -> DVec3 {
+        self.rotation * world + self.translation
+    }
+
+    /// Project a world point to a pixel (ignores distortion). `None` when
+    /// the point is not in front of the device.
+    pub fn project(&self, world: DVec3) -> Option<glam::DVec2> {
+        let c = self.to_device(world);
+        if c.z <= 0.0 {
+            return None;
+        }
+        let p = self.k * (c / c.z);
+        Some(glam::DVec2::new(p.x, p.y))
+    }
+
+    /// The world-space unit direction of the ray through `pixel` (ignores
+    /// distortion). Rays start at [`Self::center`].
+    pub fn unproject(&self, pixel: glam::DVec2) -> DVec3 {
+        let d = self.k.inverse() * DVec3::new(pixel.x, pixel.y, 1.0);
+        (self.rotation.transpose() * d).normalize()
+    }
+
+    /// World-to-device 4x4 matrix (OpenCV camera space).
+    pub fn view_matrix(&self) -> DMat4 {
+        let r = self.rotation;
+        DMat4::from_cols(
+            r.x_axis.extend(0.0),
+            r.y_axis.extend(0.0),
+            r.z_axis.extend(0.0),
+            self.translation.extend(1.0),
+        )
+    }
+
+    /// The one documented mapping of this device to wgpu clip space:
+    /// OpenCV camera space (y down, z forward) to clip space (y up, depth
+    /// `0..1` from `near` to `far`), such that the device's pixel position
+    /// `(u, v)` maps to the framebuffer position `(u, v)` of a
+    /// `width x height` target, so pixel centres `(i + 0.5, j + 0.5)` line
+    /// up on both sides.
+    pub fn clip_from_world(&self) -> DMat4 {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let (n, f) = (self.near, self.far);
+        let k = self.k;
+        let (fx, s, cx) = (k.x_axis.x, k.y_axis.x, k.z_axis.x);
+        let (fy, cy) = (k.y_axis.y, k.z_axis.y);
+        // ndc_x = 2u/w - 1, ndc_y = 1 - 2v/h, ndc_z = f(z - n) / (z (f - n)).
+        let proj = DMat4::from_cols(
+            DVec4::new(2.0 * fx / w, 0.0, 0.0, 0.0),
+            DVec4::new(2.0 * s / w, -2.0 * fy / h, 0.0, 0.0),
+            DVec4::new(2.0 * cx / w - 1.0, 1.0 - 2.0 * cy / h, f / (f - n), 1.0),
+            DVec4::new(0.0, 0.0, -f * n / (f - n), 0.0),
+        );
+        proj * self.view_matrix()
+    }
+}
+
+/// Projector photometry: radiance out = `eta * response(pixel) + black_level`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ProjectorResponse {
+    /// Exponent of the pixel-value response curve (`value^gamma`).
+    pub gamma: f32,
+    /// Peak intensity eta (W/sr at pixel value 1).
+    pub eta: f32,
+    /// Light emitted at pixel value 0 (W/sr).
+    pub black_level: f32,
+    /// DLP colour-wheel segments as RGB transmissions over one wheel turn;
+    /// empty for a projector without time slicing.
+    pub wheel_segments: Vec<Vec3>,
+    /// Duration of one wheel turn in seconds.
+    pub wheel_period_s: f32,
+}
+
+impl Default for ProjectorResponse {
+    fn default() -> Self {
+        Self {
+            gamma: 2.2,
+            eta: 1.0,
+            black_level: 0.0,
+            wheel_segments: Vec::new(),
+            wheel_period_s: 1.0 / 120.0,
+        }
+    }
+}
+
+/// Camera photometry: value = response(exposure * radiance + noise), then
+/// 8-bit quantisation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraResponse {
+    /// Exponent applied to the normalised signal (`signal^(1/gamma)`).
+    pub gamma: f32,
+    /// Signal per unit radiance and second.
+    pub gain: f32,
+    /// Exposure time in seconds.
+    pub exposure_s: f32,
+    /// Standard deviation of read noise, as a fraction of full scale.
+    pub read_noise: f32,
+    /// Shot-noise scale: the variance is `shot_noise * signal`.
+    pub shot_noise: f32,
+    /// Bits per channel of the quantised output.
+    pub bits: u32,
+}
+
+impl Default for CameraResponse {
+    fn default() -> Self {
+        Self {
+            gamma: 1.0,
+            gain: 1.0,
+            exposure_s: 1.0 / 30.0,
+            read_noise: 0.0,
+            shot_noise: 0.0,
+            bits: 8,
+        }
+    }
+}
+
+/// A video projector.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Projector {
+    /// Unique name, e.g. `projector-0`.
+    pub name: String,
+    /// Geometry.
+    pub device: PinholeDevice,
+    /// Photometry.
+    pub response: ProjectorResponse,
+}
+
+/// A video camera.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    /// Unique name, e.g. `camera-0`.
+    pub name: String,
+    /// Geometry.
+    pub device: PinholeDevice,
+    /// Photometry.
+    pub response: CameraResponse,
+}
