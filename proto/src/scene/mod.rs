@@ -3,7 +3,7 @@
 //! ties them together. Units are metres, the world is right-handed with y
 //! up, colour is linear RGB.
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 mod device;

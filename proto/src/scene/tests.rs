@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::validate::Validate;
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 fn device() -> PinholeDevice {
     PinholeDevice::look_at(
