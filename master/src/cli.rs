@@ -368,7 +368,7 @@ pub fn run(cli: Cli) -> Result<()> {
                     "capture: only --sim (the simulated showcase) is available; real projector and camera drivers are not part of this build"
                 );
             }
-            let scene = crate::capture::load_any_scene(&args.scene)?;
+            let scene = crate::scene_file::load_any(&args.scene)?;
             let summary = crate::capture::run_capture(&scene, &args.out)?;
             println!("{}", serde_json::to_string_pretty(&summary)?);
             Ok(())
@@ -393,7 +393,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 .scene
                 .clone()
                 .unwrap_or_else(crate::demo::default_scene);
-            let scene = crate::scene_file::load_scene(&scene_path)?;
+            let scene = crate::scene_file::load_any(&scene_path)?;
             let outcome = runtime()?.block_on(crate::cluster::commands::replay(
                 &scene,
                 &args.session,
@@ -455,8 +455,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             BenchTarget::Render => {
                 use showcase_render::render::bench::{BenchOptions, bench_render, bench_scene};
-                let room =
-                    crate::capture::scenes::load_obj_showcase(&shared_data("cornell-box.obj"))?;
+                let room = crate::scene_file::load_any(&shared_data("cornell-box.obj"))?;
                 let walls = room
                     .objects
                     .iter()
@@ -472,7 +471,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         ))
                     })
                     .collect();
-                let bunny = crate::capture::scenes::load_obj_showcase(&shared_data("bunny.obj"))?;
+                let bunny = crate::scene_file::load_any(&shared_data("bunny.obj"))?;
                 let bunny = bunny
                     .objects
                     .first()
@@ -510,7 +509,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 emit_bench(&args, &records)
             }
             BenchTarget::Cluster => {
-                let scene = crate::scene_file::load_scene(&crate::demo::default_scene())?;
+                let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
                 let nodes: Vec<usize> = if args.nodes.is_empty() {
                     vec![2, 4, 8]
                 } else {

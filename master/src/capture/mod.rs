@@ -33,19 +33,6 @@ use showcase_proto::{PinholeDevice, Showcase};
 use std::path::Path;
 use std::time::Instant;
 
-/// Load a scene for the sim: an `.obj` file directly (as real objects),
-/// anything else through the scene-file loader.
-pub fn load_any_scene(path: &Path) -> anyhow::Result<Showcase> {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
-    {
-        scenes::load_obj_showcase(path)
-    } else {
-        Ok(crate::scene_file::load_scene(path)?)
-    }
-}
-
 /// `showcase-master sim render`: render `scene` lit by its own emitters
 /// from a pinhole at `eye` looking at `target` (`up` roughly up,
 /// horizontal field of view `fov_deg`) as linear radiance into the PFM
@@ -77,7 +64,7 @@ pub fn sim_render_command(
             > 1e-9,
         "up {up} is parallel to the view direction"
     );
-    let showcase = load_any_scene(scene)?;
+    let showcase = crate::scene_file::load_any(scene)?;
     let device = PinholeDevice::look_at(eye, target, up, fov_deg, width, height);
     let image = render_view(&showcase, &device, 256, 1)?;
     write_pfm(out, &image)?;

@@ -105,7 +105,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     let t = Instant::now();
     let pb = progress("scene", None);
-    let mut scene = crate::scene_file::load_scene(&scene_path)?;
+    let mut scene = crate::scene_file::load_any(&scene_path)?;
     pb.finish_and_clear();
     report.ran(
         "scene",
@@ -233,7 +233,7 @@ fn radiosity_stage(out: &Path) -> Result<StageOutcome> {
     // from the real room's interreflection gathered at the vertices (the
     // headline) and with the paper's converged B1.
     let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cornell-box.obj");
-    let cornell = crate::radiosity_job::load_obj_scene(&cornell)?;
+    let cornell = crate::scene_file::load_any(&cornell)?;
     let record = crate::radiosity_job::bench::augmented_record_with(&cornell, false)?;
     let gathered = record["consistency_rel_rmse"].as_f64();
     let paper = record["paper_consistency_rel_rmse"].as_f64();

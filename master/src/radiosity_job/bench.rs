@@ -18,7 +18,7 @@
 //!   that see the whole light, against Lambert's closed-form polygon
 //!   formula; mean relative error.
 
-use super::scene::load_obj_scene;
+use crate::scene_file::load_any;
 use anyhow::Context;
 use glam::{DVec2, DVec3, Vec3};
 use serde_json::{Value, json};
@@ -562,7 +562,7 @@ pub fn bench_radiosity_kinds(
         );
     }
     let wanted = |kind: &str| kinds.is_empty() || kinds.iter().any(|k| k == kind);
-    let showcase = load_obj_scene(cornell)?;
+    let showcase = load_any(cornell)?;
     let mut records = Vec::new();
     if ["reference", "gathered", "sweep", "scaling"]
         .iter()

@@ -7,7 +7,7 @@
 //! microseconds and the readback dominates.
 
 use super::bench::BenchRecord;
-use super::scene::load_obj_scene;
+use crate::scene_file::load_any;
 use serde_json::json;
 use showcase_light::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle};
 use showcase_light::radiosity::shooting::ItemBufferBackend;
@@ -29,7 +29,7 @@ const SHOTS: usize = 64;
 /// OBJ at `cornell`, meshed like the `radiosity` command's default
 /// (0.01 m^2 patches), with the GPU of `ctx`.
 pub fn gpu_hemicube_records(cornell: &Path, ctx: &GpuContext) -> anyhow::Result<Vec<BenchRecord>> {
-    let showcase = load_obj_scene(cornell)?;
+    let showcase = load_any(cornell)?;
     let geometry = SceneGeometry::build(&showcase, &ObjectFilter::All)?;
     let mesh = RadiosityMesh::build(
         &showcase,

@@ -268,7 +268,7 @@ pub fn incremental_object_record(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::radiosity_job::scene::load_obj_scene;
+    use crate::scene_file::load_any;
     use std::path::Path;
 
     /// The object record on the real Cornell box: the incremental update
@@ -277,7 +277,7 @@ mod tests {
     /// and the move mattered (the unmoved solution is off).
     #[test]
     fn incremental_object_record_reaches_the_converged_solution() {
-        let cornell = load_obj_scene(Path::new(concat!(
+        let cornell = load_any(Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../shared/data/cornell-box.obj"
         )))
