@@ -8,5 +8,6 @@ pub mod cli;
 pub mod cluster;
 pub mod demo;
 pub mod radiosity_job;
+pub mod render_bench;
 pub mod scene_file;
 pub mod tracking;

@@ -7,7 +7,9 @@
 use glam::{DMat4, DVec3, Quat, Vec3};
 use proptest::prelude::*;
 use showcase_light::hardware::ProjectorDevice;
-use showcase_light::reflectance::{ExtractParams, blend_weights, extract_reflectance, render_maps};
+use showcase_light::reflectance::{
+    CorrectionParams, ExtractParams, blend_weights, extract_reflectance, render_maps,
+};
 use showcase_light::sim::{SimConfig, SimShowcase, SimWorld};
 use showcase_light::{
     DeviceRays, Image, IntensityImage, ObjectFilter, SceneGeometry, SurfaceSample,
@@ -352,9 +354,14 @@ fn capture_job_with_options_resamples_the_camera() {
     let opts = CaptureOptions {
         camera_size: Some((36, 20)),
         samples_per_pixel: 4,
-        frames: 8,
-        gather_samples: 16,
-        ..CaptureOptions::default()
+        capture: CaptureConfig {
+            frames: 8,
+            correction: CorrectionParams {
+                gather_samples: 16,
+                ..CorrectionParams::default()
+            },
+            ..CaptureConfig::default()
+        },
     };
     let summary = run_capture_with(&scene, &dir, &opts).unwrap();
     assert_eq!(summary.camera_size, [36, 20]);

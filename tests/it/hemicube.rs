@@ -16,7 +16,7 @@ use showcase_light::radiosity::{
     FormFactorMethod, MeshOptions, RadiosityMesh, Shooter, SolveOptions, relative_error,
 };
 use showcase_light::{ObjectFilter, SceneGeometry, form_factor_point_polygon};
-use showcase_master::radiosity_job::load_obj_scene;
+use showcase_master::scene_file::load_any;
 use showcase_render::gpu::hemicube::GpuHemiCube;
 
 const CORNELL: &str = concat!(
@@ -26,7 +26,7 @@ const CORNELL: &str = concat!(
 
 /// The Cornell box meshed with patches of at most `area` m^2.
 fn cornell(area: f64) -> Result<(RadiosityMesh, SceneGeometry)> {
-    let s = load_obj_scene(Path::new(CORNELL))?;
+    let s = load_any(Path::new(CORNELL))?;
     let g = SceneGeometry::build(&s, &ObjectFilter::All)?;
     let m = RadiosityMesh::build(
         &s,

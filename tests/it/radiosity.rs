@@ -13,7 +13,8 @@ use showcase_light::radiosity::{
 use showcase_light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_master::radiosity_job::bench::figure3_scene;
 use showcase_master::radiosity_job::consistency::{Promise, consistency};
-use showcase_master::radiosity_job::{RadiosityOptions, load_obj_scene, run_radiosity};
+use showcase_master::radiosity_job::{RadiosityOptions, run_radiosity};
+use showcase_master::scene_file::load_any;
 use showcase_proto::PinholeDevice;
 use std::path::Path;
 
@@ -156,7 +157,7 @@ fn cornell_box_solution_ply_matches_closed_forms() -> anyhow::Result<()> {
     // Floor vertices that see the whole light: B is rho times the direct
     // irradiance (Lambert) plus indirect light, and the indirect irradiance
     // is at most the largest exitance of the surfaces other than the light.
-    let showcase = load_obj_scene(Path::new(CORNELL))?;
+    let showcase = load_any(Path::new(CORNELL))?;
     let all = SceneGeometry::build(&showcase, &ObjectFilter::All)?;
     let light_tris: Vec<[DVec3; 3]> = all
         .triangles()
@@ -203,7 +204,7 @@ struct Figure3 {
 }
 
 fn figure3() -> anyhow::Result<Figure3> {
-    let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
+    let s = figure3_scene(&load_any(Path::new(CORNELL))?);
     let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
     let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
     let mesh = RadiosityMesh::build(
@@ -294,7 +295,7 @@ fn projected_maps_reproduce_b0_in_the_simulated_showcase() -> anyhow::Result<()>
     // reproduce B2 (the map's target), and with the one-bounce B1 its total
     // (direct plus the real interreflection) must land near B0, much nearer
     // than with the paper's converged B1, which over-subtracts.
-    let s = figure3_scene(&load_obj_scene(Path::new(CORNELL))?);
+    let s = figure3_scene(&load_any(Path::new(CORNELL))?);
     let all = SceneGeometry::build(&s, &ObjectFilter::All)?;
     let real = SceneGeometry::build(&s, &ObjectFilter::Real)?;
     let mesh = RadiosityMesh::build(

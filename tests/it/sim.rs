@@ -327,8 +327,7 @@ fn camera_sees_one_colour_in_a_short_exposure_and_has_the_configured_noise() {
 /// wall is red and the right green, and the command writes a readable PFM.
 #[test]
 fn cornell_box_renders_with_its_own_light() {
-    let scene =
-        showcase_master::capture::scenes::load_obj_showcase(std::path::Path::new(CORNELL)).unwrap();
+    let scene = showcase_master::scene_file::load_any(std::path::Path::new(CORNELL)).unwrap();
     let device = PinholeDevice::look_at(
         DVec3::new(0.278, 0.273, -0.8),
         DVec3::new(0.278, 0.273, 0.0),

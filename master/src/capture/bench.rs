@@ -10,7 +10,8 @@
 //! reference target's frames when eta is estimated.
 
 use super::pipeline::{
-    CaptureConfig, EtaMode, Method, adjust_camera_gain, calibrate_reference, capture_map,
+    CaptureConfig, EtaMode, Method, ProjectorLevels, adjust_camera_gain, calibrate_reference,
+    capture_map,
 };
 use super::scenes;
 use glam::Vec3;
@@ -24,7 +25,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// One bench result (the keys are fixed by issue 3).
+/// One bench result (the keys are fixed: reports and tests read them).
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct Record {
     /// `plate` or `cornell`.
@@ -121,8 +122,7 @@ fn bench_scene(
     options: &BenchOptions,
 ) -> anyhow::Result<Vec<Record>> {
     let truth = GroundTruth::new(sim)?;
-    let response = &scene.projectors[0].response;
-    let (eta_true, black_true) = (response.eta as f64, response.black_level as f64);
+    let true_levels = ProjectorLevels::of(&scene.projectors[0].response);
     let period = sim.projector(0)?.wheel_period_s();
     let methods = options.methods.clone();
     let correction = CorrectionParams {
@@ -134,10 +134,7 @@ fn bench_scene(
         let config = CaptureConfig {
             frames: 1,
             method,
-            eta: EtaMode::Known {
-                eta: eta_true,
-                black_level: black_true,
-            },
+            eta: EtaMode::FromScene,
             piece_tiles: options.piece_tiles,
             piece_dilate_px: options.piece_dilate_px,
             ..CaptureConfig::default()
@@ -146,8 +143,7 @@ fn bench_scene(
             scene,
             &mut sim.projector(0)?,
             &mut sim.camera(0)?,
-            eta_true,
-            black_true,
+            config.resolve_eta(scene)?,
             &config,
         )?;
     }
@@ -164,37 +160,25 @@ fn bench_scene(
         let fit_seconds = t.elapsed().as_secs_f64() + 2.0 * frames as f64 * frame_s;
         for &method in &methods {
             for estimated in [false, true] {
-                let (eta, black) = if estimated {
-                    (fit.eta, fit.black_level)
-                } else {
-                    (eta_true, black_true)
-                };
                 let config = CaptureConfig {
                     frames,
                     method,
                     eta: if estimated {
                         EtaMode::Estimated
                     } else {
-                        EtaMode::Known {
-                            eta,
-                            black_level: black,
-                        }
+                        EtaMode::FromScene
                     },
                     correction,
                     piece_tiles: options.piece_tiles,
                     piece_dilate_px: options.piece_dilate_px,
                     ..CaptureConfig::default()
                 };
+                // The fit made above for this K, not one per method.
+                let levels = config.eta.resolve(scene, || Ok(fit))?;
                 let t = Instant::now();
                 let mut projector = sim.projector(0)?;
-                let outcome = capture_map(
-                    scene,
-                    &mut projector,
-                    &mut sim.camera(0)?,
-                    eta,
-                    black,
-                    &config,
-                )?;
+                let outcome =
+                    capture_map(scene, &mut projector, &mut sim.camera(0)?, levels, &config)?;
                 let maps = if method == Method::Piecewise {
                     outcome.pieces
                 } else {
@@ -233,8 +217,9 @@ fn bench_scene(
                     rel_rmse: rel,
                     rel_rmse_interreflection: rel_ir,
                     coverage: valid as f64 / truth.visible.max(1) as f64,
-                    eta_rel_error: (eta - eta_true).abs() / eta_true,
-                    black_level_error: (black - black_true).abs() / eta_true,
+                    eta_rel_error: (levels.eta - true_levels.eta).abs() / true_levels.eta,
+                    black_level_error: (levels.black_level - true_levels.black_level).abs()
+                        / true_levels.eta,
                     seconds,
                 });
             }

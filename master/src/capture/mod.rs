@@ -19,32 +19,18 @@ pub mod scenes;
 pub use bench::{Record, bench_reflectance, write_report};
 pub use files::{read_reflectance_map, write_reflectance_map};
 pub use pipeline::{
-    CaptureConfig, CaptureOutcome, EtaMode, Method, adjust_camera_gain, calibrate_projector,
-    calibrate_reference, capture_map, capture_radiance, capture_reflectance,
+    CaptureConfig, CaptureOutcome, EtaMode, Method, ProjectorLevels, adjust_camera_gain,
+    calibrate_projector, calibrate_reference, capture_map, capture_radiance, capture_reflectance,
 };
 
 use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
 use showcase_light::hardware::ProjectorDevice;
-use showcase_light::reflectance::CorrectionParams;
 use showcase_light::sim::{SimConfig, SimShowcase, render_view, write_pfm};
 use showcase_proto::{PinholeDevice, Showcase};
 use std::path::Path;
 use std::time::Instant;
-
-/// Load a scene for the sim: an `.obj` file directly (as real objects),
-/// anything else through the scene-file loader.
-pub fn load_any_scene(path: &Path) -> anyhow::Result<Showcase> {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
-    {
-        scenes::load_obj_showcase(path)
-    } else {
-        Ok(crate::scene_file::load_scene(path)?)
-    }
-}
 
 /// `showcase-master sim render`: render `scene` lit by its own emitters
 /// from a pinhole at `eye` looking at `target` (`up` roughly up,
@@ -77,7 +63,7 @@ pub fn sim_render_command(
             > 1e-9,
         "up {up} is parallel to the view direction"
     );
-    let showcase = load_any_scene(scene)?;
+    let showcase = crate::scene_file::load_any(scene)?;
     let device = PinholeDevice::look_at(eye, target, up, fov_deg, width, height);
     let image = render_view(&showcase, &device, 256, 1)?;
     write_pfm(out, &image)?;
@@ -132,7 +118,8 @@ pub struct CaptureSeconds {
     pub total: f64,
 }
 
-/// Settings of a capture job ([`run_capture_with`]).
+/// Settings of a capture job ([`run_capture_with`]): the simulated
+/// world's and camera's, and the capture's own.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CaptureOptions {
     /// Camera image `(width, height)`: the scene's camera is resampled to
@@ -142,31 +129,23 @@ pub struct CaptureOptions {
     /// Paths per camera pixel of the sim's light transport (the world's
     /// accuracy, not the capture's).
     pub samples_per_pixel: u32,
-    /// Frames averaged per radiance map (K).
-    pub frames: u32,
-    /// Extraction method.
-    pub method: Method,
-    /// Fit eta and the black level on the reference target (`true`) or
-    /// take the sim's true values.
-    pub estimate_eta: bool,
-    /// Gather rays per pixel of the interreflection correction.
-    pub gather_samples: u32,
-    /// Paths per pixel of the reference target's sim.
-    pub reference_samples: u32,
+    /// The capture: frames averaged per radiance map, extraction method,
+    /// where eta comes from ([`EtaMode::FromScene`]: the sim's true
+    /// values), the interreflection correction's gather rays, the
+    /// reference target's paths per pixel, ... (frame, ray and sample
+    /// counts below 1 are taken as 1).
+    pub capture: CaptureConfig,
 }
 
 impl Default for CaptureOptions {
     /// The `capture` command's settings: the scene's camera, 256 paths per
-    /// pixel, 16 frames, eta estimated, interreflection corrected.
+    /// pixel, and [`CaptureConfig::default`]: 16 frames, eta estimated,
+    /// interreflection corrected.
     fn default() -> Self {
         Self {
             camera_size: None,
             samples_per_pixel: 256,
-            frames: 16,
-            method: Method::Corrected,
-            estimate_eta: true,
-            gather_samples: CorrectionParams::default().gather_samples,
-            reference_samples: CaptureConfig::default().reference_samples,
+            capture: CaptureConfig::default(),
         }
     }
 }
@@ -230,16 +209,10 @@ pub fn run_capture_with(
         camera.device = resize_device(&camera.device, w, h)?;
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let config = CaptureConfig {
-        frames: opts.frames.max(1),
-        method: opts.method,
-        correction: CorrectionParams {
-            gather_samples: opts.gather_samples.max(1),
-            ..CorrectionParams::default()
-        },
-        reference_samples: opts.reference_samples.max(1),
-        ..CaptureConfig::default()
-    };
+    let mut config = opts.capture.clone();
+    config.frames = config.frames.max(1);
+    config.correction.gather_samples = config.correction.gather_samples.max(1);
+    config.reference_samples = config.reference_samples.max(1);
     let sim_config = SimConfig {
         samples_per_pixel: opts.samples_per_pixel.max(1),
         ..SimConfig::default()
@@ -247,8 +220,7 @@ pub fn run_capture_with(
     let probe = SimShowcase::new(&scene, sim_config.clone())?;
     adjust_camera_gain(&mut scene, &probe)?;
     let sim = SimShowcase::new(&scene, sim_config)?;
-    let response = &scene.projectors[0].response;
-    let (eta_true, black_true) = (response.eta as f64, response.black_level as f64);
+    let true_levels = ProjectorLevels::of(&scene.projectors[0].response);
     let mut t = Instant::now();
     let lap = |t: &mut Instant| {
         let s = t.elapsed().as_secs_f64();
@@ -256,12 +228,7 @@ pub fn run_capture_with(
         s
     };
     seconds.setup = t0.elapsed().as_secs_f64();
-    let (eta, black_level) = if opts.estimate_eta {
-        let fit = calibrate_reference(&scene, config.frames, config.reference_samples)?;
-        (fit.eta, fit.black_level)
-    } else {
-        (eta_true, black_true)
-    };
+    let levels = config.resolve_eta(&scene)?;
     seconds.calibration = lap(&mut t);
     warm_transport(&scene, &sim, &config)?;
     seconds.light_transport = lap(&mut t);
@@ -269,8 +236,7 @@ pub fn run_capture_with(
         &scene,
         &mut sim.projector(0)?,
         &mut sim.camera(0)?,
-        eta,
-        black_level,
+        levels,
         &config,
     )?;
     seconds.capture = lap(&mut t);
@@ -282,7 +248,7 @@ pub fn run_capture_with(
     let coverage = outcome.valid.data.iter().filter(|v| **v).count() as f64 / visible as f64;
     let mut files = write_reflectance_map(out, "reflectance", &outcome.map)?;
     files.push("summary.json".into());
-    let eta_rel_error = (eta - eta_true).abs() / eta_true;
+    let eta_rel_error = (levels.eta - true_levels.eta).abs() / true_levels.eta;
     let d = &scene.cameras[0].device;
     let mut summary = CaptureSummary {
         scene: scene.name.clone(),

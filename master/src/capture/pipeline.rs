@@ -15,7 +15,7 @@ use showcase_light::{
     DeviceRays, Image, IntensityImage, IntensityLight, ObjectFilter, RgbImage, SceneGeometry,
     render_intensity, world_matrix,
 };
-use showcase_proto::Showcase;
+use showcase_proto::{ProjectorResponse, Showcase};
 
 /// How reflectance is extracted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,7 +40,8 @@ impl Method {
     }
 }
 
-/// Where eta and the black level come from.
+/// Where eta and the black level come from; [`EtaMode::resolve`] turns
+/// a mode into the values a capture uses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum EtaMode {
     /// Given (e.g. the sim's true values).
@@ -50,12 +51,60 @@ pub enum EtaMode {
         /// Black level (W/sr).
         black_level: f64,
     },
+    /// Taken from the response of the scene's projector 0: in the
+    /// simulated showcase, the true values.
+    FromScene,
     /// Fitted with Brent's method on the reference target.
     Estimated,
 }
 
+/// Eta and the black level a capture uses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProjectorLevels {
+    /// Projector intensity eta (W/sr).
+    pub eta: f64,
+    /// Black level (W/sr).
+    pub black_level: f64,
+}
+
+impl ProjectorLevels {
+    /// The levels of a projector's photometric `response`.
+    pub fn of(response: &ProjectorResponse) -> Self {
+        Self {
+            eta: response.eta as f64,
+            black_level: response.black_level as f64,
+        }
+    }
+}
+
+impl EtaMode {
+    /// The eta and black level of this mode for a capture of `scene`: the
+    /// known values, projector 0's response, or the result of `fit` (the
+    /// fit on the reference target, called only when estimated).
+    pub fn resolve(
+        self,
+        scene: &Showcase,
+        fit: impl FnOnce() -> anyhow::Result<ProjectorFit>,
+    ) -> anyhow::Result<ProjectorLevels> {
+        Ok(match self {
+            EtaMode::Known { eta, black_level } => ProjectorLevels { eta, black_level },
+            EtaMode::FromScene => {
+                let projector = scene.projectors.first().context("no projector")?;
+                ProjectorLevels::of(&projector.response)
+            }
+            EtaMode::Estimated => {
+                let fit = fit()?;
+                ProjectorLevels {
+                    eta: fit.eta,
+                    black_level: fit.black_level,
+                }
+            }
+        })
+    }
+}
+
 /// Settings of one capture.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct CaptureConfig {
     /// Frames averaged per radiance map (K).
     pub frames: u32,
@@ -81,6 +130,17 @@ pub struct CaptureConfig {
     pub border_px: f64,
     /// Samples per pixel of the reference target's sim.
     pub reference_samples: u32,
+}
+
+impl CaptureConfig {
+    /// [`EtaMode::resolve`] for a capture of `scene` with this config,
+    /// fitting on `scene`'s reference target ([`calibrate_reference`]) at
+    /// this config's frames and reference samples when estimated.
+    pub fn resolve_eta(&self, scene: &Showcase) -> anyhow::Result<ProjectorLevels> {
+        self.eta.resolve(scene, || {
+            calibrate_reference(scene, self.frames, self.reference_samples)
+        })
+    }
 }
 
 impl Default for CaptureConfig {
@@ -269,16 +329,17 @@ pub fn calibrate_projector<P: ProjectorDevice, C: CameraDevice>(
 }
 
 /// Capture the reflectance of `model`'s real objects (the registered
-/// geometry) with a projector of known `gamma` and the given eta and black
-/// level, by `config.method`.
+/// geometry) with a projector of known `gamma` and the eta and black
+/// level `levels` (`config.eta` resolved, see
+/// [`CaptureConfig::resolve_eta`]), by `config.method`.
 pub fn capture_map<P: ProjectorDevice, C: CameraDevice>(
     model: &Showcase,
     projector: &mut P,
     camera: &mut C,
-    eta: f64,
-    black_level: f64,
+    levels: ProjectorLevels,
     config: &CaptureConfig,
 ) -> anyhow::Result<CaptureOutcome> {
+    let ProjectorLevels { eta, black_level } = levels;
     let geometry = SceneGeometry::build(model, &ObjectFilter::Real)?;
     let rays = DeviceRays::new(camera.device())?;
     let pdev = projector.device().clone();
@@ -398,16 +459,10 @@ pub fn capture_reflectance(
     config: &CaptureConfig,
 ) -> anyhow::Result<CaptureOutcome> {
     anyhow::ensure!(!scene.projectors.is_empty(), "the scene has no projector");
-    let (eta, black) = match config.eta {
-        EtaMode::Known { eta, black_level } => (eta, black_level),
-        EtaMode::Estimated => {
-            let fit = calibrate_reference(scene, config.frames, config.reference_samples)?;
-            (fit.eta, fit.black_level)
-        }
-    };
+    let levels = config.resolve_eta(scene)?;
     let mut projector = sim.projector(0)?;
     let mut camera = sim.camera(0)?;
-    capture_map(scene, &mut projector, &mut camera, eta, black, config)
+    capture_map(scene, &mut projector, &mut camera, levels, config)
 }
 
 /// The projector fit on the reference target of `scene`'s rig (a separate
@@ -452,4 +507,48 @@ fn dilate(mask: &Image<bool>, r: u32) -> Image<bool> {
             })
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each mode gives its own values, and only an estimate runs the fit.
+    #[test]
+    fn eta_modes_resolve_to_their_levels() {
+        let scene = scenes::plate_scene((8, 8), false);
+        let response = &scene.projectors[0].response;
+        let truth = ProjectorLevels {
+            eta: response.eta as f64,
+            black_level: response.black_level as f64,
+        };
+        let fit = ProjectorFit {
+            eta: 0.9,
+            black_level: 0.02,
+            mse: 0.0,
+        };
+        let unused = || -> anyhow::Result<ProjectorFit> { panic!("fit run for a given eta") };
+        let known = EtaMode::Known {
+            eta: 2.0,
+            black_level: 0.5,
+        };
+        assert_eq!(
+            known.resolve(&scene, unused).unwrap(),
+            ProjectorLevels {
+                eta: 2.0,
+                black_level: 0.5
+            }
+        );
+        assert_eq!(EtaMode::FromScene.resolve(&scene, unused).unwrap(), truth);
+        assert_eq!(
+            EtaMode::Estimated.resolve(&scene, || Ok(fit)).unwrap(),
+            ProjectorLevels {
+                eta: 0.9,
+                black_level: 0.02
+            }
+        );
+        let bare = Showcase::default();
+        let e = EtaMode::FromScene.resolve(&bare, unused).unwrap_err();
+        assert!(e.to_string().contains("no projector"), "{e}");
+    }
 }

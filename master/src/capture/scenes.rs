@@ -1,7 +1,6 @@
-//! Scenes for capture and its bench: an OBJ file as a showcase of real
-//! objects (`Kd` albedo, `Ke` emission), the textured plate, the Cornell
-//! box, the reference target of known reflectance, and the default
-//! projector and camera of a capture rig.
+//! Scenes for capture and its bench: the textured plate, the Cornell box,
+//! the reference target of known reflectance, and the default projector
+//! and camera of a capture rig.
 
 use anyhow::Context;
 use glam::{DVec3, Vec2, Vec3};
@@ -36,43 +35,6 @@ pub fn rig_camera_response(noise: bool) -> CameraResponse {
         shot_noise: if noise { 1e-4 } else { 0.0 },
         bits: 8,
     }
-}
-
-/// Load an OBJ file as a showcase: one real object per OBJ object (per
-/// material group where an object has several), with its `Kd` as albedo
-/// (0.5 grey without a material) and `Ke` as emitted radiance. The file
-/// is read as a scene file's mesh is ([`crate::scene_file`]): a material
-/// library that cannot be read, a `usemtl` it does not define, a bad
-/// index or a parser failure is an error naming the file and line.
-pub fn load_obj_showcase(path: &Path) -> anyhow::Result<Showcase> {
-    let parts = crate::scene_file::mesh_source::load(path).map_err(|e| match e.line {
-        Some(line) => anyhow::anyhow!("{}:{line}: {}", path.display(), e.problem),
-        None => anyhow::anyhow!("{}: {}", path.display(), e.problem),
-    })?;
-    let mut s = Showcase {
-        name: path
-            .file_stem()
-            .map(|n| n.to_string_lossy().to_string())
-            .unwrap_or_default(),
-        ..Showcase::default()
-    };
-    for part in parts {
-        let mut material = Material::diffuse(part.albedo.unwrap_or(Vec3::splat(0.5)));
-        if let Some(ke) = part.emission {
-            material.emission = ke;
-        }
-        let id = s.add_mesh(part.mesh);
-        s.objects.push(Object {
-            name: part.name,
-            mesh: id,
-            material,
-            kind: ObjectKind::Real,
-            transform: Transform::IDENTITY,
-        });
-    }
-    showcase_proto::Validate::validate(&s)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(s)
 }
 
 /// A rectangle `corner + s*u + t*v` as a two-triangle mesh with texture
@@ -159,7 +121,7 @@ pub fn cornell_scene(
     camera_size: (u32, u32),
     noise: bool,
 ) -> anyhow::Result<Showcase> {
-    let mut s = load_obj_showcase(path)?;
+    let mut s = crate::scene_file::load_any(path)?;
     s.name = "cornell".into();
     add_rig(
         &mut s,

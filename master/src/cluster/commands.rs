@@ -254,7 +254,7 @@ pub async fn run_master(
     let label = config.display().to_string();
     let cfg = ClusterConfig::parse(&text, &label)?;
     let base = config.parent().unwrap_or(Path::new("."));
-    let scene = crate::scene_file::load_scene(&base.join(&cfg.master.scene))?;
+    let scene = crate::scene_file::load_any(&base.join(&cfg.master.scene))?;
     check_outputs(&cfg, &scene, base, &label)?;
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
     let tracking = match &cfg.tracking {

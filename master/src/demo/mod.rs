@@ -6,7 +6,6 @@
 mod rendering;
 mod views;
 
-use crate::cli::DemoArgs;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -15,6 +14,17 @@ use std::time::Instant;
 /// The built-in demo cabinet, shipped with the sources.
 pub fn default_scene() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml")
+}
+
+/// What the demo runs on and where it writes (`showcase-master demo`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DemoOptions {
+    /// Output folder.
+    pub out: PathBuf,
+    /// Frames of the interactive stage.
+    pub frames: u64,
+    /// Scene file (`None`: [`default_scene`], the built-in demo cabinet).
+    pub scene: Option<PathBuf>,
 }
 
 /// How one phase of the demo went.
@@ -99,13 +109,13 @@ impl Report {
 }
 
 /// Run the demo.
-pub fn run(args: &DemoArgs) -> Result<()> {
-    let scene_path = args.scene.clone().unwrap_or_else(default_scene);
+pub fn run(opts: &DemoOptions) -> Result<()> {
+    let scene_path = opts.scene.clone().unwrap_or_else(default_scene);
     let mut report = Report::default();
 
     let t = Instant::now();
     let pb = progress("scene", None);
-    let mut scene = crate::scene_file::load_scene(&scene_path)?;
+    let mut scene = crate::scene_file::load_any(&scene_path)?;
     pb.finish_and_clear();
     report.ran(
         "scene",
@@ -129,35 +139,35 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     pb.finish_and_clear();
     report.ran("calibration", t, calibration.detail);
     report.figures.extend(calibration.figures);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("cannot create {}", opts.out.display()))?;
     let t = Instant::now();
     let pb = progress("reflectance", None);
-    let reflectance = reflectance_stage(&scene, &args.out)?;
+    let reflectance = reflectance_stage(&scene, &opts.out)?;
     pb.finish_and_clear();
     report.ran("reflectance", t, reflectance.detail);
     report.figures.extend(reflectance.figures);
     let t = Instant::now();
     let pb = progress("radiosity", None);
-    let radiosity = radiosity_stage(&args.out)?;
+    let radiosity = radiosity_stage(&opts.out)?;
     pb.finish_and_clear();
     report.ran("radiosity", t, radiosity.detail);
     report.figures.extend(radiosity.figures);
     let t = Instant::now();
     let pb = progress("interactive", None);
-    pb.set_message(format!("{} frames at {INTERACTIVE_HZ} Hz", args.frames));
-    let interactive = interactive_stage(&scene, args)?;
+    pb.set_message(format!("{} frames at {INTERACTIVE_HZ} Hz", opts.frames));
+    let interactive = interactive_stage(&scene, opts)?;
     pb.finish_and_clear();
     report.ran("interactive", t, interactive.detail);
     report.figures.extend(interactive.figures);
     let t = Instant::now();
-    let rendering = rendering::rendering_stage(&truth, &scene, args, &mut report.gallery)?;
+    let rendering = rendering::rendering_stage(&truth, &scene, opts, &mut report.gallery)?;
     report.ran("rendering", t, rendering.detail);
     report.figures.extend(rendering.figures);
 
     report.complete =
         report.phases.len() == PHASES.len() && report.phases.iter().all(|p| p.status == "ran");
-    write_report(&args.out, &report)?;
+    write_report(&opts.out, &report)?;
     let skipped = report
         .phases
         .iter()
@@ -165,7 +175,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .count();
     eprintln!(
         "[demo] wrote {}/report.json and index.html; {} of {} phases ran, {skipped} skipped (see above)",
-        args.out.display(),
+        opts.out.display(),
         report.phases.len() - skipped,
         report.phases.len()
     );
@@ -233,7 +243,7 @@ fn radiosity_stage(out: &Path) -> Result<StageOutcome> {
     // from the real room's interreflection gathered at the vertices (the
     // headline) and with the paper's converged B1.
     let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cornell-box.obj");
-    let cornell = crate::radiosity_job::load_obj_scene(&cornell)?;
+    let cornell = crate::scene_file::load_any(&cornell)?;
     let record = crate::radiosity_job::bench::augmented_record_with(&cornell, false)?;
     let gathered = record["consistency_rel_rmse"].as_f64();
     let paper = record["paper_consistency_rel_rmse"].as_f64();
@@ -339,7 +349,7 @@ const INTERACTIVE_HZ: f32 = 60.0;
 /// The loopback cluster: master plus one node per face and projector,
 /// frame-locked over QUIC, driven by the built-in walk (recorded to
 /// `session.jsonl` for `replay`).
-fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Result<StageOutcome> {
+fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Result<StageOutcome> {
     use crate::cluster::commands::{
         bench_record, output_nodes, state_hash_renderers, walk_tracking,
     };
@@ -350,21 +360,21 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
     let tracker =
         crate::tracking::Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
     let mut show = Show::new(Tracking::Scripted(tracker), HZ as f64);
-    let session = args.out.join("session.jsonl");
+    let session = opts.out.join("session.jsonl");
     let f = std::fs::File::create(&session)
         .with_context(|| format!("cannot create {}", session.display()))?;
     show.record_to(
         Box::new(std::io::BufWriter::new(f)),
         "showcase-master demo: the built-in walk",
     )?;
-    let metrics_path = args.out.join("metrics.jsonl");
+    let metrics_path = opts.out.join("metrics.jsonl");
     let metrics = std::fs::File::create(&metrics_path)
         .with_context(|| format!("cannot create {}", metrics_path.display()))?;
     let nodes = output_nodes(scene);
     let node_count = nodes.len();
     eprintln!(
         "[demo] interactive: {} frames at {HZ} Hz, master + {node_count} nodes over QUIC on loopback...",
-        args.frames
+        opts.frames
     );
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -375,7 +385,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
         scene: scene.clone(),
         show,
         nodes,
-        frames: args.frames,
+        frames: opts.frames,
         core: showcase_proto::session::MasterConfig {
             target_hz: HZ,
             ..crate::cluster::cluster_core_defaults()
@@ -386,12 +396,12 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
         write_frames: None,
     }))?;
     let seconds = started.elapsed().as_secs_f64();
-    let rec = bench_record(node_count, HZ, args.frames, &result);
+    let rec = bench_record(node_count, HZ, opts.frames, &result);
     let presented: Vec<usize> = result.logs.iter().map(|(_, l)| l.presented.len()).collect();
-    if presented.iter().any(|&n| n as u64 != args.frames) {
+    if presented.iter().any(|&n| n as u64 != opts.frames) {
         anyhow::bail!(
             "interactive stage: nodes presented {presented:?} frames, expected {} each",
-            args.frames
+            opts.frames
         );
     }
     let mut figures = serde_json::Map::new();
@@ -415,7 +425,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, args: &DemoArgs) -> Resul
     Ok(StageOutcome {
         detail: format!(
             "{} frames on {node_count} nodes, {fps:.1} frames/s, swap skew p99 {:.3} ms, tracking-to-swap p99 {:.3} ms, {} ticks dropped; session in {}",
-            args.frames,
+            opts.frames,
             rec.swap_skew_ms_p99.unwrap_or(f64::NAN),
             rec.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),
             rec.dropped_frames,

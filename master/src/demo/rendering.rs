@@ -1,10 +1,9 @@
 //! The demo's rendering stage: the node renderers' outputs at a few
 //! frames of the walk, what the cabinet's camera measures of the
-//! projectors' light (issue 6's end-to-end check), and what each observer
-//! sees of them next to its target.
+//! projectors' light (the end-to-end consistency check), and what each
+//! observer sees of them next to its target.
 
-use super::{GalleryRow, INTERACTIVE_HZ, StageOutcome, progress, views};
-use crate::cli::DemoArgs;
+use super::{DemoOptions, GalleryRow, INTERACTIVE_HZ, StageOutcome, progress, views};
 use anyhow::{Context, Result};
 use showcase_light::metrics::percentile;
 use std::time::Instant;
@@ -25,14 +24,14 @@ fn rendered_frames(frames: u64) -> Vec<u64> {
 pub(super) fn rendering_stage(
     truth: &showcase_proto::Showcase,
     calibrated: &showcase_proto::Showcase,
-    args: &DemoArgs,
+    opts: &DemoOptions,
     gallery: &mut Vec<GalleryRow>,
 ) -> Result<StageOutcome> {
     use crate::cluster::commands::walk_tracking;
     use crate::cluster::{Show, Tracking};
     use showcase_proto::config::TrackingSource;
 
-    let frames = rendered_frames(args.frames);
+    let frames = rendered_frames(opts.frames);
     let truth = views::at_demo_resolution(truth)?;
     let calibrated = std::sync::Arc::new(views::at_demo_resolution(calibrated)?);
     // The frame states the cluster sent: the same scripted walk, replayed.
@@ -64,7 +63,7 @@ pub(super) fn rendering_stage(
     for state in &states {
         pb.set_message(format!("frame {}", state.frame));
         let dir_name = format!("frames/frame-{:04}", state.frame);
-        let dir = args.out.join(&dir_name);
+        let dir = opts.out.join(&dir_name);
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create {}", dir.display()))?;
         let t = Instant::now();
@@ -73,7 +72,7 @@ pub(super) fn rendering_stage(
         let mut nodes = Vec::new();
         for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
             let file = format!("{dir_name}/{}.png", p.name);
-            views::write_values(&args.out.join(&file), img)?;
+            views::write_values(&opts.out.join(&file), img)?;
             nodes.push((format!("{} (pixel values)", p.name), file));
         }
         let mut rows = Vec::new();
@@ -87,12 +86,12 @@ pub(super) fn rendering_stage(
                 ("through-mirror", &r.view.reflected),
             ] {
                 let file = format!("{dir_name}/{name}-{what}.png");
-                views::write_radiance(&args.out.join(&file), img, r.exposure)?;
+                views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
                 images.push((format!("{name}: {what}"), file));
             }
             let file = format!("{dir_name}/{name}-delta-e.png");
             views::write_heat_map(
-                &args.out.join(&file),
+                &opts.out.join(&file),
                 r.view.target.width,
                 r.view.target.height,
                 &r.delta_e,
@@ -115,7 +114,7 @@ pub(super) fn rendering_stage(
             let mut images = Vec::new();
             for (what, img) in [("target", &r.view.target), ("measured", &r.view.real)] {
                 let file = format!("{dir_name}/{name}-{what}.png");
-                views::write_radiance(&args.out.join(&file), img, r.exposure)?;
+                views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
                 images.push((format!("{name}: {what}"), file));
             }
             rows.push(GalleryRow {
@@ -136,7 +135,7 @@ pub(super) fn rendering_stage(
                 .map_or("face".to_string(), |f| f.name.clone());
             for (eye, img) in [("left", left), ("right", right)] {
                 let file = format!("{dir_name}/{face}-{eye}.png");
-                views::write_radiance(&args.out.join(&file), img, 1.0)?;
+                views::write_radiance(&opts.out.join(&file), img, 1.0)?;
                 nodes.push((format!("{face}: {eye} eye"), file));
             }
         }
@@ -153,7 +152,7 @@ pub(super) fn rendering_stage(
     let p95 = percentile(&all_de, 95.0);
     figures.insert("delta_e2000_median".into(), serde_json::json!(median));
     figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
-    // Issue 6's projector-role figure, measured by the cabinet's camera.
+    // The projector-role consistency figure, measured by the cabinet's camera.
     figures.insert(
         "interactive_consistency_rel_rmse".into(),
         serde_json::json!(cameras.rel),
@@ -197,7 +196,7 @@ pub(super) fn rendering_stage(
         ),
     );
     // The observers' real surfaces over the pixels the method can get
-    // right by design (see `views::ObserverResult`): issue 6's check seen
+    // right by design (see `views::ObserverResult`): the consistency check seen
     // from the eyes, for the real-surface error budget.
     let comparable = per_observer
         .iter()
@@ -229,7 +228,7 @@ pub(super) fn rendering_stage(
             median.unwrap_or(f64::NAN),
             p95.unwrap_or(f64::NAN),
             comparable.unwrap_or(f64::NAN),
-            args.out.display()
+            opts.out.display()
         ),
         figures,
     })

@@ -18,7 +18,7 @@
 //!   that see the whole light, against Lambert's closed-form polygon
 //!   formula; mean relative error.
 
-use super::scene::load_obj_scene;
+use crate::scene_file::load_any;
 use anyhow::Context;
 use glam::{DVec2, DVec3, Vec3};
 use serde_json::{Value, json};
@@ -32,9 +32,13 @@ use std::path::Path;
 use std::time::Instant;
 
 mod augmented;
+mod incremental;
 mod object;
 pub use augmented::{CONSISTENCY_SAMPLES, augmented_record, augmented_record_with, figure3_scene};
-pub use object::{cornell_with_small_cube, incremental_object_record};
+pub use incremental::incremental_record;
+pub use object::{
+    MOVED_OBJECTS, ObjectRecords, cornell_with_small_cube, incremental_object_record,
+};
 
 /// One benchmark record (a JSON object).
 pub type BenchRecord = Value;
@@ -54,11 +58,15 @@ struct Config {
     gather: Option<GatherConfig>,
 }
 
+/// A final gather at the vertices of a finer mesh than the solve's.
 #[derive(Clone, Debug)]
-struct GatherConfig {
-    depth: u32,
-    refine_rounds: u32,
-    options: GatherOptions,
+pub struct GatherConfig {
+    /// The gather's mesh has `4^depth` elements per patch.
+    pub depth: u32,
+    /// Rounds of refinement of the gather's mesh where B changes fast.
+    pub refine_rounds: u32,
+    /// Visibility rays and seed of the gather.
+    pub options: GatherOptions,
 }
 
 /// A solution as per-vertex values of `mesh`.
@@ -268,41 +276,52 @@ fn base() -> Config {
     }
 }
 
+/// The fast configuration ([`gathered_config`]): a coarse shooting solve,
+/// then a final gather at the vertices of a finer mesh.
+#[derive(Clone, Debug)]
+pub struct GatheredConfig {
+    /// Largest patch area (m^2) of the shooting mesh, one element per
+    /// patch.
+    pub max_patch_area: f64,
+    /// The shooting solve.
+    pub solve: SolveOptions,
+    /// The final gather.
+    pub gather: GatherConfig,
+}
+
 /// The fast configuration: ray-cast form factors between 0.02 m^2 patches
 /// (one element each) to an unshot fraction of 1e-2, then a final gather
 /// at the vertices of 16 elements per patch, refined once where B changes
 /// fast, one visibility ray per patch pair and 16 per emitter patch.
-pub fn gathered_config() -> (f64, SolveOptions, u32, u32, GatherOptions) {
-    (
-        0.02,
-        SolveOptions {
+pub fn gathered_config() -> GatheredConfig {
+    GatheredConfig {
+        max_patch_area: 0.02,
+        solve: SolveOptions {
             threshold: 1e-2,
             method: FormFactorMethod::RayCast,
             visibility_samples: 2,
             ..SolveOptions::default()
         },
-        2,
-        1,
-        GatherOptions {
-            samples: 1,
-            emitter_samples: 16,
-            seed: 1,
+        gather: GatherConfig {
+            depth: 2,
+            refine_rounds: 1,
+            options: GatherOptions {
+                samples: 1,
+                emitter_samples: 16,
+                seed: 1,
+            },
         },
-    )
+    }
 }
 
 fn gathered() -> Config {
-    let (area, solve, depth, refine_rounds, options) = gathered_config();
+    let g = gathered_config();
     Config {
-        max_patch_area: area,
+        max_patch_area: g.max_patch_area,
         element_depth: 0,
         refine: false,
-        solve,
-        gather: Some(GatherConfig {
-            depth,
-            refine_rounds,
-            options,
-        }),
+        solve: g.solve,
+        gather: Some(g.gather),
     }
 }
 
@@ -371,166 +390,10 @@ fn record(
     }))
 }
 
-/// A virtual point light of `intensity` (W/sr) moves inside the box beside
-/// the box's own light, in the gathered configuration
-/// ([`gathered_config`], without the gather's refinement so both sides
-/// share one output mesh). Three ways to the new per-vertex solution, all
-/// to the same absolute unshot-power tolerance, each timed from the moment
-/// the light moved:
-/// - `full`: from scratch: form factors, shooting, gather matrix, gather;
-/// - `warm`: shooting from scratch but with the cached form-factor rows
-///   and gather matrix (geometry is unchanged);
-/// - `incremental`: shoot the difference: remove the old light's direct
-///   deposit (negative energy), add the new one, shoot what is unshot with
-///   the cached rows, and gather again with the cached matrix.
-///
-/// Errors are against a solve of the new state to 1e-5 gathered with the
-/// same matrix.
-pub fn incremental_record(cornell: &Showcase, intensity: f32) -> anyhow::Result<BenchRecord> {
-    let (area, solve, depth, _, gather_options) = gathered_config();
-    let all = SceneGeometry::build(cornell, &ObjectFilter::All)?;
-    let mesh = mesh_with(cornell, &all, area, 0)?;
-    let target = mesh_with(cornell, &all, area, depth)?;
-    let light = |x: f32| Light::Point {
-        position: Vec3::new(x, 0.4, 0.3),
-        intensity: Vec3::splat(intensity),
-    };
-    let (old, new) = (light(0.15), light(0.4));
-    let mut base_solve = Shooter::new(&mesh, &all, None, &solve)?;
-    base_solve.add_surface_emission();
-    base_solve.add_light(&old, 1.0);
-    // The static solution is precomputed offline to a tenth of the
-    // interactive tolerance, so an update need not first pay off the
-    // residual the precompute left at exactly the limit.
-    let limit = solve.threshold * base_solve.injected_power();
-    base_solve.run_to_power(0.1 * limit);
-    let gather = VertexGather::build(&mesh, &target, &all, &gather_options, None);
-    let lights = [new.clone()];
-
-    let start = Instant::now();
-    let mut full = Shooter::new(&mesh, &all, None, &solve)?;
-    full.add_surface_emission();
-    full.add_light(&new, 1.0);
-    full.run_to_power(limit);
-    let full_gather = VertexGather::build(&mesh, &target, &all, &gather_options, None);
-    let full_v = full_gather.apply(&mesh, &full.display_radiosity(), &target, &all, &lights);
-    let full_seconds = start.elapsed().as_secs_f64();
-
-    let start = Instant::now();
-    let mut inc = base_solve;
-    inc.add_light(&old, -1.0);
-    inc.add_light(&new, 1.0);
-    let inc_shots = inc.run_to_power(limit);
-    let inc_v = gather.apply(&mesh, &inc.display_radiosity(), &target, &all, &lights);
-    let inc_seconds = start.elapsed().as_secs_f64();
-
-    let mut tight = solve.clone();
-    tight.threshold = 1e-5;
-    let converged = radiosity::solve(&mesh, &all, &lights, &tight)?;
-    let converged_v = gather.apply(&mesh, &converged.display, &target, &all, &lights);
-    let err =
-        |v: &[DVec3]| radiosity::relative_error_vertices(&target, v, &target, &converged_v, 6);
-    let (full_err, inc_err) = (err(&full_v), err(&inc_v));
-
-    let start = Instant::now();
-    let mut warm = inc;
-    warm.restart();
-    warm.add_surface_emission();
-    warm.add_light(&new, 1.0);
-    warm.run_to_power(limit);
-    let warm_v = gather.apply(&mesh, &warm.display_radiosity(), &target, &all, &lights);
-    let warm_seconds = start.elapsed().as_secs_f64();
-    Ok(json!({
-        "kind": "incremental",
-        "light_intensity": intensity,
-        "patches": mesh.patches.len(),
-        "vertices": target.vertices.len(),
-        "threshold": solve.threshold,
-        "full_seconds": full_seconds,
-        "full_shots": full.shots(),
-        "full_rel_error": full_err,
-        "warm_seconds": warm_seconds,
-        "warm_shots": warm.shots(),
-        "warm_rel_error": err(&warm_v),
-        "incremental_seconds": inc_seconds,
-        "incremental_shots": inc_shots,
-        "incremental_rel_error": inc_err,
-        "speedup": full_seconds / inc_seconds.max(1e-9),
-        "speedup_over_warm": warm_seconds / inc_seconds.max(1e-9),
-    }))
-}
-
 /// Run the radiosity benchmark on the Cornell box at `cornell` (the OBJ).
 /// Slow (minutes): build in release.
 pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
     bench_radiosity_kinds(cornell, &[], &ObjectRecords::default())
-}
-
-/// Which `incremental_object` records to make, and how often to time
-/// each (`bench radiosity --object-records ... --repeats N`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ObjectRecords {
-    /// `(object, max patch area)` pairs; the object is `short_block` (the
-    /// Cornell box's) or `small_cube` (a 6 cm cube added to it).
-    pub records: Vec<(String, f64)>,
-    /// Timed runs per record (the fastest and the paired median are
-    /// reported).
-    pub repeats: usize,
-}
-
-/// The objects of the `incremental_object` records.
-pub const MOVED_OBJECTS: [&str; 2] = ["short_block", "small_cube"];
-
-impl Default for ObjectRecords {
-    /// Both objects at 0.02 and 0.005 m^2, 5 runs each.
-    fn default() -> Self {
-        let records = [0.02, 0.005]
-            .into_iter()
-            .flat_map(|area| MOVED_OBJECTS.map(|o| (o.to_string(), area)))
-            .collect();
-        Self {
-            records,
-            repeats: 5,
-        }
-    }
-}
-
-impl ObjectRecords {
-    /// From `OBJECT@AREA` specs (all default records when empty) and a
-    /// repeat count (5 when `None`); an unknown object, an unreadable or
-    /// non-positive area, or zero repeats is an error naming it.
-    pub fn parse(specs: &[String], repeats: Option<usize>) -> anyhow::Result<Self> {
-        let mut out = Self::default();
-        if let Some(n) = repeats {
-            anyhow::ensure!(n > 0, "--repeats must be at least 1");
-            out.repeats = n;
-        }
-        if specs.is_empty() {
-            return Ok(out);
-        }
-        out.records = specs
-            .iter()
-            .map(|spec| {
-                let (object, area) = spec.split_once('@').with_context(|| {
-                    format!("object record {spec:?} is not OBJECT@AREA (e.g. short_block@0.02)")
-                })?;
-                anyhow::ensure!(
-                    MOVED_OBJECTS.contains(&object),
-                    "unknown moved object {object:?} in {spec:?}; known: {}",
-                    MOVED_OBJECTS.join(", ")
-                );
-                let area: f64 = area
-                    .parse()
-                    .ok()
-                    .filter(|a: &f64| a.is_finite() && *a > 0.0)
-                    .with_context(|| {
-                        format!("patch area {area:?} in {spec:?} is not a positive number (m^2)")
-                    })?;
-                Ok((object.to_string(), area))
-            })
-            .collect::<anyhow::Result<_>>()?;
-        Ok(out)
-    }
 }
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
@@ -562,7 +425,7 @@ pub fn bench_radiosity_kinds(
         );
     }
     let wanted = |kind: &str| kinds.is_empty() || kinds.iter().any(|k| k == kind);
-    let showcase = load_obj_scene(cornell)?;
+    let showcase = load_any(cornell)?;
     let mut records = Vec::new();
     if ["reference", "gathered", "sweep", "scaling"]
         .iter()
@@ -668,41 +531,4 @@ fn bench_against_reference(
 /// directory, the repository root).
 pub fn bench_radiosity() -> anyhow::Result<Vec<BenchRecord>> {
     bench_radiosity_at(Path::new(CORNELL_BOX))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `--object-records` and `--repeats`: the default is every record at
-    /// 5 runs; specs pick records; a bad spec is an error naming it.
-    #[test]
-    fn object_record_specs_parse_and_bad_ones_are_named() {
-        let all = ObjectRecords::parse(&[], None).unwrap();
-        assert_eq!(all, ObjectRecords::default());
-        assert_eq!(all.records.len(), 4);
-        assert_eq!(all.repeats, 5);
-        let specs = [
-            "short_block@0.02".to_string(),
-            "small_cube@5e-3".to_string(),
-        ];
-        let picked = ObjectRecords::parse(&specs, Some(30)).unwrap();
-        assert_eq!(
-            picked.records,
-            vec![("short_block".into(), 0.02), ("small_cube".into(), 0.005)]
-        );
-        assert_eq!(picked.repeats, 30);
-        for (spec, named) in [
-            ("tall_block@0.02", "tall_block"),
-            ("short_block", "OBJECT@AREA"),
-            ("short_block@big", "big"),
-            ("short_block@-1", "-1"),
-            ("short_block@NaN", "NaN"),
-        ] {
-            let e = ObjectRecords::parse(&[spec.to_string()], None).unwrap_err();
-            assert!(e.to_string().contains(named), "{spec}: {e}");
-        }
-        let e = ObjectRecords::parse(&[], Some(0)).unwrap_err();
-        assert!(e.to_string().contains("--repeats"), "{e}");
-    }
 }

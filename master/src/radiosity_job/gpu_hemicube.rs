@@ -7,7 +7,7 @@
 //! microseconds and the readback dominates.
 
 use super::bench::BenchRecord;
-use super::scene::load_obj_scene;
+use crate::scene_file::load_any;
 use serde_json::json;
 use showcase_light::radiosity::hemicube::{HemiCube, HemiCubeShot, ItemTriangle};
 use showcase_light::radiosity::shooting::ItemBufferBackend;
@@ -29,7 +29,7 @@ const SHOTS: usize = 64;
 /// OBJ at `cornell`, meshed like the `radiosity` command's default
 /// (0.01 m^2 patches), with the GPU of `ctx`.
 pub fn gpu_hemicube_records(cornell: &Path, ctx: &GpuContext) -> anyhow::Result<Vec<BenchRecord>> {
-    let showcase = load_obj_scene(cornell)?;
+    let showcase = load_any(cornell)?;
     let geometry = SceneGeometry::build(&showcase, &ObjectFilter::All)?;
     let mesh = RadiosityMesh::build(
         &showcase,
@@ -134,6 +134,18 @@ fn shot_record(
     }))
 }
 
+/// One timed shooting solve of [`solve_record`].
+struct TimedSolve {
+    /// Wall-clock seconds of the solve.
+    seconds: f64,
+    /// Element radiosity.
+    radiosity: Vec<glam::DVec3>,
+    /// Patches shot.
+    shots: usize,
+    /// Item-buffer rows the GPU left to the CPU.
+    fallbacks: usize,
+}
+
 /// A full solve to 1e-3 with CPU and with GPU item buffers.
 fn solve_record(
     mesh: &RadiosityMesh,
@@ -153,20 +165,21 @@ fn solve_record(
         item_buffer: ItemBufferBackend::Raster(gpu.clone()),
         ..cpu_options.clone()
     };
-    let run = |o: &SolveOptions| -> anyhow::Result<(f64, Vec<glam::DVec3>, usize, usize)> {
+    let run = |o: &SolveOptions| -> anyhow::Result<TimedSolve> {
         let t = Instant::now();
         let mut s = Shooter::new(mesh, geometry, None, o)?;
         s.add_surface_emission();
         s.run();
-        Ok((
-            t.elapsed().as_secs_f64(),
-            s.radiosity().to_vec(),
-            s.shots(),
-            s.item_buffer_fallbacks(),
-        ))
+        Ok(TimedSolve {
+            seconds: t.elapsed().as_secs_f64(),
+            radiosity: s.radiosity().to_vec(),
+            shots: s.shots(),
+            fallbacks: s.item_buffer_fallbacks(),
+        })
     };
-    let (cpu_s, cpu_b, shots, _) = run(&cpu_options)?;
-    let (gpu_s, gpu_b, gpu_shots, fallbacks) = run(&gpu_options)?;
+    let cpu = run(&cpu_options)?;
+    let gpu = run(&gpu_options)?;
+    let fallbacks = gpu.fallbacks;
     anyhow::ensure!(fallbacks == 0, "{fallbacks} gpu rows fell back to the cpu");
     Ok(json!({
         "kind": "gpu_hemicube_solve",
@@ -180,10 +193,10 @@ fn solve_record(
         "threshold": cpu_options.threshold,
         "patches": mesh.patches.len(),
         "elements": mesh.elements.len(),
-        "shots": shots,
-        "gpu_shots": gpu_shots,
-        "cpu_seconds": cpu_s,
-        "gpu_seconds": gpu_s,
-        "rel_error_gpu_vs_cpu": relative_error(mesh, &gpu_b, mesh, &cpu_b, 4),
+        "shots": cpu.shots,
+        "gpu_shots": gpu.shots,
+        "cpu_seconds": cpu.seconds,
+        "gpu_seconds": gpu.seconds,
+        "rel_error_gpu_vs_cpu": relative_error(mesh, &gpu.radiosity, mesh, &cpu.radiosity, 4),
     }))
 }

@@ -8,10 +8,8 @@ pub mod consistency;
 pub mod export;
 pub mod gpu_hemicube;
 pub mod report;
-pub mod scene;
 
 pub use bench::{BenchRecord, bench_radiosity, bench_radiosity_at};
-pub use scene::{load_any_scene, load_obj_scene};
 
 use anyhow::Context;
 use glam::DVec3;
@@ -255,7 +253,8 @@ fn file_name(name: &str) -> String {
         .collect()
 }
 
-/// `showcase-master radiosity`: solve `scene` (OBJ or TOML) and write
+/// `showcase-master radiosity`: solve `scene` (any scene
+/// [`crate::scene_file::load_any`] reads) and write
 /// `solution.ply` (B0 per vertex of the output mesh, by a final gather
 /// from the solution with the ambient estimate of the energy still unshot
 /// at the threshold), `irradiance_map_<projector>.pfm` (linear
@@ -277,7 +276,7 @@ pub fn run_radiosity_on(
     options: &RadiosityOptions,
     device: FormFactorDevice,
 ) -> anyhow::Result<Summary> {
-    let showcase = load_any_scene(scene)?;
+    let showcase = crate::scene_file::load_any(scene)?;
     let start = Instant::now();
     let solved = solve_showcase_on(&showcase, options, device)
         .with_context(|| scene.display().to_string())?;

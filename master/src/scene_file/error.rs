@@ -38,6 +38,17 @@ pub enum SceneError {
         /// What is wrong with it.
         problem: String,
     },
+    /// A mesh file given as the whole scene (see [`super::load_any`]) could
+    /// not be read or parsed.
+    #[error("{file}{}: {problem}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Mesh {
+        /// The mesh file.
+        file: String,
+        /// The 1-based line in the mesh file, when known.
+        line: Option<usize>,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// A mesh or calibration file referenced by the scene could not be read
     /// or parsed.
     #[error("{file}: {field}: {referenced}{}: {problem}", line.map(|l| format!(":{l}")).unwrap_or_default())]

@@ -1,9 +1,11 @@
 //! Scene files: TOML scenes placing OBJ/glTF meshes, lights and devices, loaded into a validated `Showcase`.
 //!
-//! [`load_scene`] reads a file, [`load_scene_str`] reads text (tests). The
-//! result always passes [`showcase_proto::Validate`]. Every error names the
-//! scene file and the line (TOML errors) or field (everything else), and
-//! bad input never panics.
+//! [`load_any`] reads any scene by its extension: a mesh file (OBJ or
+//! glTF) as a scene of real objects, anything else as a TOML scene file.
+//! [`load_scene`] reads a TOML scene file, [`load_scene_str`] reads text
+//! (tests). The result always passes [`showcase_proto::Validate`]. Every
+//! error names the scene file and the line (TOML errors) or field
+//! (everything else), and bad input never panics.
 //!
 //! # Conventions
 //! Metres, a right-handed world with y up, linear RGB. Paths (meshes,
@@ -120,7 +122,8 @@
 mod builtin;
 mod device;
 mod error;
-pub(crate) mod mesh_source;
+mod mesh_scene;
+mod mesh_source;
 mod object;
 mod schema;
 
@@ -134,6 +137,23 @@ use std::path::Path;
 
 /// Largest scene file read, in bytes.
 pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
+
+/// Load the scene at `path` by its extension: `.obj`, `.gltf` or `.glb`
+/// (any case) as a mesh file given whole, one real object per part with
+/// the file's albedo (0.5 grey without a material) and emission and
+/// identity transforms, named after the file's stem; anything else as a
+/// TOML scene file ([`load_scene`]). Errors name `path` as it is written
+/// and, where known, the line.
+pub fn load_any(path: &Path) -> Result<Showcase, SceneError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("obj" | "gltf" | "glb") => mesh_scene::load_mesh_scene(path),
+        _ => load_scene(path),
+    }
+}
 
 /// Load and validate the scene file at `path`. Relative paths inside it are
 /// resolved against its folder; errors name it as `path` is written.

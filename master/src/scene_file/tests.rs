@@ -68,3 +68,31 @@ fn shared_mesh_files_are_parsed_once_and_meshes_stored_once() {
     assert_eq!(s.objects[0].mesh, s.objects[1].mesh);
     assert_eq!(s.objects[1].transform.translation, glam::Vec3::X);
 }
+
+/// `load_any` picks the reader by extension: a glTF file given whole is a
+/// scene of real objects named after the file, its text and binary forms
+/// alike; a mesh file's error names the file and line; anything else is
+/// read as TOML.
+#[test]
+fn load_any_reads_mesh_files_whole_and_everything_else_as_toml() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/scenes");
+    let text = load_any(&dir.join("triangle.gltf")).unwrap();
+    assert_eq!(text.name, "triangle");
+    assert!(!text.objects.is_empty());
+    assert!(
+        text.objects
+            .iter()
+            .all(|o| o.kind == showcase_proto::ObjectKind::Real)
+    );
+    assert_eq!(
+        load_any(&dir.join("triangle.glb")).unwrap().objects,
+        text.objects
+    );
+    let path = dir.join("broken.obj");
+    let err = load_any(&path).unwrap_err().to_string();
+    assert!(err.starts_with(&format!("{}:3: ", path.display())), "{err}");
+    let err = load_any(&dir.join("calibration-good.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("calibration-good.json:1:"), "{err}");
+}

@@ -1,7 +1,8 @@
 //! The `incremental_object` records of `bench radiosity`: a virtual
 //! object (the Cornell box's short block, or a small cube) moves a few
 //! centimetres, and the incremental update ([`Shooter::move_object`]) is
-//! timed against a cold and a warm full re-solve at equal tolerance.
+//! timed against a cold and a warm full re-solve at equal tolerance; and
+//! which of these records to make (`--object-records`, `--repeats`).
 
 use super::{BenchRecord, gathered_config, mesh_with};
 use anyhow::Context;
@@ -11,6 +12,73 @@ use showcase_light::radiosity::{self, RadiosityMesh, Shooter};
 use showcase_light::{ObjectFilter, SceneGeometry};
 use showcase_proto::{ObjectKind, Showcase};
 use std::time::Instant;
+
+/// Which `incremental_object` records to make, and how often to time
+/// each (`bench radiosity --object-records ... --repeats N`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectRecords {
+    /// `(object, max patch area)` pairs; the object is `short_block` (the
+    /// Cornell box's) or `small_cube` (a 6 cm cube added to it).
+    pub records: Vec<(String, f64)>,
+    /// Timed runs per record (the fastest and the paired median are
+    /// reported).
+    pub repeats: usize,
+}
+
+/// The objects of the `incremental_object` records.
+pub const MOVED_OBJECTS: [&str; 2] = ["short_block", "small_cube"];
+
+impl Default for ObjectRecords {
+    /// Both objects at 0.02 and 0.005 m^2, 5 runs each.
+    fn default() -> Self {
+        let records = [0.02, 0.005]
+            .into_iter()
+            .flat_map(|area| MOVED_OBJECTS.map(|o| (o.to_string(), area)))
+            .collect();
+        Self {
+            records,
+            repeats: 5,
+        }
+    }
+}
+
+impl ObjectRecords {
+    /// From `OBJECT@AREA` specs (all default records when empty) and a
+    /// repeat count (5 when `None`); an unknown object, an unreadable or
+    /// non-positive area, or zero repeats is an error naming it.
+    pub fn parse(specs: &[String], repeats: Option<usize>) -> anyhow::Result<Self> {
+        let mut out = Self::default();
+        if let Some(n) = repeats {
+            anyhow::ensure!(n > 0, "--repeats must be at least 1");
+            out.repeats = n;
+        }
+        if specs.is_empty() {
+            return Ok(out);
+        }
+        out.records = specs
+            .iter()
+            .map(|spec| {
+                let (object, area) = spec.split_once('@').with_context(|| {
+                    format!("object record {spec:?} is not OBJECT@AREA (e.g. short_block@0.02)")
+                })?;
+                anyhow::ensure!(
+                    MOVED_OBJECTS.contains(&object),
+                    "unknown moved object {object:?} in {spec:?}; known: {}",
+                    MOVED_OBJECTS.join(", ")
+                );
+                let area: f64 = area
+                    .parse()
+                    .ok()
+                    .filter(|a: &f64| a.is_finite() && *a > 0.0)
+                    .with_context(|| {
+                        format!("patch area {area:?} in {spec:?} is not a positive number (m^2)")
+                    })?;
+                Ok((object.to_string(), area))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(out)
+    }
+}
 
 /// The Cornell box with a virtual cube of side `side` (metres, albedo 0.5)
 /// floating above the floor, named `small_cube`: the record's case of a
@@ -116,7 +184,7 @@ pub fn incremental_object_record(
     max_patch_area: f64,
     repeats: usize,
 ) -> anyhow::Result<BenchRecord> {
-    let (_, solve, _, _, _) = gathered_config();
+    let solve = gathered_config().solve;
     let (area, repeats) = (max_patch_area, repeats.max(1));
     let mut before = scene.clone();
     let object = before
@@ -268,8 +336,40 @@ pub fn incremental_object_record(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::radiosity_job::scene::load_obj_scene;
+    use crate::scene_file::load_any;
     use std::path::Path;
+
+    /// `--object-records` and `--repeats`: the default is every record at
+    /// 5 runs; specs pick records; a bad spec is an error naming it.
+    #[test]
+    fn object_record_specs_parse_and_bad_ones_are_named() {
+        let all = ObjectRecords::parse(&[], None).unwrap();
+        assert_eq!(all, ObjectRecords::default());
+        assert_eq!(all.records.len(), 4);
+        assert_eq!(all.repeats, 5);
+        let specs = [
+            "short_block@0.02".to_string(),
+            "small_cube@5e-3".to_string(),
+        ];
+        let picked = ObjectRecords::parse(&specs, Some(30)).unwrap();
+        assert_eq!(
+            picked.records,
+            vec![("short_block".into(), 0.02), ("small_cube".into(), 0.005)]
+        );
+        assert_eq!(picked.repeats, 30);
+        for (spec, named) in [
+            ("tall_block@0.02", "tall_block"),
+            ("short_block", "OBJECT@AREA"),
+            ("short_block@big", "big"),
+            ("short_block@-1", "-1"),
+            ("short_block@NaN", "NaN"),
+        ] {
+            let e = ObjectRecords::parse(&[spec.to_string()], None).unwrap_err();
+            assert!(e.to_string().contains(named), "{spec}: {e}");
+        }
+        let e = ObjectRecords::parse(&[], Some(0)).unwrap_err();
+        assert!(e.to_string().contains("--repeats"), "{e}");
+    }
 
     /// The object record on the real Cornell box: the incremental update
     /// reaches the moved scene's converged solution as closely as a full
@@ -277,7 +377,7 @@ mod tests {
     /// and the move mattered (the unmoved solution is off).
     #[test]
     fn incremental_object_record_reaches_the_converged_solution() {
-        let cornell = load_obj_scene(Path::new(concat!(
+        let cornell = load_any(Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../shared/data/cornell-box.obj"
         )))

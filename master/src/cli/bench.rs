@@ -1,0 +1,225 @@
+//! `showcase-master bench TARGET`: the arguments and one function per
+//! target that turns them into the bench's options and emits its records.
+
+use super::{parse_size, runtime};
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+
+/// What to benchmark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BenchTarget {
+    /// Device calibration.
+    Calibration,
+    /// Reflectance capture.
+    Reflectance,
+    /// Radiosity.
+    Radiosity,
+    /// The real-time renderer.
+    Render,
+    /// The cluster runtime.
+    Cluster,
+}
+
+/// Arguments of `bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// What to benchmark.
+    #[arg(value_enum)]
+    pub target: BenchTarget,
+    /// Print one JSON array on stdout instead of writing a report.
+    #[arg(long)]
+    pub json: bool,
+    /// Report folder (without --json).
+    #[arg(long, default_value = "showcase-bench")]
+    pub out: PathBuf,
+    /// Frames per configuration (default: 600 for cluster, 30 for render).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Cluster only: node counts to run (default: 2,4,8).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub nodes: Vec<u16>,
+    /// Cluster only: frame rates to run, in Hz (default: 60,120).
+    #[arg(long, value_delimiter = ',')]
+    pub hz: Vec<f32>,
+    /// Render only: output sizes `WxH` (default: 640x480,1024x768,1920x1080).
+    #[arg(long, value_delimiter = ',')]
+    pub sizes: Vec<String>,
+    /// Render only: shadow map texels per side (default: the renderer's).
+    #[arg(long)]
+    pub shadow_res: Option<u32>,
+    /// Render only: skip the CPU references (no accuracy figures; fast at large sizes).
+    #[arg(long)]
+    pub no_accuracy: bool,
+    /// Render only: measure the adapter's floor instead of the passes: one
+    /// JSON record (key `floor`) per stripped pass: the irradiance pass
+    /// with a constant fragment, a full-screen triangle with a constant
+    /// fragment, the same plus the texel fetches the real shaders make per
+    /// pixel (projector and stereo face), the six light shadow views (all
+    /// objects, occluders only, cleared only) and the readback (copies
+    /// only, one target, both targets).
+    #[arg(long)]
+    pub floor: bool,
+    /// Radiosity only: make only the records of these kinds (default: all):
+    /// reference, gathered, sweep, scaling, incremental, incremental_object,
+    /// augmented.
+    #[arg(long, value_delimiter = ',')]
+    pub kinds: Vec<String>,
+    /// Radiosity only: the `incremental_object` records to make, as
+    /// OBJECT@AREA with OBJECT `short_block` or `small_cube` and AREA the
+    /// largest patch in m^2 (default: both at 0.02 and 0.005).
+    #[arg(long, value_delimiter = ',')]
+    pub object_records: Vec<String>,
+    /// Radiosity only: timed runs per `incremental_object` record
+    /// (default 5).
+    #[arg(long)]
+    pub repeats: Option<usize>,
+}
+
+/// Run the bench `args.target` names.
+pub(super) fn bench(args: &BenchArgs) -> Result<()> {
+    match args.target {
+        BenchTarget::Calibration => calibration(args),
+        BenchTarget::Reflectance => reflectance(args),
+        BenchTarget::Radiosity => radiosity(args),
+        BenchTarget::Render => render(args),
+        BenchTarget::Cluster => cluster(args),
+    }
+}
+
+/// A file of the shared data set: `../shared/data/NAME` from the working
+/// directory (the repository root), else beside the source tree.
+fn shared_data(name: &str) -> PathBuf {
+    let here = PathBuf::from("../shared/data").join(name);
+    if here.is_file() {
+        return here;
+    }
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(name)
+}
+
+/// The machine a benchmark ran on, for reports.
+fn machine() -> String {
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!(
+        "{} {}, {cores} cores",
+        std::env::consts::OS,
+        std::env::consts::ARCH
+    )
+}
+
+/// Print a bench's records as one JSON array, or write them as a report.
+fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()> {
+    let json = serde_json::to_string_pretty(records)?;
+    if args.json {
+        println!("{json}");
+    } else {
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("cannot create {}", args.out.display()))?;
+        let path = args
+            .out
+            .join(format!("{:?}.json", args.target).to_lowercase());
+        std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn calibration(args: &BenchArgs) -> Result<()> {
+    let records = crate::calibrate::bench_calibration();
+    if !args.json {
+        crate::calibrate::write_bench_report(&records, &args.out)
+            .with_context(|| format!("cannot write the report to {}", args.out.display()))?;
+    }
+    emit_bench(args, &records)
+}
+
+fn reflectance(args: &BenchArgs) -> Result<()> {
+    let opts = crate::capture::bench::BenchOptions {
+        cornell: shared_data("cornell-box.obj"),
+        ..Default::default()
+    };
+    let records = crate::capture::bench_reflectance(&opts)?;
+    if !args.json {
+        crate::capture::write_report(&records, &args.out)?;
+    }
+    emit_bench(args, &records)
+}
+
+fn radiosity(args: &BenchArgs) -> Result<()> {
+    use crate::radiosity_job::bench::{ObjectRecords, bench_radiosity_kinds};
+    let objects = ObjectRecords::parse(&args.object_records, args.repeats)?;
+    let records = bench_radiosity_kinds(&shared_data("cornell-box.obj"), &args.kinds, &objects)?;
+    if !args.json {
+        crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
+    }
+    emit_bench(args, &records)
+}
+
+/// The render bench's options from the flags (the renderer's defaults for
+/// what is not given).
+fn render_options(args: &BenchArgs) -> Result<showcase_render::render::bench::BenchOptions> {
+    let mut opts = showcase_render::render::bench::BenchOptions::default();
+    if let Some(f) = args.frames {
+        opts.frames = f as usize;
+    }
+    if !args.sizes.is_empty() {
+        opts.sizes = args
+            .sizes
+            .iter()
+            .map(|s| parse_size(s))
+            .collect::<Result<_>>()?;
+    }
+    if let Some(r) = args.shadow_res {
+        anyhow::ensure!(
+            (1..=16384).contains(&r),
+            "--shadow-res {r}: must be 1 to 16384 texels"
+        );
+        opts.shadow_res = r;
+    }
+    opts.accuracy = !args.no_accuracy;
+    Ok(opts)
+}
+
+fn render(args: &BenchArgs) -> Result<()> {
+    use showcase_render::render::bench::{bench_render, floor::bench_floor};
+    let scene = crate::render_bench::bench_scene(
+        &shared_data("cornell-box.obj"),
+        &shared_data("bunny.obj"),
+    )?;
+    let ctx = showcase_render::gpu::GpuContext::new_headless()?;
+    eprintln!("bench render on {}", ctx.describe());
+    let opts = render_options(args)?;
+    if args.floor {
+        return emit_bench(args, &bench_floor(&ctx, &scene, &opts)?);
+    }
+    emit_bench(args, &bench_render(&ctx, &scene, &opts)?)
+}
+
+fn cluster(args: &BenchArgs) -> Result<()> {
+    let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
+    let nodes: Vec<usize> = if args.nodes.is_empty() {
+        vec![2, 4, 8]
+    } else {
+        args.nodes.iter().map(|&n| n as usize).collect()
+    };
+    let hz = if args.hz.is_empty() {
+        vec![60.0, 120.0]
+    } else {
+        args.hz.clone()
+    };
+    if let Some(bad) = hz
+        .iter()
+        .find(|h| !(h.is_finite() && (1.0..=1000.0).contains(*h)))
+    {
+        anyhow::bail!("--hz {bad}: a frame rate must be between 1 and 1000 Hz");
+    }
+    let records = runtime()?.block_on(crate::cluster::commands::bench_cluster(
+        &scene,
+        args.frames.unwrap_or(600),
+        &nodes,
+        &hz,
+    ))?;
+    emit_bench(args, &records)
+}

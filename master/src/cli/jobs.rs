@@ -1,0 +1,241 @@
+//! The job subcommands' arguments (`demo`, `run`, `calibrate`, `capture`,
+//! `radiosity`, `replay`, `certs`) and how each becomes a library call.
+
+use super::runtime;
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+
+/// Arguments of `demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "showcase-out")]
+    pub out: PathBuf,
+    /// Frames of the interactive stage.
+    #[arg(long, default_value_t = 240)]
+    pub frames: u64,
+    /// Scene file (default: the built-in demo cabinet).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+}
+
+impl From<DemoArgs> for crate::demo::DemoOptions {
+    fn from(a: DemoArgs) -> Self {
+        Self {
+            out: a.out,
+            frames: a.frames,
+            scene: a.scene,
+        }
+    }
+}
+
+/// Arguments of `run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Cluster configuration (see deploy/).
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Write one JSON line of measurements per frame to this file.
+    #[arg(long)]
+    pub metrics: Option<PathBuf>,
+    /// Record every tracking datagram to this session file.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+}
+
+/// `run`: the live master of a cluster.
+pub(super) fn run_master(args: &RunArgs) -> Result<()> {
+    runtime()?.block_on(crate::cluster::commands::run_master(
+        &args.config,
+        args.metrics.as_deref(),
+        args.record.as_deref(),
+    ))
+}
+
+/// Calibration method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CalibrationMethod {
+    /// DLT + RQ start, Levenberg-Marquardt refinement.
+    Lm,
+    /// The paper's baseline: Powell's direction-set method.
+    Powell,
+}
+
+impl From<CalibrationMethod> for crate::calibrate::Method {
+    fn from(m: CalibrationMethod) -> Self {
+        match m {
+            CalibrationMethod::Lm => Self::Lm,
+            CalibrationMethod::Powell => Self::Powell,
+        }
+    }
+}
+
+/// Arguments of `calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Input correspondences (JSON).
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Output calibration (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Solver.
+    #[arg(long, value_enum, default_value_t = CalibrationMethod::Lm)]
+    pub method: CalibrationMethod,
+}
+
+/// `calibrate`: fit one device and report its residual.
+pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
+    let c = crate::calibrate::run_calibrate_file(&args.points, &args.out, args.method.into())?;
+    eprintln!(
+        "calibrated {} from {} points: rms {:.4} px; wrote {}",
+        args.points.display(),
+        c.residuals_px.len(),
+        c.rms_px,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Arguments of `capture`.
+#[derive(Debug, Args)]
+pub struct CaptureArgs {
+    /// Scene file.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Capture from the simulated showcase.
+    #[arg(long)]
+    pub sim: bool,
+    /// Output folder for the reflectance maps and summary.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `capture --sim`: the capture job with its default options.
+pub(super) fn capture(args: &CaptureArgs) -> Result<()> {
+    if !args.sim {
+        anyhow::bail!(
+            "capture: only --sim (the simulated showcase) is available; real projector and camera drivers are not part of this build"
+        );
+    }
+    let scene = crate::scene_file::load_any(&args.scene)?;
+    let summary = crate::capture::run_capture(&scene, &args.out)?;
+    println!("{}", serde_json::to_string_pretty(&summary)?);
+    Ok(())
+}
+
+/// Arguments of `radiosity`.
+#[derive(Debug, Args)]
+pub struct RadiosityArgs {
+    /// Scene file (TOML, or an OBJ such as the Cornell box).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Largest patch area in square metres.
+    #[arg(long)]
+    pub max_patch_area: Option<f64>,
+    /// Hemi-cube resolution (pixels along the top face).
+    #[arg(long)]
+    pub hemicube: Option<u32>,
+    /// Stop when the unshot energy fraction falls below this.
+    #[arg(long)]
+    pub threshold: Option<f64>,
+    /// Where hemi-cube item buffers are made: `cpu` (rays) or `gpu`
+    /// (wgpu rasterisation).
+    #[arg(long, default_value = "cpu")]
+    pub form_factors: crate::radiosity_job::FormFactorDevice,
+}
+
+impl From<&RadiosityArgs> for crate::radiosity_job::RadiosityOptions {
+    fn from(a: &RadiosityArgs) -> Self {
+        Self {
+            max_patch_area: a.max_patch_area,
+            hemicube: a.hemicube,
+            threshold: a.threshold,
+        }
+    }
+}
+
+/// `radiosity`: solve a scene and print the job's summary.
+pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
+    let summary = crate::radiosity_job::run_radiosity_on(
+        &args.scene,
+        &args.out,
+        &args.into(),
+        args.form_factors,
+    )?;
+    println!("{}", serde_json::to_string_pretty(&summary)?);
+    Ok(())
+}
+
+/// Arguments of `replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// Recorded session file (`demo` writes one: `showcase-out/session.jsonl`).
+    #[arg(long)]
+    pub session: PathBuf,
+    /// Scene file (default: the built-in demo cabinet).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Frame rate of the replay.
+    #[arg(long, default_value_t = 60.0)]
+    pub hz: f32,
+    /// Frames to run (default: the recording's length).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Write every node's per-frame output hashes to this JSON file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `replay`: drive the cluster from a recording; print each node's digest.
+pub(super) fn replay(args: &ReplayArgs) -> Result<()> {
+    let scene_path = args
+        .scene
+        .clone()
+        .unwrap_or_else(crate::demo::default_scene);
+    let scene = crate::scene_file::load_any(&scene_path)?;
+    let outcome = runtime()?.block_on(crate::cluster::commands::replay(
+        &scene,
+        &args.session,
+        args.hz,
+        args.frames,
+    ))?;
+    for n in &outcome.nodes {
+        println!("{} {} frames digest {}", n.name, n.hashes.len(), n.digest);
+    }
+    if let Some(out) = &args.out {
+        std::fs::write(out, serde_json::to_string_pretty(&outcome)?)
+            .with_context(|| format!("cannot write {}", out.display()))?;
+    }
+    Ok(())
+}
+
+/// Arguments of `certs`.
+#[derive(Debug, Args)]
+pub struct CertsArgs {
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Node names to issue certificates for.
+    #[arg(long = "node", required = true)]
+    pub nodes: Vec<String>,
+}
+
+/// `certs`: write the cluster CA and the nodes' certificates.
+pub(super) fn certs(args: &CertsArgs) -> Result<()> {
+    let certs = crate::certs::generate(&args.nodes)?;
+    let files = crate::certs::write(&args.out, &certs)?;
+    for f in &files {
+        println!("{}", f.display());
+    }
+    eprintln!(
+        "wrote a cluster CA and {} certificates to {}; keep ca.key offline",
+        certs.peers.len(),
+        args.out.display()
+    );
+    Ok(())
+}
