@@ -248,11 +248,7 @@ fn projector_edges(
         let Some(hit) = occluders.real_only.closest_hit(&ray, 0.0, f64::INFINITY) else {
             return;
         };
-        let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
+        let facing = hit.facing_normal(ray.direction);
         // Which projectors see the point, in bits the light samples leave
         // free (at most 64 samples, a handful of projectors).
         let seen = all

@@ -308,7 +308,7 @@ fn cannot_fill(
             &occluders.virtual_only,
             other_eyes,
             hit.point,
-            facing_origin(hit.geometric_normal, ray),
+            hit.facing_normal(ray.direction),
         )
 }
 
@@ -353,7 +353,7 @@ pub fn projector_edge_pixels(
                 if hit.geometric_normal == DVec3::ZERO {
                     return false;
                 }
-                let facing = facing_origin(hit.geometric_normal, &ray);
+                let facing = hit.facing_normal(ray.direction);
                 rays.iter().any(|(r, edges)| {
                     r.sees(&occluders.real_only, hit.point, facing)
                         && r.pixel_of(hit.point)
@@ -382,15 +382,6 @@ fn check_size(what: &str, image: &RgbImage, dw: u32, dh: u32) -> Result<(), Obse
     Ok(())
 }
 
-/// The side of a hit surface facing the ray's origin.
-fn facing_origin(normal: DVec3, ray: &Ray) -> DVec3 {
-    if normal.dot(ray.direction) <= 0.0 {
-        normal
-    } else {
-        -normal
-    }
-}
-
 /// Radiance of the first real surface on `ray` under the projectors, and
 /// whether any projector reaches that surface.
 fn real_radiance(
@@ -410,7 +401,7 @@ fn real_radiance(
     let Some(object) = frame.showcase.objects.get(hit.object as usize) else {
         return (DVec3::ZERO, false);
     };
-    let facing = facing_origin(hit.geometric_normal, ray);
+    let facing = hit.facing_normal(ray.direction);
     let rho = object
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
@@ -504,7 +495,7 @@ fn target_radiance(
         return Some((DVec3::ZERO, None));
     }
     let object = frame.showcase.objects.get(hit.object as usize)?;
-    let facing = facing_origin(hit.geometric_normal, ray);
+    let facing = hit.facing_normal(ray.direction);
     let rho = object
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))

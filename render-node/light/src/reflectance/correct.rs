@@ -24,6 +24,7 @@
 //! ground truth is an independent path tracer.
 
 use super::{ReflectanceError, check_size};
+use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 use crate::{DeviceRays, Image, IntensityLight, Ray, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
@@ -132,11 +133,7 @@ pub fn indirect_irradiance(
             if hit.geometric_normal == DVec3::ZERO {
                 return None;
             }
-            let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-                hit.geometric_normal
-            } else {
-                -hit.geometric_normal
-            };
+            let facing = hit.facing_normal(ray.direction);
             Some((hit.object, d.to_device(hit.point).z, hit.point, facing))
         })
         .collect();
@@ -150,11 +147,7 @@ pub fn indirect_irradiance(
         if hit.geometric_normal == DVec3::ZERO {
             return Found::Nothing;
         }
-        let hf = if hit.geometric_normal.dot(dir) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
+        let hf = hit.facing_normal(dir);
         // Seen by the camera: the side the ray hits faces the camera, and
         // the pixel it projects to sees the same object at the same depth
         // (within the footprint times the slope at phi_max) with a normal
@@ -200,11 +193,7 @@ pub fn indirect_irradiance(
                 return Found::Seen(b / wsum);
             }
         }
-        let hs = if hit.shading_normal.dot(hf) >= 0.0 {
-            hit.shading_normal
-        } else {
-            -hit.shading_normal
-        };
+        let hs = face_forward(hit.shading_normal, hf);
         let e = light.intensity_at(geometry, hit.point, hf, hs);
         Found::Hidden(hit.object, e, hit.point, hf, hs)
     };

@@ -144,11 +144,7 @@ impl Blend {
                     {
                         return 1.0;
                     }
-                    let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-                        hit.geometric_normal
-                    } else {
-                        -hit.geometric_normal
-                    };
+                    let facing = hit.facing_normal(ray.direction);
                     self.weight(i, real_only, hit.point, facing) as f32
                 })
             })

@@ -450,11 +450,7 @@ fn environment_hit(
             ..none(PixelState { object, ..masked })
         };
     }
-    let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(dir);
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let rho = o
         .material

@@ -143,11 +143,7 @@ fn face_pixel(
     if hit.geometric_normal == DVec3::ZERO {
         return (Vec3::ZERO, PixelState { object, ..masked });
     }
-    let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(dir);
     let occluded = o.kind == ObjectKind::Real
         && in_occlusion_shadow(&occluders.virtual_only, other_eyes, hit.point, facing);
     if o.kind == ObjectKind::Real && !occluded {

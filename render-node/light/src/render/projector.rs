@@ -299,11 +299,7 @@ fn pixel_irradiance(
     {
         return (DVec3::ZERO, masked);
     }
-    let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(ray.direction);
     let object = Some(hit.object);
     let primitive = Some(hit.primitive);
     let cos_p = -facing.dot(ray.direction);

@@ -31,6 +31,7 @@ use rayon::prelude::*;
 use showcase_proto::{Material, Showcase};
 
 use super::SimError;
+use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 
 /// Longest path (in bounces) the estimator follows.
@@ -440,16 +441,8 @@ impl SurfaceFrame {
         if hit.geometric_normal == DVec3::ZERO {
             return None;
         }
-        let facing = if hit.geometric_normal.dot(incoming) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
-        let shading = if hit.shading_normal.dot(facing) >= 0.0 {
-            hit.shading_normal
-        } else {
-            -hit.shading_normal
-        };
+        let facing = hit.facing_normal(incoming);
+        let shading = face_forward(hit.shading_normal, facing);
         Some(Self { facing, shading })
     }
 }
