@@ -14,6 +14,7 @@
 
 use super::bvh::Bvh;
 use super::ray::{Aabb, Ray};
+use crate::finite::finite_or_zero;
 use glam::{DMat3, DMat4, DVec2, DVec3, Vec2};
 use showcase_proto::{ObjectKind, Showcase, Transform};
 
@@ -235,7 +236,7 @@ impl SceneGeometry {
                 info.push(TriangleInfo {
                     object: oi as u32,
                     local: ti as u32,
-                    normal: if n.is_finite() { n } else { DVec3::ZERO },
+                    normal: finite_or_zero(n),
                     vertex_normals,
                     uvs: has_uvs.then(|| tri.map(|i| mesh.uvs[i as usize])),
                 });
@@ -290,7 +291,7 @@ impl SceneGeometry {
             object: info.object,
             triangle: info.local,
             normal: info.normal,
-            area: if area.is_finite() { area } else { 0.0 },
+            area: finite_or_zero(area),
         })
     }
 

@@ -21,6 +21,7 @@
 use super::device::{DeviceError, DeviceRays};
 use super::geometry::{ObjectFilter, SceneGeometry, face_forward};
 use super::image::{Image, RgbImage};
+use crate::finite::finite_or_zero;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use showcase_proto::PinholeDevice;
@@ -195,10 +196,6 @@ fn shade_pixel(
         lit: attenuation.is_some(),
     };
     (value.as_vec3(), Some(sample))
-}
-
-fn finite_or_zero(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 //!   polygon irradiance ([`lambert`]), the flat-Lambert rasteriser
 //!   ([`raster`]).
 //! - [`sampling`]: the one home of seeded hashes and sample patterns.
+//! - [`finite`]: the one rule that turns NaN and infinities into zero.
 //! - [`sim`]: the simulated showcase, our ground truth, behind the
 //!   [`hardware`] traits that real projectors and cameras implement too.
 //! - [`reflectance`]: reflectance-map math (paper section 3).
@@ -26,6 +27,7 @@ pub mod bvh;
 mod ciede2000;
 pub mod device;
 pub mod digest;
+pub mod finite;
 pub mod geometry;
 pub mod hardware;
 pub mod image;

@@ -39,6 +39,7 @@
 // `!(x > 0.0)` is deliberate: it is also true for NaN (as in `light`).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use crate::finite::finite_or_zero;
 use crate::render::cube_map::{environment, reflect};
 use crate::render::projector::{
     Occluders, emitted_intensity, in_occlusion_shadow, target_irradiance,
@@ -427,7 +428,7 @@ fn real_radiance(
         e += j * (facing.dot(to) / r2.sqrt() / r2);
     }
     let l = rho / PI * e;
-    (if l.is_finite() { l } else { DVec3::ZERO }, reachable)
+    (finite_or_zero(l), reachable)
 }
 
 /// Radiance of the CRT pixel the eye sees along `ray` via the mirror.
@@ -511,10 +512,7 @@ fn target_radiance(
     } else {
         rho / PI * e
     };
-    Some((
-        if l.is_finite() { l } else { DVec3::ZERO },
-        Some((hit.object, hit.primitive, lit)),
-    ))
+    Some((finite_or_zero(l), Some((hit.object, hit.primitive, lit))))
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! surface points, with visibility: the first shot of a radiosity solve.
 //! Lights are not geometry: they neither occlude nor receive.
 
+use crate::finite::finite_or_zero;
 use crate::sampling::stratified;
 use crate::{SceneGeometry, form_factor_point_polygon};
 use glam::DVec3;
@@ -83,11 +84,7 @@ pub fn direct_irradiance(
             }
         }
     };
-    if e.is_finite() {
-        e.max(DVec3::ZERO)
-    } else {
-        DVec3::ZERO
-    }
+    finite_or_zero(e).max(DVec3::ZERO)
 }
 
 /// `scale * cos(theta) / r^2` towards a point light at `light`, if visible.

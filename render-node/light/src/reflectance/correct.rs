@@ -24,6 +24,7 @@
 //! ground truth is an independent path tracer.
 
 use super::{ReflectanceError, check_size};
+use crate::finite::finite_or_zero;
 use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 use crate::{DeviceRays, Image, IntensityLight, Ray, RgbImage, SceneGeometry};
@@ -211,7 +212,7 @@ pub fn indirect_irradiance(
                 let (object, e_dir, y, yf, ys) = match trace(point, facing, dir) {
                     Found::Nothing => continue,
                     Found::Seen(b) => {
-                        g.seen += finite(b);
+                        g.seen += finite_or_zero(b);
                         continue;
                     }
                     Found::Hidden(o, e, y, yf, ys) => (o, e, y, yf, ys),
@@ -227,20 +228,20 @@ pub fn indirect_irradiance(
                     }
                 };
                 let hh = &mut g.hidden[k];
-                hh.e_dir += finite(e_dir);
+                hh.e_dir += finite_or_zero(e_dir);
                 let dir2 = cosine_direction(ys, (rng.random(), rng.random()));
                 if !(dir2.dot(yf) > 0.0) {
                     continue;
                 }
                 match trace(y, yf, dir2) {
                     Found::Nothing => {}
-                    Found::Seen(b) => hh.seen += finite(b),
+                    Found::Seen(b) => hh.seen += finite_or_zero(b),
                     Found::Hidden(o2, e2, ..) => match hh.hidden.iter_mut().find(|h| h.0 == o2) {
                         Some(h) => {
                             h.1 += 1.0;
-                            h.2 += finite(e2);
+                            h.2 += finite_or_zero(e2);
                         }
-                        None => hh.hidden.push((o2, 1.0, finite(e2))),
+                        None => hh.hidden.push((o2, 1.0, finite_or_zero(e2))),
                     },
                 }
             }
@@ -341,18 +342,10 @@ pub fn indirect_irradiance(
                 b += rho_obj[hh.object as usize] * e;
             }
             let e = b / n as f64;
-            e_ind.data[i] = if e.is_finite() {
-                e.max(DVec3::ZERO).as_vec3()
-            } else {
-                Vec3::ZERO
-            };
+            e_ind.data[i] = finite_or_zero(e).max(DVec3::ZERO).as_vec3();
         }
     }
     Ok(e_ind)
-}
-
-fn finite(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
 }
 
 fn mean((sum, count): (DVec3, f64), fallback: DVec3) -> DVec3 {

@@ -3,6 +3,7 @@
 //! tracked eyes. Shared by every CPU reference and GPU pass of `render`.
 
 use super::RenderSetupError;
+use crate::finite::finite_or_zero;
 use crate::{ObjectFilter, SceneGeometry};
 use glam::{DVec3, Vec3};
 use showcase_proto::{FrameState, Light, Observer, Showcase};
@@ -55,7 +56,7 @@ impl LightSample {
             Lobe::Cosine { normal } => normal.dot(dir).max(0.0),
         };
         let i = self.intensity * factor;
-        if i.is_finite() { i } else { DVec3::ZERO }
+        finite_or_zero(i)
     }
 }
 
