@@ -174,22 +174,28 @@ impl LogLogPlot {
             }
             for p in points {
                 let (x, y) = (sx(p.x), sy(p.y));
-                let title = if p.tooltip.is_empty() {
-                    String::new()
-                } else {
-                    format!("<title>{}</title>", escape(&p.tooltip))
+                let (tag, shape) = match p.marker {
+                    Marker::Circle => (
+                        "circle",
+                        format!(r#"cx="{x:.1}" cy="{y:.1}" r="3" fill="{c}""#),
+                    ),
+                    Marker::Square => (
+                        "rect",
+                        format!(
+                            r#"x="{:.1}" y="{:.1}" width="6" height="6" fill="none" stroke="{c}""#,
+                            x - 3.0,
+                            y - 3.0
+                        ),
+                    ),
                 };
-                let _ = match p.marker {
-                    Marker::Circle => write!(
+                let _ = if p.tooltip.is_empty() {
+                    write!(s, "<{tag} {shape}/>")
+                } else {
+                    write!(
                         s,
-                        r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{c}">{title}</circle>"#
-                    ),
-                    Marker::Square => write!(
-                        s,
-                        r#"<rect x="{:.1}" y="{:.1}" width="6" height="6" fill="none" stroke="{c}">{title}</rect>"#,
-                        x - 3.0,
-                        y - 3.0
-                    ),
+                        "<{tag} {shape}><title>{}</title></{tag}>",
+                        escape(&p.tooltip)
+                    )
                 };
                 if !p.label.is_empty() {
                     let _ = write!(
