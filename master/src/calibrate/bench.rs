@@ -7,6 +7,7 @@ use super::simulate::{fiducial_plate, fiducial_rig, projector_in_showcase, simul
 use super::{
     CalibrateOptions, Calibration, CalibrationInput, Correspondence, Intrinsics, Method, calibrate,
 };
+use crate::plot::{LogLogPlot, Marker, Point, Series};
 use glam::{DMat3, DVec3};
 use serde::Serialize;
 use showcase_light::metrics::percentile;
@@ -268,102 +269,41 @@ pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Resul
     std::fs::write(dir.join("calibration.svg"), scatter_svg(records))
 }
 
-/// A hand-written log-log scatter of held-out error against time.
+/// A log-log scatter of held-out error against time, LM against Powell.
 fn scatter_svg(records: &[BenchRecord]) -> String {
-    let (w, h, m) = (720.0, 480.0, 60.0);
-    let finite: Vec<&BenchRecord> = records
-        .iter()
-        .filter(|r| r.seconds > 0.0 && r.rms_heldout_px > 0.0 && r.rms_heldout_px.is_finite())
-        .collect();
-    let range = |f: &dyn Fn(&BenchRecord) -> f64| {
-        let lo = finite
+    let series = |method: Method, name: &str, colour: &str| Series {
+        name: name.into(),
+        colour: colour.into(),
+        joined: false,
+        points: records
             .iter()
-            .map(|r| f(r).log10())
-            .fold(f64::INFINITY, f64::min)
-            .floor();
-        let hi = finite
-            .iter()
-            .map(|r| f(r).log10())
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil();
-        if lo.is_finite() && hi > lo {
-            (lo, hi)
-        } else {
-            (0.0, 1.0)
-        }
+            .filter(|r| r.method == method)
+            .map(|r| Point {
+                marker: if r.coplanar {
+                    Marker::Square
+                } else {
+                    Marker::Circle
+                },
+                tooltip: format!(
+                    "{} {} pts {} px{}",
+                    r.method,
+                    r.points,
+                    r.noise_px,
+                    if r.coplanar { " coplanar" } else { "" }
+                ),
+                ..Point::at(r.seconds, r.rms_heldout_px)
+            })
+            .collect(),
     };
-    let (x0, x1) = range(&|r| r.seconds);
-    let (y0, y1) = range(&|r| r.rms_heldout_px);
-    let px = |s: f64| m + (s.log10() - x0) / (x1 - x0) * (w - 2.0 * m);
-    let py = |e: f64| h - m - (e.log10() - y0) / (y1 - y0) * (h - 2.0 * m);
-    let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n\
-         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
-         <line x1=\"{m}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n\
-         <line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{}\" stroke=\"black\"/>\n",
-        h - m,
-        w - m,
-        h - m,
-        h - m
-    );
-    for d in x0 as i32..=x1 as i32 {
-        let x = px(10f64.powi(d));
-        let _ = writeln!(
-            svg,
-            "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">1e{d} s</text>",
-            h - m + 18.0
-        );
+    LogLogPlot {
+        title: "Calibration: held-out error against solve time".into(),
+        x_label: "solve time (s)".into(),
+        y_label: "held-out RMS (px)".into(),
+        series: vec![
+            series(Method::Lm, "LM", "#1f77b4"),
+            series(Method::Powell, "Powell", "#d62728"),
+        ],
+        note: "circle: rig, square: coplanar (known K)".into(),
     }
-    for d in y0 as i32..=y1 as i32 {
-        let y = py(10f64.powi(d));
-        let _ = writeln!(
-            svg,
-            "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">1e{d} px</text>",
-            m - 6.0
-        );
-    }
-    let _ = writeln!(
-        svg,
-        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">solve time (s)</text>\n<text x=\"14\" y=\"{}\" transform=\"rotate(-90 14 {})\" text-anchor=\"middle\">held-out RMS (px)</text>",
-        w / 2.0,
-        h - 20.0,
-        h / 2.0,
-        h / 2.0
-    );
-    for r in &finite {
-        let colour = if r.method == Method::Lm {
-            "#1f77b4"
-        } else {
-            "#d62728"
-        };
-        let (x, y) = (px(r.seconds), py(r.rms_heldout_px));
-        if r.coplanar {
-            let _ = writeln!(
-                svg,
-                "<rect x=\"{}\" y=\"{}\" width=\"6\" height=\"6\" fill=\"none\" stroke=\"{colour}\"><title>{} {} pts {} px coplanar</title></rect>",
-                x - 3.0,
-                y - 3.0,
-                r.method,
-                r.points,
-                r.noise_px
-            );
-        } else {
-            let _ = writeln!(
-                svg,
-                "<circle cx=\"{x}\" cy=\"{y}\" r=\"3\" fill=\"{colour}\"><title>{} {} pts {} px</title></circle>",
-                r.method, r.points, r.noise_px
-            );
-        }
-    }
-    let _ = writeln!(
-        svg,
-        "<text x=\"{}\" y=\"{}\" fill=\"#1f77b4\">LM</text><text x=\"{}\" y=\"{}\" fill=\"#d62728\">Powell</text>\n<text x=\"{}\" y=\"{}\">circle: rig, square: coplanar (known K)</text>\n</svg>",
-        w - m - 200.0,
-        m - 20.0,
-        w - m - 170.0,
-        m - 20.0,
-        w - m - 200.0,
-        m - 6.0
-    );
-    svg
+    .to_svg()
 }

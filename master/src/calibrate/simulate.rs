@@ -9,6 +9,7 @@ use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use showcase_light::finite::finite_or_zero;
 use showcase_proto::scene::PinholeDevice;
 
 /// Centre of the calibration rig of [`fiducial_rig`] (metres, y up).
@@ -104,11 +105,7 @@ pub fn simulate_fiducials(
     seed: u64,
 ) -> CalibrationInput {
     let model = model_of_device(device);
-    let sigma = if noise_px.is_finite() {
-        noise_px.max(0.0)
-    } else {
-        0.0
-    };
+    let sigma = finite_or_zero(noise_px).max(0.0);
     let noise = Normal::new(0.0, sigma)
         .unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sigma is valid"));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -14,6 +14,7 @@ use super::pipeline::{
     capture_map,
 };
 use super::scenes;
+use crate::plot::{LogLogPlot, Point, Series, series_colour};
 use glam::Vec3;
 use serde::Serialize;
 use showcase_light::hardware::ProjectorDevice;
@@ -64,7 +65,7 @@ pub struct BenchOptions {
     pub frames: Vec<u32>,
     /// Scenes by name (`plate`, `cornell`).
     pub scenes: Vec<String>,
-    /// Camera noise on (the setting).
+    /// Camera noise on (the bench's default setting).
     pub noise: bool,
     /// Methods to run.
     pub methods: Vec<Method>,
@@ -297,111 +298,32 @@ pub fn write_report(records: &[Record], dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A hand-written log-log SVG plot of `rel_rmse` against `seconds`.
+/// A log-log SVG plot of `rel_rmse` against `seconds`, one line per scene,
+/// method and eta mode.
 pub fn svg_plot(records: &[Record]) -> String {
-    let (w, h, m) = (900.0, 560.0, 70.0);
-    let pts: Vec<(f64, f64)> = records
-        .iter()
-        .filter(|r| {
-            r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite()
-        })
-        .map(|r| (r.seconds.log10(), r.rel_rmse.log10()))
-        .collect();
-    let (x0, x1) = bounds(pts.iter().map(|p| p.0));
-    let (y0, y1) = bounds(pts.iter().map(|p| p.1));
-    let sx = |x: f64| m + (x - x0) / (x1 - x0) * (w - 2.0 * m);
-    let sy = |y: f64| h - m - (y - y0) / (y1 - y0) * (h - 2.0 * m);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"24\" text-anchor=\"middle\" font-size=\"16\">Reflectance error against capture time</text>\n<line x1=\"{m}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n<line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{}\" stroke=\"black\"/>\n<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">seconds (log)</text>\n<text x=\"18\" y=\"{}\" transform=\"rotate(-90 18 {})\" text-anchor=\"middle\">rel_rmse (log)</text>\n",
-        w / 2.0,
-        h - m,
-        w - m,
-        h - m,
-        h - m,
-        w / 2.0,
-        h - 20.0,
-        h / 2.0,
-        h / 2.0
-    );
-    for k in (x0.floor() as i32)..=(x1.ceil() as i32) {
-        let x = k as f64;
-        if x >= x0 && x <= x1 {
-            let _ = writeln!(
-                s,
-                "<text x=\"{:.1}\" y=\"{}\" text-anchor=\"middle\">1e{k}</text>",
-                sx(x),
-                h - m + 16.0
-            );
-        }
-    }
-    for k in (y0.floor() as i32)..=(y1.ceil() as i32) {
-        let y = k as f64;
-        if y >= y0 && y <= y1 {
-            let _ = writeln!(
-                s,
-                "<text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">1e{k}</text>",
-                m - 6.0,
-                sy(y) + 4.0
-            );
-        }
-    }
-    let colours = [
-        "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-        "#bcbd22", "#17becf", "#000000", "#aa4499",
-    ];
-    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    let mut series: Vec<Series> = Vec::new();
     for r in records {
-        let key = format!("{} {} eta {}", r.scene, r.method, r.eta);
-        if !(r.seconds > 0.0 && r.rel_rmse > 0.0 && r.seconds.is_finite() && r.rel_rmse.is_finite())
-        {
-            continue;
+        let name = format!("{} {} eta {}", r.scene, r.method, r.eta);
+        let point = Point {
+            tooltip: format!("{name}, {} frames", r.frames),
+            ..Point::at(r.seconds, r.rel_rmse)
+        };
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push(point),
+            None => series.push(Series {
+                name,
+                colour: series_colour(series.len()).into(),
+                joined: true,
+                points: vec![point],
+            }),
         }
-        let p = (r.seconds.log10(), r.rel_rmse.log10());
-        match series.iter_mut().find(|s| s.0 == key) {
-            Some(s) => s.1.push(p),
-            None => series.push((key, vec![p])),
-        }
     }
-    for (i, (key, pts)) in series.iter().enumerate() {
-        let c = colours[i % colours.len()];
-        let path: Vec<String> = pts
-            .iter()
-            .map(|p| format!("{:.1},{:.1}", sx(p.0), sy(p.1)))
-            .collect();
-        let _ = writeln!(
-            s,
-            "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\"/>",
-            path.join(" ")
-        );
-        for p in pts {
-            let _ = writeln!(
-                s,
-                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{c}\"/>",
-                sx(p.0),
-                sy(p.1)
-            );
-        }
-        let _ = writeln!(
-            s,
-            "<text x=\"{}\" y=\"{}\" fill=\"{c}\">{key}</text>",
-            w - m - 150.0,
-            m + 14.0 * i as f64
-        );
+    LogLogPlot {
+        title: "Reflectance error against capture time".into(),
+        x_label: "seconds".into(),
+        y_label: "rel_rmse".into(),
+        series,
+        note: String::new(),
     }
-    s.push_str("</svg>\n");
-    s
-}
-
-fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
-    if !(lo.is_finite() && hi.is_finite()) {
-        return (0.0, 1.0);
-    }
-    if hi - lo < 1e-6 {
-        (lo - 0.5, hi + 0.5)
-    } else {
-        (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
-    }
+    .to_svg()
 }

@@ -248,11 +248,7 @@ fn projector_edges(
         let Some(hit) = occluders.real_only.closest_hit(&ray, 0.0, f64::INFINITY) else {
             return;
         };
-        let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
+        let facing = hit.facing_normal(ray.direction);
         // Which projectors see the point, in bits the light samples leave
         // free (at most 64 samples, a handful of projectors).
         let seen = all
@@ -323,10 +319,10 @@ pub(super) struct ObserverResult {
     pub reachable_fraction: f64,
     /// [`Self::rel_rmse_real`] over the real-surface pixels the method can
     /// get right by design: also off the surfaces a projector lights from
-    /// a pixel on one of its edges (issue 6's projector check leaves these
-    /// out too), off the pixels next to a change of reachability, and
-    /// outside other eyes' occlusion shadows that the mirror image cannot
-    /// fill (`None` when none is compared).
+    /// a pixel on one of its edges (the render crate's projector-role
+    /// consistency check leaves these out too), off the pixels next to a
+    /// change of reachability, and outside other eyes' occlusion shadows
+    /// that the mirror image cannot fill (`None` when none is compared).
     pub rel_rmse_real_comparable: Option<f64>,
     /// [`Self::rel_rmse_real_comparable`] per real object (name, value).
     pub rel_rmse_real_comparable_per_object: Vec<(String, f64)>,
@@ -504,7 +500,7 @@ fn exposure(view: &ObserverView) -> Option<f64> {
     Some(if p99 > 0.0 { 0.9 / p99 } else { 1.0 })
 }
 
-/// Issue 6's projector-role consistency measured on the demo's outputs:
+/// The projector-role consistency check measured on the demo's outputs:
 /// the projectors' values sent through the true projectors (direct light
 /// only) onto the real objects with their true reflectance, seen by the
 /// cabinet's `camera`, against the target (true reflectance times the
@@ -518,7 +514,8 @@ pub(super) struct CameraConsistency {
     /// projector reaches, off the camera's silhouette, facet and shadow
     /// edges and reach edges, off the surfaces a projector lights from a
     /// pixel on one of its edges, and outside every tracked eye's
-    /// occlusion shadow (issue 6's check leaves the last two out too).
+    /// occlusion shadow (the render crate's check leaves the last two out
+    /// too).
     pub rel_rmse: f64,
     /// The same per real object (name, value).
     pub per_object: Vec<(String, f64)>,
@@ -681,9 +678,10 @@ mod tests {
     use super::*;
 
     /// The camera's check on the CPU reference maps of the default demo
-    /// scene (calibrated = true devices) meets issue 6's 1%, and the same
-    /// check fails maps drawn without the virtual shadows (measured at frame
-    /// 60: 0.0052 over 72% of the real pixels, unshadowed 0.069).
+    /// scene (calibrated = true devices) meets the check's 1% bound, and
+    /// the same check fails maps drawn without the virtual shadows
+    /// (measured at frame 60: 0.0052 over 72% of the real pixels,
+    /// unshadowed 0.069).
     #[test]
     fn camera_consistency_holds_for_reference_maps_and_fails_unshadowed_ones() {
         use crate::cluster::commands::walk_tracking;

@@ -15,6 +15,7 @@
 
 use anyhow::Context;
 use glam::{DVec3, Vec3};
+use showcase_light::finite::finite_or_zero;
 use showcase_light::metrics::relative_rmse_values;
 use showcase_light::radiosity::{IrradianceMap, RadiosityMesh};
 use showcase_light::sim::devices::projector_intensity;
@@ -242,7 +243,7 @@ pub fn consistency_seeded(
             }
         }
         let v = (sq / n.max(1) as f64).sqrt() / mean_b0;
-        if v.is_finite() { v } else { 0.0 }
+        finite_or_zero(v)
     };
     let per_object = ids
         .iter()
@@ -261,7 +262,7 @@ pub fn consistency_seeded(
                 rel_rmse: rms_over(&test, &reference, object),
                 direct_rel_rmse: rms_over(&direct_test, &direct_reference, object),
                 indirect_rel_rmse: rms_over(&indirect_test, &indirect_reference, object),
-                level: if level.is_finite() { level } else { 0.0 },
+                level: finite_or_zero(level),
             }
         })
         .collect();
@@ -271,12 +272,8 @@ pub fn consistency_seeded(
         pixels: test.len() / 3,
         real_pixels,
         direct_rel_rmse,
-        level: if level.is_finite() { level } else { 0.0 },
-        indirect_rel_rmse: if indirect_rel_rmse.is_finite() {
-            indirect_rel_rmse
-        } else {
-            0.0
-        },
+        level: finite_or_zero(level),
+        indirect_rel_rmse: finite_or_zero(indirect_rel_rmse),
         per_object,
     })
 }

@@ -1,106 +1,40 @@
 //! The human-readable radiosity benchmark report: `records.json`, two
-//! hand-written SVG plots (error against time, time against patch count)
-//! and a Markdown summary.
+//! SVG plots (error against time, time against patch count) and a
+//! Markdown summary.
 
 use super::bench::BenchRecord;
+use crate::plot::{LogLogPlot, Point, Series};
 use anyhow::Context;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// A scatter plot on log-log axes as SVG. Points that are not positive
-/// and finite are left out.
+/// A scatter plot on log-log axes as SVG, each point labelled. Points that
+/// are not positive and finite are left out.
 pub fn scatter_svg(
     title: &str,
     x_label: &str,
     y_label: &str,
     points: &[(f64, f64, String)],
 ) -> String {
-    let (w, h, m) = (640.0, 420.0, 60.0);
-    let valid: Vec<&(f64, f64, String)> = points
-        .iter()
-        .filter(|(x, y, _)| *x > 0.0 && *y > 0.0 && x.is_finite() && y.is_finite())
-        .collect();
-    let range = |f: &dyn Fn(&(f64, f64, String)) -> f64| {
-        let lo = valid
-            .iter()
-            .map(|p| f(p).log10())
-            .fold(f64::INFINITY, f64::min);
-        let hi = valid
-            .iter()
-            .map(|p| f(p).log10())
-            .fold(f64::NEG_INFINITY, f64::max);
-        if lo.is_finite() && hi > lo {
-            (lo.floor(), hi.ceil())
-        } else if lo.is_finite() {
-            (lo.floor() - 1.0, lo.floor() + 1.0)
-        } else {
-            (0.0, 1.0)
-        }
-    };
-    let (x0, x1) = range(&|p| p.0);
-    let (y0, y1) = range(&|p| p.1);
-    let sx = |x: f64| m + (x.log10() - x0) / (x1 - x0) * (w - 2.0 * m);
-    let sy = |y: f64| h - m - (y.log10() - y0) / (y1 - y0) * (h - 2.0 * m);
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="20" text-anchor="middle" font-size="14">{title}</text>"#,
-        w / 2.0
-    );
-    let _ = writeln!(
-        s,
-        r#"<rect x="{m}" y="{m}" width="{}" height="{}" fill="none" stroke="black"/>"#,
-        w - 2.0 * m,
-        h - 2.0 * m
-    );
-    for d in x0 as i32..=x1 as i32 {
-        let x = sx(10f64.powi(d));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{x}" y1="{m}" x2="{x}" y2="{}" stroke="#ddd"/><text x="{x}" y="{}" text-anchor="middle">1e{d}</text>"##,
-            h - m,
-            h - m + 16.0
-        );
+    LogLogPlot {
+        title: title.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        series: vec![Series {
+            name: String::new(),
+            colour: "#c33".into(),
+            joined: false,
+            points: points
+                .iter()
+                .map(|(x, y, label)| Point {
+                    label: label.clone(),
+                    ..Point::at(*x, *y)
+                })
+                .collect(),
+        }],
+        note: String::new(),
     }
-    for d in y0 as i32..=y1 as i32 {
-        let y = sy(10f64.powi(d));
-        let _ = writeln!(
-            s,
-            r##"<line x1="{m}" y1="{y}" x2="{}" y2="{y}" stroke="#ddd"/><text x="{}" y="{}" text-anchor="end">1e{d}</text>"##,
-            w - m,
-            m - 4.0,
-            y + 4.0
-        );
-    }
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}" text-anchor="middle">{x_label}</text>"#,
-        w / 2.0,
-        h - 12.0
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="14" y="{}" transform="rotate(-90 14 {})" text-anchor="middle">{y_label}</text>"#,
-        h / 2.0,
-        h / 2.0
-    );
-    for (x, y, label) in valid {
-        let _ = writeln!(
-            s,
-            r##"<circle cx="{:.1}" cy="{:.1}" r="4" fill="#c33"/><text x="{:.1}" y="{:.1}" font-size="9">{label}</text>"##,
-            sx(*x),
-            sy(*y),
-            sx(*x) + 6.0,
-            sy(*y) - 4.0
-        );
-    }
-    s.push_str("</svg>\n");
-    s
+    .to_svg()
 }
 
 fn num(r: &BenchRecord, key: &str) -> f64 {

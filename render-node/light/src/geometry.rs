@@ -14,6 +14,7 @@
 
 use super::bvh::Bvh;
 use super::ray::{Aabb, Ray};
+use crate::finite::finite_or_zero;
 use glam::{DMat3, DMat4, DVec2, DVec3, Vec2};
 use showcase_proto::{ObjectKind, Showcase, Transform};
 
@@ -150,6 +151,26 @@ pub struct Hit {
     pub front_face: bool,
 }
 
+/// `n` turned to the side `towards` points to: `n` when
+/// `n.dot(towards) >= 0.0` (so also when `towards` lies in the surface),
+/// `-n` otherwise and when the product is NaN. The crate's one two-sided
+/// normal rule: [`Hit::facing_normal`] and every flip of a shading normal
+/// to the seen side use it.
+pub fn face_forward(n: DVec3, towards: DVec3) -> DVec3 {
+    if n.dot(towards) >= 0.0 { n } else { -n }
+}
+
+impl Hit {
+    /// The geometric normal on the side that a ray arriving along
+    /// `incoming` sees, pointing back against it: [`face_forward`] towards
+    /// `-incoming`. A grazing ray (`geometric_normal.dot(incoming) == 0.0`)
+    /// gets the front normal although [`Hit::front_face`] (`< 0.0`) calls it
+    /// a back-face hit; a NaN product gets the back normal.
+    pub fn facing_normal(&self, incoming: DVec3) -> DVec3 {
+        face_forward(self.geometric_normal, -incoming)
+    }
+}
+
 /// World-space triangles of the selected objects in a BVH.
 #[derive(Clone, Debug)]
 pub struct SceneGeometry {
@@ -215,7 +236,7 @@ impl SceneGeometry {
                 info.push(TriangleInfo {
                     object: oi as u32,
                     local: ti as u32,
-                    normal: if n.is_finite() { n } else { DVec3::ZERO },
+                    normal: finite_or_zero(n),
                     vertex_normals,
                     uvs: has_uvs.then(|| tri.map(|i| mesh.uvs[i as usize])),
                 });
@@ -270,7 +291,7 @@ impl SceneGeometry {
             object: info.object,
             triangle: info.local,
             normal: info.normal,
-            area: if area.is_finite() { area } else { 0.0 },
+            area: finite_or_zero(area),
         })
     }
 
@@ -438,6 +459,49 @@ mod tests {
         .normalize();
         assert!((hit.shading_normal - expected_interp).length() < 1e-12);
         assert!(hit.shading_normal.dot(expected) > 0.99);
+    }
+
+    /// The rule every former copy wrote out: `geometric_normal.dot(incoming)
+    /// <= 0.0` keeps the front normal.
+    #[track_caller]
+    fn check_facing(incoming: DVec3, expected: DVec3) {
+        let hit = Hit {
+            object: 0,
+            triangle: 0,
+            primitive: 0,
+            t: 1.0,
+            barycentric: DVec2::ZERO,
+            point: DVec3::ZERO,
+            geometric_normal: DVec3::Z,
+            shading_normal: DVec3::Z,
+            uv: None,
+            front_face: DVec3::Z.dot(incoming) < 0.0,
+        };
+        let old_rule = if DVec3::Z.dot(incoming) <= 0.0 {
+            DVec3::Z
+        } else {
+            -DVec3::Z
+        };
+        assert_eq!(hit.facing_normal(incoming), expected);
+        assert_eq!(old_rule, expected);
+    }
+
+    #[test]
+    fn facing_normal_turns_against_the_ray_and_keeps_the_front_when_grazing() {
+        check_facing(DVec3::NEG_Z, DVec3::Z);
+        check_facing(DVec3::new(1.0, 0.0, -1e-300), DVec3::Z);
+        check_facing(DVec3::Z, DVec3::NEG_Z);
+        check_facing(DVec3::new(1.0, 0.0, 1e-300), DVec3::NEG_Z);
+        // Grazing: the front normal, although `front_face` is false.
+        check_facing(DVec3::X, DVec3::Z);
+        check_facing(DVec3::new(1.0, 0.0, -0.0), DVec3::Z);
+        check_facing(DVec3::new(1.0, 0.0, 0.0), DVec3::Z);
+        check_facing(DVec3::new(f64::NAN, 0.0, 1.0), DVec3::NEG_Z);
+        check_facing(DVec3::new(0.0, 0.0, f64::INFINITY), DVec3::NEG_Z);
+        check_facing(DVec3::new(0.0, 0.0, f64::NEG_INFINITY), DVec3::Z);
+        assert_eq!(face_forward(DVec3::Y, DVec3::X), DVec3::Y);
+        assert_eq!(face_forward(DVec3::Y, DVec3::NEG_Y), DVec3::NEG_Y);
+        assert_eq!(face_forward(DVec3::Y, DVec3::NAN), DVec3::NEG_Y);
     }
 
     #[test]

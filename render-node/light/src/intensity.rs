@@ -19,8 +19,9 @@
 //! direction to the camera, for the phi_max cut of section 3.5.
 
 use super::device::{DeviceError, DeviceRays};
-use super::geometry::{ObjectFilter, SceneGeometry};
+use super::geometry::{ObjectFilter, SceneGeometry, face_forward};
 use super::image::{Image, RgbImage};
+use crate::finite::finite_or_zero;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use showcase_proto::PinholeDevice;
@@ -180,16 +181,8 @@ fn shade_pixel(
         return (Vec3::ZERO, None);
     }
     let to_camera = -ray.direction;
-    let facing = if hit.geometric_normal.dot(to_camera) >= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
-    let shading = if hit.shading_normal.dot(facing) >= 0.0 {
-        hit.shading_normal
-    } else {
-        -hit.shading_normal
-    };
+    let facing = hit.facing_normal(ray.direction);
+    let shading = face_forward(hit.shading_normal, facing);
     let attenuation = light.attenuation(geometry, hit.point, facing, shading);
     let value = attenuation.map_or(DVec3::ZERO, |a| finite_or_zero(a * light.color));
     let phi = shading.dot(to_camera).clamp(-1.0, 1.0).acos();
@@ -203,10 +196,6 @@ fn shade_pixel(
         lit: attenuation.is_some(),
     };
     (value.as_vec3(), Some(sample))
-}
-
-fn finite_or_zero(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@
 //! above the receiver's tangent plane, so parts below the horizon add
 //! nothing, as they must.
 
+use crate::finite::finite_or_zero;
 use glam::DVec3;
 
 /// Why an irradiance could not be computed.
@@ -82,11 +83,7 @@ pub fn form_factor_point_polygon(
     } else {
         relative_form_factor(polygon, point, n, &mut vec![DVec3::ZERO; 2 * m])
     };
-    Ok(if f.is_finite() {
-        f.clamp(0.0, 1.0)
-    } else {
-        0.0
-    })
+    Ok(finite_or_zero(f).clamp(0.0, 1.0))
 }
 
 /// Polygons with at most this many corners (the mesh's triangles, quads)

@@ -6,6 +6,9 @@
 //!   polygon irradiance ([`lambert`]), the flat-Lambert rasteriser
 //!   ([`raster`]).
 //! - [`sampling`]: the one home of seeded hashes and sample patterns.
+//! - [`finite`]: the one rule that turns NaN and infinities into zero.
+//! - [`spot`]: the one spot-light cone, shared by [`render`] and
+//!   [`radiosity`].
 //! - [`sim`]: the simulated showcase, our ground truth, behind the
 //!   [`hardware`] traits that real projectors and cameras implement too.
 //! - [`reflectance`]: reflectance-map math (paper section 3).
@@ -26,6 +29,7 @@ pub mod bvh;
 mod ciede2000;
 pub mod device;
 pub mod digest;
+pub mod finite;
 pub mod geometry;
 pub mod hardware;
 pub mod image;
@@ -41,6 +45,7 @@ pub mod reflectance;
 pub mod render;
 pub mod sampling;
 pub mod sim;
+pub mod spot;
 
 pub use device::{DeviceError, DeviceRays};
 pub use geometry::{GeometryError, Hit, ObjectFilter, SceneGeometry, WorldTriangle, world_matrix};

@@ -39,6 +39,7 @@
 // `!(x > 0.0)` is deliberate: it is also true for NaN (as in `light`).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use crate::finite::finite_or_zero;
 use crate::render::cube_map::{environment, reflect};
 use crate::render::projector::{
     Occluders, emitted_intensity, in_occlusion_shadow, target_irradiance,
@@ -308,7 +309,7 @@ fn cannot_fill(
             &occluders.virtual_only,
             other_eyes,
             hit.point,
-            facing_origin(hit.geometric_normal, ray),
+            hit.facing_normal(ray.direction),
         )
 }
 
@@ -353,7 +354,7 @@ pub fn projector_edge_pixels(
                 if hit.geometric_normal == DVec3::ZERO {
                     return false;
                 }
-                let facing = facing_origin(hit.geometric_normal, &ray);
+                let facing = hit.facing_normal(ray.direction);
                 rays.iter().any(|(r, edges)| {
                     r.sees(&occluders.real_only, hit.point, facing)
                         && r.pixel_of(hit.point)
@@ -382,15 +383,6 @@ fn check_size(what: &str, image: &RgbImage, dw: u32, dh: u32) -> Result<(), Obse
     Ok(())
 }
 
-/// The side of a hit surface facing the ray's origin.
-fn facing_origin(normal: DVec3, ray: &Ray) -> DVec3 {
-    if normal.dot(ray.direction) <= 0.0 {
-        normal
-    } else {
-        -normal
-    }
-}
-
 /// Radiance of the first real surface on `ray` under the projectors, and
 /// whether any projector reaches that surface.
 fn real_radiance(
@@ -410,7 +402,7 @@ fn real_radiance(
     let Some(object) = frame.showcase.objects.get(hit.object as usize) else {
         return (DVec3::ZERO, false);
     };
-    let facing = facing_origin(hit.geometric_normal, ray);
+    let facing = hit.facing_normal(ray.direction);
     let rho = object
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
@@ -436,7 +428,7 @@ fn real_radiance(
         e += j * (facing.dot(to) / r2.sqrt() / r2);
     }
     let l = rho / PI * e;
-    (if l.is_finite() { l } else { DVec3::ZERO }, reachable)
+    (finite_or_zero(l), reachable)
 }
 
 /// Radiance of the CRT pixel the eye sees along `ray` via the mirror.
@@ -504,7 +496,7 @@ fn target_radiance(
         return Some((DVec3::ZERO, None));
     }
     let object = frame.showcase.objects.get(hit.object as usize)?;
-    let facing = facing_origin(hit.geometric_normal, ray);
+    let facing = hit.facing_normal(ray.direction);
     let rho = object
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
@@ -520,10 +512,7 @@ fn target_radiance(
     } else {
         rho / PI * e
     };
-    Some((
-        if l.is_finite() { l } else { DVec3::ZERO },
-        Some((hit.object, hit.primitive, lit)),
-    ))
+    Some((finite_or_zero(l), Some((hit.object, hit.primitive, lit))))
 }
 
 #[cfg(test)]

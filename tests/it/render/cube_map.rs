@@ -155,11 +155,7 @@ fn mirror_pixels(occ: &Occluders, face: &CrtFace) -> Vec<(usize, DVec3, DVec3)> 
             if hit.object != 1 {
                 continue;
             }
-            let n = if hit.geometric_normal.dot(d) <= 0.0 {
-                hit.geometric_normal
-            } else {
-                -hit.geometric_normal
-            };
+            let n = hit.facing_normal(d);
             let r = reflect(d, n);
             let at = |from: DVec3| 0.9 * wall_radiance(from + r * ((WALL_X - from.x) / r.x));
             let i = (y * face.width + x) as usize;

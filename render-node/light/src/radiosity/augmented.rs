@@ -29,6 +29,7 @@
 use super::gather::{GatherOptions, gather_vertices};
 use super::mesh::RadiosityMesh;
 use super::shooting::{Shooter, SolveError, SolveOptions};
+use crate::finite::finite_or_zero;
 use crate::{DeviceError, DeviceRays, Image, RgbImage, SceneGeometry};
 use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
@@ -415,7 +416,7 @@ pub fn irradiance_map(
                     }
                     0.0
                 };
-                let d = if d.is_finite() { d } else { 0.0 };
+                let d = finite_or_zero(d);
                 if !(0.0..=1.0).contains(&d) {
                     clipped = true;
                 }

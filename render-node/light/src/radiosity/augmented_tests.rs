@@ -3,25 +3,14 @@
 //! form factor 1) and the clip-compensated B1 pass, whose B3 must be B0
 //! wherever B2 was not clipped.
 
+use super::tests::add_quad;
 use super::*;
 use crate::ObjectFilter;
 use glam::{DVec3, Vec3};
-use showcase_proto::{Light, Material, Mesh, Object, ObjectKind, Showcase, Transform};
+use showcase_proto::{Light, Material, ObjectKind, Showcase};
 
 fn quad(s: &mut Showcase, name: &str, c: Vec3, u: Vec3, v: Vec3, rho: f32, kind: ObjectKind) {
-    let id = s.add_mesh(Mesh {
-        positions: vec![c, c + u, c + u + v, c + v],
-        normals: vec![],
-        uvs: vec![],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-    });
-    s.objects.push(Object {
-        name: name.into(),
-        mesh: id,
-        material: Material::diffuse(Vec3::splat(rho)),
-        kind,
-        transform: Transform::IDENTITY,
-    });
+    add_quad(s, name, c, u, v, Material::diffuse(Vec3::splat(rho)), kind);
 }
 
 fn mesh(s: &Showcase, area: f64, depth: u32) -> (RadiosityMesh, SceneGeometry, SceneGeometry) {

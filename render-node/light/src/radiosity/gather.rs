@@ -28,6 +28,7 @@
 use super::RefineOptions;
 use super::mesh::RadiosityMesh;
 use super::sources::direct_irradiance;
+use crate::finite::finite_or_zero;
 use crate::sampling::{hash64, stratified, triangle_sample};
 use crate::{Ray, SceneGeometry, form_factor_point_polygon};
 use glam::DVec3;
@@ -224,7 +225,7 @@ impl VertexGather {
                     }
                 }
                 let b = b / p.area;
-                if b.is_finite() { b } else { DVec3::ZERO }
+                finite_or_zero(b)
             })
             .collect();
         let samples = self.options.emitter_samples.max(1);
@@ -250,11 +251,7 @@ impl VertexGather {
                     );
                 }
                 let out = self.emission[v] + self.rho[v] * e;
-                if out.is_finite() {
-                    out.max(DVec3::ZERO)
-                } else {
-                    DVec3::ZERO
-                }
+                finite_or_zero(out).max(DVec3::ZERO)
             })
             .collect();
         fill_hidden(target, gathered, &self.hidden)

@@ -10,6 +10,7 @@
 //! same plane orientation, for per-vertex (Gouraud) interpolation.
 
 use crate::SceneGeometry;
+use crate::finite::finite_or_zero;
 use glam::{DVec2, DVec3};
 use showcase_proto::{ObjectKind, Showcase};
 use std::collections::HashMap;
@@ -159,7 +160,7 @@ pub struct RadiosityMesh {
 }
 
 fn sanitize(v: DVec3, max: f64) -> DVec3 {
-    let v = DVec3::from_array(v.to_array().map(|c| if c.is_finite() { c } else { 0.0 }));
+    let v = DVec3::from_array(v.to_array().map(finite_or_zero));
     v.clamp(DVec3::ZERO, DVec3::splat(max))
 }
 

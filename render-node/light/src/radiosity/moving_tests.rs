@@ -2,40 +2,11 @@
 //! factors equal those of a fresh solve of the moved scene, and shooting
 //! the difference reaches a fresh solve's solution with fewer shots.
 
+use super::tests::quads_object;
 use super::*;
 use crate::ObjectFilter;
 use glam::Vec3;
-use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
-
-/// One object made of quads `(corner, u, v)` facing `u x v`.
-fn quads_object(
-    s: &mut Showcase,
-    name: &str,
-    quads: &[(Vec3, Vec3, Vec3)],
-    m: Material,
-    kind: ObjectKind,
-) {
-    let mut positions = Vec::new();
-    let mut triangles = Vec::new();
-    for &(c, u, v) in quads {
-        let k = positions.len() as u32;
-        positions.extend([c, c + u, c + u + v, c + v]);
-        triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
-    }
-    let id = s.add_mesh(Mesh {
-        positions,
-        normals: vec![],
-        uvs: vec![],
-        triangles,
-    });
-    s.objects.push(Object {
-        name: name.into(),
-        mesh: id,
-        material: m,
-        kind,
-        transform: Transform::IDENTITY,
-    });
-}
+use showcase_proto::{Material, ObjectKind, Showcase};
 
 /// A closed unit box (inward faces, the top emitting) with a virtual cube
 /// of side `a` floating inside (outward faces), translated by `shift`.

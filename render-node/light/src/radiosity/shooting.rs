@@ -38,6 +38,7 @@ use super::hemicube::{
 use super::mesh::{Element, RadiosityMesh};
 use super::sources::direct_irradiance;
 use crate::SceneGeometry;
+use crate::finite::finite_or_zero;
 use crate::sampling::{hash64, stratified, unit};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -179,10 +180,6 @@ fn power(v: DVec3, area: f64) -> f64 {
     (v.x.abs() + v.y.abs() + v.z.abs()) * area
 }
 
-fn finite(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
-}
-
 /// A computed form-factor row: `(element, F)` sorted by element, the scale
 /// it was normalised with, and its entries' [`RayMask`]s when every entry
 /// was ray-cast.
@@ -296,7 +293,10 @@ impl<'a> Shooter<'a> {
     /// energy, scaled by `scale` (-1 removes it). Inactive elements and
     /// non-finite values are skipped.
     pub fn add_emission(&mut self, exitance: &[DVec3], scale: f64) {
-        let deposits: Vec<DVec3> = exitance.iter().map(|e| finite(*e * scale)).collect();
+        let deposits: Vec<DVec3> = exitance
+            .iter()
+            .map(|e| finite_or_zero(*e * scale))
+            .collect();
         self.deposit(&deposits);
     }
 
@@ -333,7 +333,7 @@ impl<'a> Shooter<'a> {
                     samples,
                     seed ^ j as u64,
                 );
-                finite(scale * e.reflectance * irradiance)
+                finite_or_zero(scale * e.reflectance * irradiance)
             })
             .collect()
     }
@@ -469,7 +469,7 @@ impl<'a> Shooter<'a> {
         let p_area = self.mesh.patches[shooter].area;
         for &(j, f) in &ff {
             let e = &self.mesh.elements[j as usize];
-            let gain = finite(e.reflectance * delta * (f * p_area / e.area));
+            let gain = finite_or_zero(e.reflectance * delta * (f * p_area / e.area));
             self.radiosity[j as usize] += gain;
             let q = &self.mesh.patches[e.patch as usize];
             self.unshot[e.patch as usize] += gain * (e.area / q.area);
@@ -745,7 +745,7 @@ impl<'a> Shooter<'a> {
             return DVec3::ZERO;
         }
         let rho = (rho_area / area).min(DVec3::splat(super::mesh::MAX_REFLECTANCE));
-        finite(unshot / area / (DVec3::ONE - rho))
+        finite_or_zero(unshot / area / (DVec3::ONE - rho))
     }
 
     /// B plus the reflected ambient term, for display before convergence.

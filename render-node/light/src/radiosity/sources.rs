@@ -2,22 +2,13 @@
 //! surface points, with visibility: the first shot of a radiosity solve.
 //! Lights are not geometry: they neither occlude nor receive.
 
+use crate::finite::finite_or_zero;
 use crate::sampling::stratified;
+use crate::spot::{cone_cosines, spot_falloff};
 use crate::{SceneGeometry, form_factor_point_polygon};
 use glam::DVec3;
 use showcase_proto::Light;
 use std::f64::consts::PI;
-
-/// Smooth cone falloff of a spot light: 1 inside `inner_deg`, 0 outside
-/// `outer_deg`, smoothstep in between.
-pub fn spot_falloff(cos_axis: f64, inner_deg: f64, outer_deg: f64) -> f64 {
-    let (ci, co) = (inner_deg.to_radians().cos(), outer_deg.to_radians().cos());
-    if !(ci > co) {
-        return if cos_axis >= co { 1.0 } else { 0.0 };
-    }
-    let t = ((cos_axis - co) / (ci - co)).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
-}
 
 /// Direct irradiance (W/m^2 per channel) from `light` at surface point
 /// `point` with unit normal `normal` (the front side), with visibility in
@@ -50,11 +41,8 @@ pub fn direct_irradiance(
             let p = position.as_dvec3();
             let axis = direction.as_dvec3().normalize_or_zero();
             let to_point = (point - p).normalize_or_zero();
-            let falloff = spot_falloff(
-                axis.dot(to_point),
-                f64::from(*inner_deg),
-                f64::from(*outer_deg),
-            );
+            let (cos_inner, cos_outer) = cone_cosines(f64::from(*inner_deg), f64::from(*outer_deg));
+            let falloff = spot_falloff(axis.dot(to_point), cos_inner, cos_outer);
             if falloff > 0.0 {
                 point_irradiance(geometry, point, normal, p, falloff) * intensity.as_dvec3()
             } else {
@@ -83,11 +71,7 @@ pub fn direct_irradiance(
             }
         }
     };
-    if e.is_finite() {
-        e.max(DVec3::ZERO)
-    } else {
-        DVec3::ZERO
-    }
+    finite_or_zero(e).max(DVec3::ZERO)
 }
 
 /// `scale * cos(theta) / r^2` towards a point light at `light`, if visible.
@@ -144,15 +128,6 @@ mod tests {
         };
         let e = direct_irradiance(&area, &g, DVec3::ZERO, DVec3::Y, 4, 1);
         assert!((e.x - 2.0 * PI).abs() < 1e-3, "{e}");
-    }
-
-    #[test]
-    fn spot_falloff_is_smooth_and_bounded() {
-        assert_eq!(spot_falloff(1.0, 10.0, 20.0), 1.0);
-        assert_eq!(spot_falloff(0.0, 10.0, 20.0), 0.0);
-        let mid = spot_falloff(15f64.to_radians().cos(), 10.0, 20.0);
-        assert!(mid > 0.3 && mid < 0.7, "{mid}");
-        assert_eq!(spot_falloff(0.99, f64::NAN, 20.0), 1.0);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use std::f64::consts::PI;
 
 /// Add a quad `corner, corner + u, corner + u + v, corner + v` facing
 /// `u x v`.
-fn add_quad(
+pub(super) fn add_quad(
     s: &mut Showcase,
     name: &str,
     c: Vec3,
@@ -22,11 +22,29 @@ fn add_quad(
     m: Material,
     kind: ObjectKind,
 ) {
+    quads_object(s, name, &[(c, u, v)], m, kind);
+}
+
+/// Add one object made of quads `(corner, u, v)` facing `u x v`.
+pub(super) fn quads_object(
+    s: &mut Showcase,
+    name: &str,
+    quads: &[(Vec3, Vec3, Vec3)],
+    m: Material,
+    kind: ObjectKind,
+) {
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for &(c, u, v) in quads {
+        let k = positions.len() as u32;
+        positions.extend([c, c + u, c + u + v, c + v]);
+        triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
     let id = s.add_mesh(Mesh {
-        positions: vec![c, c + u, c + u + v, c + v],
+        positions,
         normals: vec![],
         uvs: vec![],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        triangles,
     });
     s.objects.push(Object {
         name: name.into(),

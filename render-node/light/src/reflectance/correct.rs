@@ -24,6 +24,8 @@
 //! ground truth is an independent path tracer.
 
 use super::{ReflectanceError, check_size};
+use crate::finite::finite_or_zero;
+use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 use crate::{DeviceRays, Image, IntensityLight, Ray, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
@@ -132,11 +134,7 @@ pub fn indirect_irradiance(
             if hit.geometric_normal == DVec3::ZERO {
                 return None;
             }
-            let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-                hit.geometric_normal
-            } else {
-                -hit.geometric_normal
-            };
+            let facing = hit.facing_normal(ray.direction);
             Some((hit.object, d.to_device(hit.point).z, hit.point, facing))
         })
         .collect();
@@ -150,11 +148,7 @@ pub fn indirect_irradiance(
         if hit.geometric_normal == DVec3::ZERO {
             return Found::Nothing;
         }
-        let hf = if hit.geometric_normal.dot(dir) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
+        let hf = hit.facing_normal(dir);
         // Seen by the camera: the side the ray hits faces the camera, and
         // the pixel it projects to sees the same object at the same depth
         // (within the footprint times the slope at phi_max) with a normal
@@ -200,11 +194,7 @@ pub fn indirect_irradiance(
                 return Found::Seen(b / wsum);
             }
         }
-        let hs = if hit.shading_normal.dot(hf) >= 0.0 {
-            hit.shading_normal
-        } else {
-            -hit.shading_normal
-        };
+        let hs = face_forward(hit.shading_normal, hf);
         let e = light.intensity_at(geometry, hit.point, hf, hs);
         Found::Hidden(hit.object, e, hit.point, hf, hs)
     };
@@ -222,7 +212,7 @@ pub fn indirect_irradiance(
                 let (object, e_dir, y, yf, ys) = match trace(point, facing, dir) {
                     Found::Nothing => continue,
                     Found::Seen(b) => {
-                        g.seen += finite(b);
+                        g.seen += finite_or_zero(b);
                         continue;
                     }
                     Found::Hidden(o, e, y, yf, ys) => (o, e, y, yf, ys),
@@ -238,20 +228,20 @@ pub fn indirect_irradiance(
                     }
                 };
                 let hh = &mut g.hidden[k];
-                hh.e_dir += finite(e_dir);
+                hh.e_dir += finite_or_zero(e_dir);
                 let dir2 = cosine_direction(ys, (rng.random(), rng.random()));
                 if !(dir2.dot(yf) > 0.0) {
                     continue;
                 }
                 match trace(y, yf, dir2) {
                     Found::Nothing => {}
-                    Found::Seen(b) => hh.seen += finite(b),
+                    Found::Seen(b) => hh.seen += finite_or_zero(b),
                     Found::Hidden(o2, e2, ..) => match hh.hidden.iter_mut().find(|h| h.0 == o2) {
                         Some(h) => {
                             h.1 += 1.0;
-                            h.2 += finite(e2);
+                            h.2 += finite_or_zero(e2);
                         }
-                        None => hh.hidden.push((o2, 1.0, finite(e2))),
+                        None => hh.hidden.push((o2, 1.0, finite_or_zero(e2))),
                     },
                 }
             }
@@ -352,18 +342,10 @@ pub fn indirect_irradiance(
                 b += rho_obj[hh.object as usize] * e;
             }
             let e = b / n as f64;
-            e_ind.data[i] = if e.is_finite() {
-                e.max(DVec3::ZERO).as_vec3()
-            } else {
-                Vec3::ZERO
-            };
+            e_ind.data[i] = finite_or_zero(e).max(DVec3::ZERO).as_vec3();
         }
     }
     Ok(e_ind)
-}
-
-fn finite(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
 }
 
 fn mean((sum, count): (DVec3, f64), fallback: DVec3) -> DVec3 {

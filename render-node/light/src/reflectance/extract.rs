@@ -10,6 +10,7 @@
 //! noise would be amplified a thousandfold). Everything else is 0.
 
 use super::{ReflectanceError, check_size};
+use crate::finite::finite_or_zero;
 use crate::{Image, IntensityImage, RgbImage, SurfaceSample};
 use glam::{DVec3, Vec3};
 
@@ -41,7 +42,7 @@ pub fn intensity_floor(intensity: &RgbImage, floor_relative: f64) -> f64 {
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max);
     let f = max * floor_relative;
-    if f.is_finite() { f.max(0.0) } else { 0.0 }
+    finite_or_zero(f).max(0.0)
 }
 
 /// `I_ref = I_rad / irradiance` where valid (module docs), 0 elsewhere, and
@@ -161,7 +162,7 @@ pub fn blend_weights(
             let ramp = ((s.phi.cos() - cos_max) / (1.0 - cos_max).max(1e-9)).clamp(0.0, 1.0);
             let edge = (d[i] / border).clamp(0.0, 1.0);
             let v = (ramp * edge) as f32;
-            if v.is_finite() { v } else { 0.0 }
+            finite_or_zero(v)
         })
         .collect();
     Ok(Image {

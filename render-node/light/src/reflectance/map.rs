@@ -10,6 +10,7 @@
 //! alpha blending with their blend weights (bilinearly filtered), so a
 //! region blank in one map is filled by the others without seams.
 
+use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Image, IntensityImage, RgbImage, SceneGeometry};
 use glam::{DMat4, DVec2, DVec3, Vec3};
 use rayon::prelude::*;
@@ -50,7 +51,7 @@ impl ReflectanceMap {
         let depth = intensity.surface.map(|s| {
             s.map_or(0.0, |s| {
                 let z = camera.to_device(s.point).z as f32;
-                if z.is_finite() { z } else { 0.0 }
+                finite_or_zero(z)
             })
         });
         let object = intensity.surface.map(|s| s.map(|s| s.object));

@@ -22,6 +22,7 @@
 //! them once per scene and keeps them as a texture.
 
 use super::RenderSetupError;
+use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Image, SceneGeometry};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -89,7 +90,7 @@ impl Blend {
         let border = px.x.min(w - px.x).min(px.y).min(h - px.y);
         let t = (border / (BORDER_FRACTION * w.min(h))).clamp(0.0, 1.0);
         let f = cos / r2 * t * t * (3.0 - 2.0 * t);
-        if f.is_finite() { f } else { 0.0 }
+        finite_or_zero(f)
     }
 
     /// Weight of projector `i` at surface point `point` (lit side
@@ -144,11 +145,7 @@ impl Blend {
                     {
                         return 1.0;
                     }
-                    let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-                        hit.geometric_normal
-                    } else {
-                        -hit.geometric_normal
-                    };
+                    let facing = hit.facing_normal(ray.direction);
                     self.weight(i, real_only, hit.point, facing) as f32
                 })
             })

@@ -18,6 +18,7 @@
 use super::RenderSetupError;
 use super::frame::FrameScene;
 use super::projector::{IrradianceMap, Occluders, edge_mask, emitted_intensity, target_irradiance};
+use crate::geometry::face_forward;
 use crate::metrics::relative_rmse;
 use crate::{DeviceRays, Image, MetricError, RgbImage};
 use glam::{DVec3, Vec2, Vec3};
@@ -138,11 +139,7 @@ fn camera_pixel(
         .as_dvec3();
     // The side the projector lights.
     let to_proj = proj.center() - hit.point;
-    let facing = if hit.geometric_normal.dot(to_proj) >= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = face_forward(hit.geometric_normal, to_proj);
     let seen_side =
         hit.geometric_normal.dot(-ray.direction) * facing.dot(hit.geometric_normal) > 0.0;
     let (target_e, _) = target_irradiance(frame, occluders, hit.point, facing);

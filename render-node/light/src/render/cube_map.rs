@@ -34,6 +34,7 @@
 use super::RenderSetupError;
 use super::frame::FrameScene;
 use super::projector::{Occluders, PixelState, target_irradiance};
+use crate::finite::{finite_or, finite_or_zero};
 use crate::{Image, Ray, RgbImage, world_matrix};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -197,7 +198,7 @@ impl CubeMap {
         let top = mix(at(0, 0), at(1, 0), b.t.x);
         let bottom = mix(at(0, 1), at(1, 1), b.t.x);
         let v = mix(top, bottom, b.t.y);
-        if v.is_finite() { v } else { Vec3::ZERO }
+        finite_or_zero(v)
     }
 
     /// Distance from the centre to the real surface along direction `d`,
@@ -275,11 +276,7 @@ impl CubeMap {
         }
         let secant = |t_under: f64, q_under: f64, t_over: f64, q_over: f64| {
             let w = (1.0 - q_under) / (q_over - q_under);
-            let w = if w.is_finite() {
-                w.clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
+            let w = finite_or_zero(w).clamp(0.0, 1.0);
             t_under + (t_over - t_under) * w
         };
         for _ in 0..PARALLAX_SECANT_STEPS {
@@ -450,11 +447,7 @@ fn environment_hit(
             ..none(PixelState { object, ..masked })
         };
     }
-    let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(dir);
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let rho = o
         .material
@@ -462,16 +455,8 @@ fn environment_hit(
         .as_dvec3();
     let l = rho / std::f64::consts::PI * e;
     EnvironmentHit {
-        radiance: if l.is_finite() {
-            l.as_vec3()
-        } else {
-            Vec3::ZERO
-        },
-        distance: if distance.is_finite() {
-            distance
-        } else {
-            NO_SURFACE_DISTANCE
-        },
+        radiance: finite_or_zero(l).as_vec3(),
+        distance: finite_or(distance, NO_SURFACE_DISTANCE),
         state: PixelState {
             object,
             primitive: Some(hit.primitive),

@@ -27,6 +27,7 @@ use super::RenderSetupError;
 use super::cube_map::{CubeMap, DEFAULT_CUBE_RES, cube_maps_cpu, reflect};
 use super::frame::FrameScene;
 use super::projector::{Occluders, PixelState, in_occlusion_shadow, target_irradiance};
+use crate::finite::finite_or_zero;
 use crate::{Image, Ray, RgbImage};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -143,11 +144,7 @@ fn face_pixel(
     if hit.geometric_normal == DVec3::ZERO {
         return (Vec3::ZERO, PixelState { object, ..masked });
     }
-    let facing = if hit.geometric_normal.dot(dir) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(dir);
     let occluded = o.kind == ObjectKind::Real
         && in_occlusion_shadow(&occluders.virtual_only, other_eyes, hit.point, facing);
     if o.kind == ObjectKind::Real && !occluded {
@@ -165,10 +162,7 @@ fn face_pixel(
         let l = rho * map.sample(r);
         // Edges of the reflected environment are edges of this view.
         let lit = reflected_state(map, r);
-        return (
-            if l.is_finite() { l } else { Vec3::ZERO },
-            PixelState { lit, ..state },
-        );
+        return (finite_or_zero(l), PixelState { lit, ..state });
     }
     let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     let rho = o
@@ -176,14 +170,7 @@ fn face_pixel(
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
         .as_dvec3();
     let l = rho / std::f64::consts::PI * e;
-    (
-        if l.is_finite() {
-            l.as_vec3()
-        } else {
-            Vec3::ZERO
-        },
-        PixelState { lit, ..state },
-    )
+    (finite_or_zero(l).as_vec3(), PixelState { lit, ..state })
 }
 
 /// A digest of the states of the four texels a reflected sample along

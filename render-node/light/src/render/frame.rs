@@ -3,6 +3,8 @@
 //! tracked eyes. Shared by every CPU reference and GPU pass of `render`.
 
 use super::RenderSetupError;
+use crate::finite::finite_or_zero;
+use crate::spot::{cone_cosines, spot_falloff};
 use crate::{ObjectFilter, SceneGeometry};
 use glam::{DVec3, Vec3};
 use showcase_proto::{FrameState, Light, Observer, Showcase};
@@ -13,7 +15,7 @@ pub enum Lobe {
     /// The same in every direction (a point light).
     Isotropic,
     /// A spot cone around the unit `axis`: full inside `cos_inner`, zero
-    /// outside `cos_outer`, smoothstep in between.
+    /// outside `cos_outer`, smoothstep in between ([`spot_falloff`]).
     Spot {
         /// Unit cone axis.
         axis: DVec3,
@@ -55,23 +57,8 @@ impl LightSample {
             Lobe::Cosine { normal } => normal.dot(dir).max(0.0),
         };
         let i = self.intensity * factor;
-        if i.is_finite() { i } else { DVec3::ZERO }
+        finite_or_zero(i)
     }
-}
-
-/// Smoothstep from the outer to the inner cone: 0 at or outside
-/// `cos_outer`, 1 at or inside `cos_inner` (a hard edge at `cos_outer`
-/// when the two coincide).
-pub fn spot_falloff(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
-    if !(cos_angle > cos_outer) {
-        return 0.0;
-    }
-    let width = cos_inner - cos_outer;
-    if !(width > 0.0) {
-        return 1.0;
-    }
-    let t = ((cos_angle - cos_outer) / width).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
 }
 
 /// Break lights into point samples (area lights into a stratified grid
@@ -113,15 +100,15 @@ pub fn light_samples(
                 if !finite || axis == DVec3::ZERO {
                     return Err(bad());
                 }
-                let outer = f64::from(*outer_deg).clamp(0.0, 180.0);
-                let inner = f64::from(*inner_deg).clamp(0.0, outer);
+                let (cos_inner, cos_outer) =
+                    cone_cosines(f64::from(*inner_deg), f64::from(*outer_deg));
                 out.push(LightSample {
                     position: position.as_dvec3(),
                     intensity: intensity.as_dvec3(),
                     lobe: Lobe::Spot {
                         axis,
-                        cos_inner: inner.to_radians().cos(),
-                        cos_outer: outer.to_radians().cos(),
+                        cos_inner,
+                        cos_outer,
                     },
                 });
             }
@@ -232,16 +219,6 @@ fn eyes_of(frame: &FrameState, scene: &Showcase) -> Vec<DVec3> {
 mod tests {
     use super::*;
     use showcase_proto::LightSource;
-
-    #[test]
-    fn spot_falloff_edges() {
-        let (ci, co) = (0.9, 0.8);
-        assert_eq!(spot_falloff(0.8, ci, co), 0.0);
-        assert_eq!(spot_falloff(0.95, ci, co), 1.0);
-        assert!((spot_falloff(0.85, ci, co) - 0.5).abs() < 1e-12);
-        assert_eq!(spot_falloff(f64::NAN, ci, co), 0.0);
-        assert_eq!(spot_falloff(0.81, 0.8, 0.8), 1.0, "hard edge");
-    }
 
     #[test]
     fn area_samples_carry_the_emitters_intensity() {

@@ -39,6 +39,7 @@
 use super::RenderSetupError;
 use super::blend::Blend;
 use super::frame::FrameScene;
+use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Image, ObjectFilter, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -100,7 +101,7 @@ pub fn target_irradiance(
         }
         e += s.intensity_towards(-l) * (cos_theta / r2);
     }
-    (if e.is_finite() { e } else { DVec3::ZERO }, lit)
+    (finite_or_zero(e), lit)
 }
 
 /// True when a virtual object lies between `point` and one of `eyes` that
@@ -135,7 +136,7 @@ pub fn compensate(l: DVec3, response: &ProjectorResponse) -> (DVec3, bool) {
             clipped = true;
         }
         let v = linear.clamp(0.0, 1.0).powf(1.0 / gamma);
-        if v.is_finite() { v } else { 0.0 }
+        finite_or_zero(v)
     }));
     (value, clipped)
 }
@@ -149,7 +150,7 @@ pub fn emitted_intensity(value: DVec3, response: &ProjectorResponse) -> DVec3 {
             .to_array()
             .map(|v| f64::from(response.eta) * v.clamp(0.0, 1.0).powf(gamma)),
     ) + f64::from(response.black_level);
-    if j.is_finite() { j } else { DVec3::ZERO }
+    finite_or_zero(j)
 }
 
 /// What produced a pixel of the map; neighbouring pixels whose states
@@ -299,11 +300,7 @@ fn pixel_irradiance(
     {
         return (DVec3::ZERO, masked);
     }
-    let facing = if hit.geometric_normal.dot(ray.direction) <= 0.0 {
-        hit.geometric_normal
-    } else {
-        -hit.geometric_normal
-    };
+    let facing = hit.facing_normal(ray.direction);
     let object = Some(hit.object);
     let primitive = Some(hit.primitive);
     let cos_p = -facing.dot(ray.direction);
@@ -337,7 +334,7 @@ fn pixel_irradiance(
     });
     let l = e * (share * r2 / cos_p);
     (
-        if l.is_finite() { l } else { DVec3::ZERO },
+        finite_or_zero(l),
         PixelState {
             object,
             primitive,

@@ -27,6 +27,7 @@
 
 use super::SimError;
 use super::world::{ProjectorLight, SimWorld, TransportImage};
+use crate::finite::{finite_or, finite_or_zero};
 use crate::hardware::{CameraDevice, CameraFrame, ProjectorDevice};
 use crate::sampling::pixel_seed;
 use crate::{DeviceRays, Image, ObjectFilter, RgbImage};
@@ -267,11 +268,7 @@ impl Shared {
 /// `eta * clamp(value, 0, 1)^gamma + black_level` per channel.
 pub fn projector_intensity(response: &ProjectorResponse, value: Vec3) -> Vec3 {
     let v = DVec3::from(value.to_array().map(|c| {
-        let c = if c.is_finite() {
-            c.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let c = finite_or_zero(c).clamp(0.0, 1.0);
         c as f64
     }));
     let gamma = if response.gamma.is_finite() && response.gamma > 0.0 {
@@ -281,11 +278,7 @@ pub fn projector_intensity(response: &ProjectorResponse, value: Vec3) -> Vec3 {
     };
     let out = DVec3::new(v.x.powf(gamma), v.y.powf(gamma), v.z.powf(gamma)) * response.eta as f64
         + DVec3::splat(response.black_level as f64);
-    if out.is_finite() {
-        out.max(DVec3::ZERO).as_vec3()
-    } else {
-        Vec3::ZERO
-    }
+    finite_or_zero(out).max(DVec3::ZERO).as_vec3()
 }
 
 /// Per-channel factor by which the colour wheel scales a projector's
@@ -306,13 +299,7 @@ pub fn wheel_weights(
     }
     let t: Vec<DVec3> = segments
         .iter()
-        .map(|s| {
-            if s.is_finite() {
-                s.as_dvec3().max(DVec3::ZERO)
-            } else {
-                DVec3::ZERO
-            }
-        })
+        .map(|s| finite_or_zero(*s).as_dvec3().max(DVec3::ZERO))
         .collect();
     let n = t.len() as f64;
     let mean = t.iter().copied().sum::<DVec3>() / n;
@@ -342,7 +329,7 @@ pub fn wheel_weights(
         let k = ((local / seg) as usize).min(t.len() - 1);
         ratio(t[k])
     };
-    if w.is_finite() { w } else { DVec3::ONE }
+    finite_or(w, DVec3::ONE)
 }
 
 /// A simulated projector (see the module docs).
@@ -373,15 +360,8 @@ impl ProjectorDevice for SimProjector {
                 got: (image.width, image.height),
             });
         }
-        let clamped = image.map(|v| {
-            Vec3::from(v.to_array().map(|c| {
-                if c.is_finite() {
-                    c.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            }))
-        });
+        let clamped =
+            image.map(|v| Vec3::from(v.to_array().map(|c| finite_or_zero(c).clamp(0.0, 1.0))));
         let hash = content_hash(&clamped);
         let mut state = self.shared.lock();
         state.shown[self.index] = Some(clamped);
@@ -496,8 +476,4 @@ fn content_hash(image: &RgbImage) -> u64 {
         v.to_array().map(f32::to_bits).hash(&mut h);
     }
     h.finish()
-}
-
-fn finite_or(v: f64, fallback: f64) -> f64 {
-    if v.is_finite() { v } else { fallback }
 }

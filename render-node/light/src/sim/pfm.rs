@@ -1,6 +1,7 @@
 //! Portable float maps (PFM): colour (`PF`) and grey (`Pf`), little-endian
 //! (negative scale), rows stored bottom to top as the format requires.
 
+use crate::finite::finite_or_zero;
 use crate::{Image, RgbImage};
 use glam::Vec3;
 use std::path::Path;
@@ -28,7 +29,7 @@ pub fn encode_pfm(image: &RgbImage) -> Vec<u8> {
         for x in 0..image.width {
             let v = image.get(x, y).copied().unwrap_or(Vec3::ZERO);
             for c in v.to_array() {
-                let c = if c.is_finite() { c } else { 0.0 };
+                let c = finite_or_zero(c);
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
@@ -42,7 +43,7 @@ pub fn encode_pfm_grey(image: &Image<f32>) -> Vec<u8> {
     for y in (0..image.height).rev() {
         for x in 0..image.width {
             let c = image.get(x, y).copied().unwrap_or(0.0);
-            let c = if c.is_finite() { c } else { 0.0 };
+            let c = finite_or_zero(c);
             out.extend_from_slice(&c.to_le_bytes());
         }
     }
@@ -99,7 +100,7 @@ pub fn decode_pfm(bytes: &[u8]) -> Result<RgbImage, PfmError> {
         } else {
             f32::from_be_bytes(b)
         };
-        if v.is_finite() { v } else { 0.0 }
+        finite_or_zero(v)
     };
     Ok(Image::from_fn(width, height, |x, y| {
         let base = ((height - 1 - y) as usize * width as usize + x as usize) * channels;

@@ -23,6 +23,7 @@
 //! Every pixel has its own random stream seeded from `(seed, pixel index)`,
 //! so a render is reproducible for a seed whatever the thread count.
 
+use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Hit, Image, IntensityLight, ObjectFilter, Ray, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
@@ -31,6 +32,7 @@ use rayon::prelude::*;
 use showcase_proto::{Material, Showcase};
 
 use super::SimError;
+use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 
 /// Longest path (in bounces) the estimator follows.
@@ -72,13 +74,7 @@ impl ProjectorLight {
             color: DVec3::ONE,
             frustum: Some(rays.clone()),
         };
-        let intensity = intensity.map(|v| {
-            if v.is_finite() {
-                v.max(Vec3::ZERO)
-            } else {
-                Vec3::ZERO
-            }
-        });
+        let intensity = intensity.map(|v| finite_or_zero(*v).max(Vec3::ZERO));
         Ok(Self {
             rays,
             light,
@@ -108,7 +104,7 @@ impl ProjectorLight {
             return DVec3::ZERO;
         };
         let i = self.intensity.get(x, y).copied().unwrap_or(Vec3::ZERO);
-        finite(a * i.as_dvec3())
+        finite_or_zero(a * i.as_dvec3())
     }
 }
 
@@ -223,11 +219,7 @@ impl SimWorld {
             return DVec3::ZERO;
         };
         let a = m.albedo_at(hit.uv.unwrap_or_default()).as_dvec3();
-        if a.is_finite() {
-            a.clamp(DVec3::ZERO, DVec3::ONE)
-        } else {
-            DVec3::ZERO
-        }
+        finite_or_zero(a).clamp(DVec3::ZERO, DVec3::ONE)
     }
 
     /// The true albedo each camera pixel sees (pixel-centre ray) and the
@@ -277,7 +269,7 @@ impl SimWorld {
                 let r = ray.map_or([DVec3::ZERO; 3], |ray| {
                     self.trace_pixel(&ray, projector, spp, &mut rng)
                 });
-                r.map(|v| finite(v).as_vec3())
+                r.map(|v| finite_or_zero(v).as_vec3())
             })
             .collect();
         let mut out = TransportImage::zero(w, h);
@@ -305,7 +297,7 @@ impl SimWorld {
         };
         let material = &self.materials[hit.object as usize];
         let emitted = if hit.front_face && self.emitters_on {
-            finite(material.emission.as_dvec3().max(DVec3::ZERO))
+            finite_or_zero(material.emission.as_dvec3().max(DVec3::ZERO))
         } else {
             DVec3::ZERO
         };
@@ -388,7 +380,7 @@ impl SimWorld {
             point = hit.point;
             frame = next;
         }
-        finite(sum)
+        finite_or_zero(sum)
     }
 
     /// One next-event estimate of the irradiance from the emitters.
@@ -421,7 +413,7 @@ impl SimWorld {
         if !self.geometry.visible(point, frame.facing, y, true) {
             return DVec3::ZERO;
         }
-        finite(e.radiance * (cos_x * cos_y / dist2 * e.area / p_select))
+        finite_or_zero(e.radiance * (cos_x * cos_y / dist2 * e.area / p_select))
     }
 }
 
@@ -440,22 +432,10 @@ impl SurfaceFrame {
         if hit.geometric_normal == DVec3::ZERO {
             return None;
         }
-        let facing = if hit.geometric_normal.dot(incoming) <= 0.0 {
-            hit.geometric_normal
-        } else {
-            -hit.geometric_normal
-        };
-        let shading = if hit.shading_normal.dot(facing) >= 0.0 {
-            hit.shading_normal
-        } else {
-            -hit.shading_normal
-        };
+        let facing = hit.facing_normal(incoming);
+        let shading = face_forward(hit.shading_normal, facing);
         Some(Self { facing, shading })
     }
-}
-
-fn finite(v: DVec3) -> DVec3 {
-    if v.is_finite() { v } else { DVec3::ZERO }
 }
 
 #[cfg(test)]

@@ -72,6 +72,7 @@ use super::ray_cast::{
 };
 use super::{ComputedRow, FormFactorMethod, Shooter};
 use crate::SceneGeometry;
+use crate::finite::finite_or_zero;
 use crate::radiosity::mesh::RadiosityMesh;
 use crate::sampling::stratified;
 use cull::{
@@ -440,7 +441,7 @@ impl<'a> Shooter<'a> {
                 let p_area = mesh.patches[i].area;
                 for &(j, df) in &diff {
                     let e = &mesh.elements[j as usize];
-                    let gain = super::finite(e.reflectance * shot * (df * p_area / e.area));
+                    let gain = finite_or_zero(e.reflectance * shot * (df * p_area / e.area));
                     new.radiosity[j as usize] += gain;
                     let q = &mesh.patches[e.patch as usize];
                     new.unshot[e.patch as usize] += gain * (e.area / q.area);
@@ -709,7 +710,7 @@ impl Reciprocal {
             return None;
         }
         let f = sums[i] * q.area / p_area;
-        Some(if f.is_finite() { f } else { 0.0 })
+        Some(finite_or_zero(f))
     }
 }
 

@@ -3,6 +3,7 @@
 //! penumbra test that rejects most receivers with a few dot products, and
 //! the exact-with-margin crossing test of single visibility rays.
 
+use crate::finite::finite_or_zero;
 use crate::radiosity::mesh::RadiosityMesh;
 use glam::DVec3;
 
@@ -267,7 +268,7 @@ impl PreparedTriangle {
             v0,
             u_axis,
             v_axis,
-            sine: if sine.is_finite() { sine } else { 0.0 },
+            sine: finite_or_zero(sine),
             lo: v0.min(v1).min(v2),
             hi: v0.max(v1).max(v2),
         }
