@@ -7,6 +7,7 @@ pub mod certs;
 pub mod cli;
 pub mod cluster;
 pub mod demo;
+pub mod pfm;
 pub mod plot;
 pub mod radiosity_job;
 pub mod render_bench;

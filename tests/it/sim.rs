@@ -5,12 +5,13 @@
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use showcase_light::hardware::{CameraDevice, ProjectorDevice};
-use showcase_light::sim::{SimConfig, SimShowcase, SimWorld, read_pfm, render_view, wheel_weights};
+use showcase_light::sim::{SimConfig, SimShowcase, SimWorld, render_view, wheel_weights};
 use showcase_light::{
     DeviceRays, Image, IntensityLight, ObjectFilter, SceneGeometry, polygon_irradiance,
     render_intensity,
 };
 use showcase_master::capture::scenes::{plate_scene, quad_mesh};
+use showcase_master::pfm::read_pfm;
 use showcase_proto::{
     Material, Mesh, Object, ObjectKind, PinholeDevice, ProjectorResponse, Showcase, Transform,
 };

@@ -8,12 +8,12 @@
 //!   PinholeDevice (K, R, t in the OpenCV convention), "object_transforms":
 //!   [O_c per object index as 16 f64, column-major]}`.
 
+use crate::pfm::{decode_pfm, encode_pfm, encode_pfm_grey};
 use anyhow::Context;
 use glam::DMat4;
 use serde::{Deserialize, Serialize};
 use showcase_light::Image;
 use showcase_light::reflectance::ReflectanceMap;
-use showcase_light::sim::{decode_pfm, encode_pfm, encode_pfm_grey};
 use showcase_proto::PinholeDevice;
 use std::path::Path;
 

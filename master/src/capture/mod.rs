@@ -23,11 +23,12 @@ pub use pipeline::{
     calibrate_projector, calibrate_reference, capture_map, capture_radiance, capture_reflectance,
 };
 
+use crate::pfm::write_pfm;
 use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
 use showcase_light::hardware::ProjectorDevice;
-use showcase_light::sim::{SimConfig, SimShowcase, render_view, write_pfm};
+use showcase_light::sim::{SimConfig, SimShowcase, render_view};
 use showcase_proto::{PinholeDevice, Showcase};
 use std::path::Path;
 use std::time::Instant;

@@ -1,7 +1,6 @@
-//! Writers for radiosity results: PLY meshes with per-vertex radiosity and
-//! PFM images for irradiance maps.
+//! Writers for radiosity results: PLY meshes with per-vertex radiosity
+//! (irradiance maps are PFM images, written with [`crate::pfm`]).
 
-use showcase_light::RgbImage;
 use showcase_light::radiosity::VertexMesh;
 use std::fmt::Write as _;
 
@@ -41,25 +40,10 @@ pub fn ply_ascii(mesh: &VertexMesh) -> String {
     s
 }
 
-/// A colour PFM (`PF`, little-endian, bottom row first) of `image`.
-pub fn pfm(image: &RgbImage) -> Vec<u8> {
-    let mut out = format!("PF\n{} {}\n-1.0\n", image.width, image.height).into_bytes();
-    for y in (0..image.height).rev() {
-        for x in 0..image.width {
-            let p = image.data[(y * image.width + x) as usize];
-            for c in p.to_array() {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{DVec3, Vec3};
-    use showcase_light::Image;
+    use glam::DVec3;
 
     #[test]
     fn ply_header_counts_match_the_body() {
@@ -75,20 +59,5 @@ mod tests {
         assert_eq!(body[0], "0 0 0 0 0 1 1 2 3");
         assert_eq!(body[3], "3 0 1 2");
         assert!(text.contains("element vertex 3\n") && text.contains("element face 1\n"));
-    }
-
-    #[test]
-    fn pfm_is_bottom_up_little_endian() {
-        let img = Image::from_fn(2, 2, |x, y| Vec3::new(x as f32, y as f32, 0.5));
-        let bytes = pfm(&img);
-        let header = b"PF\n2 2\n-1.0\n";
-        assert_eq!(&bytes[..header.len()], header);
-        let first = f32::from_le_bytes(
-            bytes[header.len() + 4..header.len() + 8]
-                .try_into()
-                .unwrap(),
-        );
-        assert_eq!(first, 1.0); // the green of pixel (0, 1), the bottom row
-        assert_eq!(bytes.len(), header.len() + 2 * 2 * 3 * 4);
     }
 }

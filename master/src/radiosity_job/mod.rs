@@ -301,7 +301,7 @@ pub fn run_radiosity_on(
     let mut irradiance_maps = Vec::new();
     for (p, map) in showcase.projectors.iter().zip(&maps) {
         let path = out.join(format!("irradiance_map_{}.pfm", file_name(&p.name)));
-        std::fs::write(&path, export::pfm(&map.drive))
+        std::fs::write(&path, crate::pfm::encode_pfm(&map.drive))
             .with_context(|| format!("writing {}", path.display()))?;
         irradiance_maps.push(path);
     }

@@ -8,11 +8,9 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod devices;
-pub mod pfm;
 pub mod world;
 
 pub use devices::{SimCamera, SimConfig, SimProjector, SimShowcase, wheel_weights};
-pub use pfm::{PfmError, decode_pfm, encode_pfm, encode_pfm_grey, read_pfm, write_pfm};
 pub use world::{ProjectorLight, SimWorld, TransportImage};
 
 use crate::{DeviceError, DeviceRays, GeometryError, ObjectFilter, RgbImage};

@@ -1,9 +1,11 @@
-//! Portable float maps (PFM): colour (`PF`) and grey (`Pf`), little-endian
-//! (negative scale), rows stored bottom to top as the format requires.
+//! Portable float maps (PFM), the one reader and writer of the images the
+//! jobs write and read (reflectance maps, irradiance maps, `sim render`):
+//! colour (`PF`) and grey (`Pf`), little-endian (negative scale), rows
+//! stored bottom to top as the format requires.
 
-use crate::finite::finite_or_zero;
-use crate::{Image, RgbImage};
 use glam::Vec3;
+use showcase_light::finite::finite_or_zero;
+use showcase_light::{Image, RgbImage};
 use std::path::Path;
 
 /// Why a PFM could not be read or written.
@@ -132,6 +134,21 @@ pub fn read_pfm(path: &Path) -> Result<RgbImage, PfmError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pfm_is_bottom_up_little_endian() {
+        let img = Image::from_fn(2, 2, |x, y| Vec3::new(x as f32, y as f32, 0.5));
+        let bytes = encode_pfm(&img);
+        let header = b"PF\n2 2\n-1.0\n";
+        assert_eq!(&bytes[..header.len()], header);
+        let first = f32::from_le_bytes(
+            bytes[header.len() + 4..header.len() + 8]
+                .try_into()
+                .unwrap(),
+        );
+        assert_eq!(first, 1.0); // the green of pixel (0, 1), the bottom row
+        assert_eq!(bytes.len(), header.len() + 2 * 2 * 3 * 4);
+    }
 
     #[test]
     fn round_trip_keeps_values_and_orientation() {
