@@ -80,23 +80,22 @@ fn short_demo_writes_an_honest_report() {
             .unwrap_or_else(|| panic!("{key} missing: {figures}"));
         assert!(v.is_finite() && v >= 0.0, "{key} = {v}");
     }
-    // Calibration from 0.5 px marks: residuals of that order (issue 4).
+    // Calibration from 0.5 px marks: residuals of that order.
     assert!(figures["calibration_rms_px"].as_f64().unwrap() < 1.0);
-    // Eta estimated within issue 3's 1%, and the reflectance within its
-    // 0.02 (the demo's camera is smaller than the bench's; 0.0174 measured
+    // Eta estimated within 1%, and the reflectance within 0.02 (the demo's camera is smaller than the bench's; 0.0174 measured
     // with the stratified gather, 0.0277 before it).
     assert!(figures["reflectance_eta_rel_error"].as_f64().unwrap() <= 0.01);
     let reflectance = figures["reflectance_rel_rmse"].as_f64().unwrap();
     assert!(reflectance <= 0.02, "reflectance rel RMSE {reflectance}");
-    // Augmented radiosity through the simulated projectors (issue 5's 0.03).
+    // Augmented radiosity through the simulated projectors, within 0.03.
     let radiosity = figures["radiosity_consistency_rel_rmse"].as_f64().unwrap();
     assert!(radiosity <= 0.03, "radiosity consistency {radiosity}");
     assert_eq!(figures["dropped_frames"], 0);
     // Swap skew and tracking-to-swap are timings: `bench cluster` holds
     // them to their targets, a test on a loaded machine must not.
-    // Issue 6's end-to-end check on the demo's outputs: both projectors'
+    // The projector-role consistency check on the demo's outputs: both projectors'
     // values through the true projectors (direct light) onto the real
-    // objects, seen by the cabinet's camera, within issue 6's 1% of the
+    // objects, seen by the cabinet's camera, within 1% of the
     // target over the pixels that check compares (0.0071 over 72% of the
     // real pixels measured on this short demo, 0.0048-0.0067 over 71% on
     // the default one), and those
@@ -124,7 +123,7 @@ fn short_demo_writes_an_honest_report() {
     assert_eq!(observers.len(), 2);
     // The real surfaces where the method can be right by design (off
     // projector pixels straddling an edge, off reach edges, outside other
-    // eyes' occlusion shadows the face cannot fill) meet issue 6's 1% too,
+    // eyes' occlusion shadows the face cannot fill) meet the same 1%,
     // and those exclusions leave most real pixels compared (0.0056 and
     // 0.0092 over 87% and 90% measured).
     let comparable = figures["observer_consistency_rel_rmse_real_comparable"]

@@ -355,7 +355,7 @@ fn projected_maps_reproduce_b0_in_the_simulated_showcase() -> anyhow::Result<()>
 
 #[test]
 fn gathered_one_bounce_maps_reach_the_consistency_target() -> anyhow::Result<()> {
-    // Issue 5's target: the real walls, lit only by the projector showing
+    // The consistency target: the real walls, lit only by the projector showing
     // its irradiance map and by their own interreflection (path-traced by
     // the sim, independent of the solver), show B0 to a relative RMSE of
     // at most 0.03 over the unclipped real surface the camera sees. This

@@ -1,6 +1,6 @@
 //! Integration tests: session. The sans-IO master and node cores of
 //! `showcase_proto::session` in the in-memory cluster on virtual time, with
-//! every message through the wire codec: the loopback scenario
+//! every message through the wire codec: the loopback scenario
 //! (a master and 4 nodes for 600 frames, a node killed and restarted)
 //! without sockets, so it is exact and fast.
 

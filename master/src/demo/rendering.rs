@@ -210,7 +210,7 @@ pub(super) fn rendering_stage(
     render_s.sort_by(f64::total_cmp);
     Ok(StageOutcome {
         detail: format!(
-            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); projectors through the camera, direct light (issue 6's check): worst rel RMSE {}; observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {worst:.3} (off edges, where a projector reaches), real surfaces where the method can be right {:.4}; images in {}/frames",
+            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); projectors through the camera, direct light (the projector-role consistency check): worst rel RMSE {}; observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {worst:.3} (off edges, where a projector reaches), real surfaces where the method can be right {:.4}; images in {}/frames",
             calibrated.projectors.len(),
             calibrated.faces.len(),
             backend.describe(),

@@ -1,4 +1,4 @@
-//! End-to-end consistency on the simulated showcase (issue deliver 5):
+//! End-to-end consistency on the simulated showcase:
 //! every projector shows its irradiance map through the sim's projector
 //! model onto the *real* geometry only, the sim path-traces the light
 //! (with its own interreflection between the real surfaces, independent of

@@ -169,7 +169,7 @@ mod tests {
         }
     }
 
-    /// The criterion: a point drawn on the screen lies on the eye's
+    /// The criterion of a correct face view: a point drawn on the screen lies on the eye's
     /// line of sight through its reflected position.
     fn assert_on_line_of_sight(face: &CrtFace, view: &FaceView, x: DVec3) {
         let px = view.pixel(x, face.width, face.height).unwrap();

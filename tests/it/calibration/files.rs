@@ -1,6 +1,6 @@
-//! The `calibrate` command's files as an outsider (the issue's peer
+//! The `calibrate` command's files as an outsider (a peer
 //! implementation) writes and reads them: the input typed out key by key in
-//! the issue's layout, the output checked from its JSON alone.
+//! the documented layout, the output checked from its JSON alone.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -18,7 +18,7 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// The issue's input layout, written as text (not through our types).
+/// The documented input layout, written as text (not through our types).
 fn issue_text(
     width: u32,
     height: u32,
@@ -55,7 +55,7 @@ fn matrix<const R: usize, const C: usize>(v: &Value) -> [[f64; C]; R] {
     std::array::from_fn(|r| std::array::from_fn(|c| number(&v[r][c])))
 }
 
-/// Check an output file from its JSON alone: the issue's keys, P = K [R | t],
+/// Check an output file from its JSON alone: the documented keys, P = K [R | t],
 /// and every input point reprojected through P onto its pixel.
 fn check_output(text: &str, points: &[([f64; 3], [f64; 2])], tol_px: f64) {
     let out: Value = serde_json::from_str(text).unwrap();

@@ -1,5 +1,5 @@
-//! `bench_render` records: every variant at a small size has the issue's
-//! keys, the reduced variants run fewer passes, and `static` reuses its
+//! `bench_render` records: every variant at a small size has the
+//! record's fixed keys, the reduced variants run fewer passes, and `static` reuses its
 //! frame. With `SHOWCASE_RENDER_BENCH=WxH[,WxH...]` it runs those sizes
 //! and prints the JSON array (the measurement command of the report;
 //! timings are printed, never asserted).

@@ -27,7 +27,7 @@ pub(crate) const OFF_EDGE_OUTLIERS: f64 = 1e-3;
 /// a shadow map and of a ray differ by up to a texel, so some edge pixels
 /// are fully off.
 pub(super) const ALL_OUTLIERS: f64 = 5e-3;
-/// Consistency tolerance (the 1 %).
+/// Consistency tolerance (1 % relative RMSE).
 const CONSISTENCY_REL_RMSE: f64 = 0.01;
 
 #[test]

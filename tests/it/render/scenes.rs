@@ -58,7 +58,7 @@ pub(crate) fn load_obj(path: &Path) -> Result<Vec<(String, Mesh, Vec3)>> {
         .collect())
 }
 
-/// The bench scene: Cornell walls (no blocks, no light quad) as
+/// The render bench's scene: Cornell walls (no blocks, no light quad) as
 /// the real room, the real bunny, a virtual sphere and bunny, two observers.
 pub(super) fn bench() -> Result<Showcase> {
     let walls = load_obj(&data("cornell-box.obj"))?

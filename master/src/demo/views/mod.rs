@@ -26,8 +26,13 @@ use showcase_render::gpu::GpuContext;
 use showcase_render::node::Renderer;
 use showcase_render::render::face_gpu::FaceRenderer;
 use showcase_render::render::projector_gpu::ProjectorRenderer;
-use std::path::Path;
 use std::sync::Arc;
+
+mod camera;
+mod images;
+
+pub(super) use camera::{CameraConsistency, camera_consistency};
+pub(super) use images::{write_heat_map, write_radiance, write_values};
 
 /// Demo rendering resolutions: a quarter of the pixels of the cabinet's
 /// projectors, a CRT face of 320x256 per eye, 320x240 eye views.
@@ -500,75 +505,6 @@ fn exposure(view: &ObserverView) -> Option<f64> {
     Some(if p99 > 0.0 { 0.9 / p99 } else { 1.0 })
 }
 
-/// The projector-role consistency check measured on the demo's outputs:
-/// the projectors' values sent through the true projectors (direct light
-/// only) onto the real objects with their true reflectance, seen by the
-/// cabinet's `camera`, against the target (true reflectance times the
-/// virtual lights' irradiance with the virtual shadows).
-pub(super) struct CameraConsistency {
-    /// The camera's view: [`ObserverView::real`] is what it measures.
-    pub view: ObserverView,
-    /// Exposure that maps the target's 99th-percentile channel to 0.9.
-    pub exposure: f64,
-    /// Relative RMSE over the compared pixels: real surfaces that a
-    /// projector reaches, off the camera's silhouette, facet and shadow
-    /// edges and reach edges, off the surfaces a projector lights from a
-    /// pixel on one of its edges, and outside every tracked eye's
-    /// occlusion shadow (the render crate's check leaves the last two out
-    /// too).
-    pub rel_rmse: f64,
-    /// The same per real object (name, value).
-    pub per_object: Vec<(String, f64)>,
-    /// Compared pixels over the camera's pixels that show a real surface.
-    pub compared_fraction: f64,
-}
-
-/// [`CameraConsistency`] of `outputs` at `state`, seen by `truth`'s
-/// camera `camera` (at the demo resolution).
-pub(super) fn camera_consistency(
-    truth: &Showcase,
-    state: &FrameState,
-    outputs: &Outputs,
-    camera: usize,
-) -> Result<CameraConsistency> {
-    let device = &truth
-        .cameras
-        .get(camera)
-        .with_context(|| format!("the scene has no camera {camera}"))?
-        .device;
-    // No mirror: the camera is no tracked eye, so every eye's occlusion
-    // shadow counts as unfillable and is left out.
-    let (view, projector_edges) = simulate(truth, state, outputs, device, None)?;
-    let n = view.covered.data.len();
-    let real = |i: usize| view.covered.data[i] && !view.sees_virtual.data[i];
-    let mask = Image {
-        width: view.covered.width,
-        height: view.covered.height,
-        data: (0..n)
-            .map(|i| {
-                real(i)
-                    && view.reachable.data[i]
-                    && !(view.edge.data[i]
-                        || view.reach_edge.data[i]
-                        || projector_edges.data[i]
-                        || view.unfillable.data[i])
-            })
-            .collect(),
-    };
-    let compared = mask.data.iter().filter(|m| **m).count();
-    let real_pixels = (0..n).filter(|&i| real(i)).count();
-    let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
-        .with_context(|| format!("camera {camera} at frame {}", state.frame))?;
-    Ok(CameraConsistency {
-        exposure: exposure(&view)
-            .with_context(|| format!("camera {camera} sees no object at frame {}", state.frame))?,
-        per_object: per_object_rel_rmse(truth, &view, &mask, true),
-        compared_fraction: compared as f64 / real_pixels.max(1) as f64,
-        rel_rmse,
-        view,
-    })
-}
-
 /// Relative RMSE of `view`'s composite against its target per object of
 /// `truth` (by name; only real objects when `real_only`), over the pixels
 /// of `mask` whose first surface is that object; objects with no such
@@ -600,129 +536,4 @@ fn per_object_rel_rmse(
                 .map(|e| (o.name.clone(), e))
         })
         .collect()
-}
-
-/// Write an 8-bit RGB PNG from a per-pixel colour function.
-pub(super) fn write_png(
-    path: &Path,
-    width: u32,
-    height: u32,
-    pixel: impl Fn(u32, u32) -> [u8; 3],
-) -> Result<()> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc
-        .write_header()
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    let mut data = Vec::with_capacity((width * height * 3) as usize);
-    for y in 0..height {
-        for x in 0..width {
-            data.extend_from_slice(&pixel(x, y));
-        }
-    }
-    w.write_image_data(&data)
-        .with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// Linear radiance times `exposure`, sRGB-encoded.
-pub(super) fn write_radiance(path: &Path, image: &RgbImage, exposure: f64) -> Result<()> {
-    let enc = showcase_render::node::png_out::srgb8;
-    write_png(path, image.width, image.height, |x, y| {
-        let c = image.get(x, y).copied().unwrap_or(Vec3::ZERO) * exposure as f32;
-        [enc(c.x), enc(c.y), enc(c.z)]
-    })
-}
-
-/// Projector pixel values as they are sent to the device (already
-/// compensated: no further encoding).
-pub(super) fn write_values(path: &Path, image: &RgbImage) -> Result<()> {
-    let b = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-    write_png(path, image.width, image.height, |x, y| {
-        let c = image.get(x, y).copied().unwrap_or(Vec3::ZERO);
-        [b(c.x), b(c.y), b(c.z)]
-    })
-}
-
-/// A CIEDE2000 heat map: black (0) through blue, green and yellow to red
-/// (10 and above); uncovered pixels dark grey.
-pub(super) fn write_heat_map(path: &Path, width: u32, height: u32, delta_e: &[f64]) -> Result<()> {
-    const STOPS: [(f64, [f64; 3]); 5] = [
-        (0.0, [0.0, 0.0, 0.0]),
-        (2.5, [0.0, 0.2, 1.0]),
-        (5.0, [0.0, 0.85, 0.3]),
-        (7.5, [1.0, 0.9, 0.0]),
-        (10.0, [1.0, 0.0, 0.0]),
-    ];
-    write_png(path, width, height, |x, y| {
-        let d = delta_e[(y * width + x) as usize];
-        if !d.is_finite() {
-            return [40, 40, 40];
-        }
-        let d = d.clamp(0.0, 10.0);
-        let i = STOPS
-            .windows(2)
-            .position(|w| d <= w[1].0)
-            .unwrap_or(STOPS.len() - 2);
-        let (a, b) = (STOPS[i], STOPS[i + 1]);
-        let t = (d - a.0) / (b.0 - a.0);
-        let c = |k: usize| ((a.1[k] + t * (b.1[k] - a.1[k])) * 255.0 + 0.5) as u8;
-        [c(0), c(1), c(2)]
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The camera's check on the CPU reference maps of the default demo
-    /// scene (calibrated = true devices) meets the check's 1% bound, and
-    /// the same check fails maps drawn without the virtual shadows
-    /// (measured at frame 60: 0.0052 over 72% of the real pixels,
-    /// unshadowed 0.069).
-    #[test]
-    fn camera_consistency_holds_for_reference_maps_and_fails_unshadowed_ones() {
-        use crate::cluster::commands::walk_tracking;
-        use crate::cluster::{Show, Tracking};
-        use showcase_proto::config::TrackingSource;
-
-        let truth = crate::scene_file::load_scene(&super::super::default_scene()).unwrap();
-        let truth = at_demo_resolution(&truth).unwrap();
-        let tracker =
-            crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)
-                .unwrap();
-        let mut show = Show::new(
-            Tracking::Scripted(tracker),
-            super::super::INTERACTIVE_HZ as f64,
-        );
-        let (state, _) = show.frame_state(60, 0.0, &truth, 1);
-        let frame = FrameScene::resolve(&truth, &state).unwrap();
-        let occluders = Occluders::new(&frame).unwrap();
-        let outputs = |options: ProjectorOptions| -> Outputs {
-            let mut out = Outputs {
-                projectors: Vec::new(),
-                projector_edges: Vec::new(),
-                faces: Vec::new(),
-            };
-            for p in &truth.projectors {
-                let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();
-                out.projector_edges
-                    .push(projector_edges(&truth, &occluders, p, &map.state).unwrap());
-                out.projectors.push(map.value);
-            }
-            out
-        };
-        let right =
-            camera_consistency(&truth, &state, &outputs(ProjectorOptions::default()), 0).unwrap();
-        assert!(right.rel_rmse <= 0.01, "reference maps: {}", right.rel_rmse);
-        assert!(right.compared_fraction > 0.6, "{}", right.compared_fraction);
-        let unshadowed = ProjectorOptions {
-            shadows: false,
-            ..ProjectorOptions::default()
-        };
-        let wrong = camera_consistency(&truth, &state, &outputs(unshadowed), 0).unwrap();
-        assert!(wrong.rel_rmse > 0.05, "unshadowed maps: {}", wrong.rel_rmse);
-    }
 }
