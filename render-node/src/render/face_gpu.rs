@@ -22,7 +22,7 @@ use crate::gpu::face_view::{
     self, FaceBindGroup, FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass,
 };
 use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
-use crate::gpu::irradiance_map::{EyeGpu, LightSampleGpu};
+use crate::gpu::shadow_lookup::{EyeGpu, LightSampleGpu};
 use crate::gpu::shadow_views::{SHADOW_NEAR, fitted_views};
 use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVertex};
 use crate::gpu::target::{ColourReadback, read_colours};

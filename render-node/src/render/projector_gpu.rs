@@ -13,9 +13,9 @@ use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{Pass, PassList, bounding_sphere};
 use crate::gpu::frame_arrays::ARRAY_USAGE;
 use crate::gpu::irradiance_map::{
-    self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
-    LightSampleGpu, state,
+    self, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass, state,
 };
+use crate::gpu::shadow_lookup::{EyeGpu, LightSampleGpu};
 use crate::gpu::shadow_views::occluders::{cube_occluder_ranges, ranges_identity};
 use crate::gpu::shadow_views::{
     LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, fitted_views,

@@ -5,7 +5,7 @@
 use glam::{DVec3, Vec3};
 use showcase_proto::{ObjectKind, Showcase};
 
-use crate::gpu::irradiance_map::LightSampleGpu;
+use crate::gpu::shadow_lookup::LightSampleGpu;
 use crate::gpu::shadow_views::{ShadowView, WorldVertex, cube_views};
 use crate::render::FrameError;
 use showcase_light::render::frame::{FrameScene, Lobe};
