@@ -16,7 +16,7 @@ use showcase_proto::{
     PinholeDevice, Plane, Pose, Projector, ProjectorResponse, Rect3, Showcase, Transform,
 };
 
-use super::FrameError;
+use super::RenderError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
 use super::face_gpu::{FacePipeline, other_eyes};
 use super::passes::{FrameKey, PassList};
@@ -367,7 +367,7 @@ pub fn bench_render(
     ctx: &GpuContext,
     scene: &Showcase,
     options: &BenchOptions,
-) -> Result<Vec<Record>, FrameError> {
+) -> Result<Vec<Record>, RenderError> {
     let mut pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
     let mut face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
@@ -481,7 +481,7 @@ fn bench_face_variant(
     width: u32,
     height: u32,
     options: &BenchOptions,
-) -> Result<Record, FrameError> {
+) -> Result<Record, RenderError> {
     let s = variant_scene(scene, variant);
     let face = bench_face(width, height);
     let eyes_of = |state: &FrameState| {

@@ -11,11 +11,12 @@ use std::time::Instant;
 use glam::DVec3;
 use showcase_proto::{CrtFace, FrameState, ObjectKind, Showcase};
 
+use super::RenderSetupError;
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::bounding_sphere;
 use super::passes::{FrameKey, Pass, PassList};
 use super::projector_gpu::{ObjectRange, PassTimes, light_inputs, shadow_far};
-use super::{FrameError, RenderSetupError};
+use super::renderer::{OutputImage, RenderError, RenderOutput, Renderer, check_scene_version};
 use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
 use crate::gpu::face_view::NO_OWN_EYE;
 use crate::gpu::face_view::{
@@ -28,9 +29,7 @@ use crate::gpu::shadow_views::{ShadowDraw, ShadowMaps, ShadowViewsPass, WorldVer
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
-use crate::node::renderer::{
-    Fnv64, OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
-};
+use showcase_light::digest::{Fnv64, hash_pixels};
 use showcase_light::mirror_view::FaceView;
 use showcase_light::render::cube_map::{DEFAULT_CUBE_RES, reflective_centres};
 use showcase_light::render::frame::FrameScene;
@@ -131,9 +130,9 @@ impl FacePipeline {
     /// [`Pass::CubeMaps`]): per map, its six faces of `res * res` texels
     /// (linear RGB radiance, distance from the centre; `showcase_light::render::cube_map`
     /// order), maps in object order.
-    pub fn read_cube_maps(&self, ctx: &GpuContext) -> Result<Vec<Vec<Vec<[f32; 4]>>>, FrameError> {
+    pub fn read_cube_maps(&self, ctx: &GpuContext) -> Result<Vec<Vec<Vec<[f32; 4]>>>, RenderError> {
         let Some(maps) = self.cubes.maps() else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
         let mut layers = maps.read(&ctx.device, &ctx.queue)?.into_iter();
         Ok((0..self.cube_count)
@@ -155,7 +154,7 @@ impl FacePipeline {
         other_eyes: &[DVec3],
         passes: &PassList,
         timed: bool,
-    ) -> Result<PassTimes, FrameError> {
+    ) -> Result<PassTimes, RenderError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let start = Instant::now();
         self.scene.update(device, queue, &frame.showcase)?;
@@ -299,10 +298,10 @@ impl FacePipeline {
         self.cube_count = centres.len();
         let cube_generation = self.cubes.generation();
         let Some(cube_maps) = self.cubes.maps() else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
         let Some(maps) = self.maps.as_mut() else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
         // Per-eye uniforms, bind groups and targets.
         if self.eyes.len() < eyes.len()
@@ -320,7 +319,7 @@ impl FacePipeline {
                         readback: ColourReadback::new(device, face.width, face.height),
                     })
                 })
-                .collect::<Result<_, FrameError>>()?;
+                .collect::<Result<_, RenderError>>()?;
         }
         for (k, (&eye, res)) in eyes.iter().zip(self.eyes.iter_mut()).enumerate() {
             let view =
@@ -362,7 +361,7 @@ impl FacePipeline {
             }
         }
         let Some((_, shadow_bind)) = &self.shadow_bind else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
 
         let mut times = Vec::new();
@@ -370,7 +369,7 @@ impl FacePipeline {
         let mut since = start;
         let mut flush = |encoder: &mut wgpu::CommandEncoder,
                          step: &'static str|
-         -> Result<(), FrameError> {
+         -> Result<(), RenderError> {
             if timed {
                 let done =
                     std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
@@ -463,7 +462,7 @@ impl FacePipeline {
 
     /// Read the last frame's targets back: linear RGBA per eye, alpha 1
     /// where a virtual object is drawn; non-finite values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Vec<[f32; 4]>>, FrameError> {
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<Vec<[f32; 4]>>, RenderError> {
         let drawn = &self.eyes[..self.drawn.min(self.eyes.len())];
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         for e in drawn {
@@ -483,7 +482,7 @@ impl FacePipeline {
         eyes: &[DVec3],
         other_eyes: &[DVec3],
         passes: &PassList,
-    ) -> Result<Vec<Vec<[f32; 4]>>, FrameError> {
+    ) -> Result<Vec<Vec<[f32; 4]>>, RenderError> {
         self.draw(ctx, frame, face, eyes, other_eyes, passes, false)?;
         self.read(ctx)
     }
@@ -556,12 +555,10 @@ impl FaceRenderer {
         let face = scene
             .faces
             .get(self.face)
-            .ok_or_else(|| RenderError(format!("the scene has no face {}", self.face)))?;
-        let head = frame.heads.get(self.observer).ok_or_else(|| {
-            RenderError(format!(
-                "frame {} has no head {}",
-                frame.frame, self.observer
-            ))
+            .ok_or(RenderError::NoFace { index: self.face })?;
+        let head = frame.heads.get(self.observer).ok_or(RenderError::NoHead {
+            frame: frame.frame,
+            observer: self.observer,
         })?;
         let ipd = scene
             .observers
@@ -575,13 +572,12 @@ impl FaceRenderer {
             self.last_passes.clear();
             return Ok(output.clone());
         }
-        let resolved = FrameScene::resolve(scene, frame).map_err(|e| RenderError(e.to_string()))?;
+        let resolved = FrameScene::resolve(scene, frame)?;
         let other_eyes = other_eyes(&resolved, self.observer);
         let passes = PassList::for_face(&resolved, other_eyes.len() + eyes.len() - 1);
-        let images = self
-            .pipeline
-            .render(&self.ctx, &resolved, face, &eyes, &other_eyes, &passes)
-            .map_err(|e| RenderError(e.to_string()))?;
+        let images =
+            self.pipeline
+                .render(&self.ctx, &resolved, face, &eyes, &other_eyes, &passes)?;
         let (w, h) = (face.width as usize, face.height as usize);
         let mut rgba = Vec::with_capacity(2 * w * h);
         for y in 0..h {

@@ -6,7 +6,7 @@
 
 use showcase_proto::{ObjectKind, Showcase};
 
-use super::FrameError;
+use super::RenderError;
 use super::projector_gpu::{ObjectRange, world_vertices_by_object};
 use crate::gpu::GpuError;
 use crate::gpu::shadow_views::occluders::ObjectVertices;
@@ -62,7 +62,7 @@ impl SceneBuffers {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         showcase: &Showcase,
-    ) -> Result<bool, FrameError> {
+    ) -> Result<bool, RenderError> {
         let (all, ranges) = world_vertices_by_object(showcase, None)?;
         let kinds: Vec<ObjectKind> = ranges
             .iter()
@@ -154,7 +154,7 @@ pub fn ensure_maps(
     device: &wgpu::Device,
     res: u32,
     layers: u32,
-) -> Result<bool, FrameError> {
+) -> Result<bool, RenderError> {
     if let Some(m) = maps
         && m.res() == res
         && m.layers() >= layers

@@ -2,7 +2,8 @@
 //! role's pipeline ([`projector_gpu`]) and the face role's
 //! ([`face_gpu`]), the scene's GPU buffers ([`gpu_scene`]), the pass list
 //! that skips what a frame does not need ([`passes`]), the GPU-against-CPU
-//! map comparison ([`compare`]) and the render bench ([`bench`]). Their
+//! map comparison ([`compare`]), the render bench ([`bench`]) and the
+//! [`Renderer`] seam a node drives them through ([`renderer`]). Their
 //! CPU references and the frame model are `showcase_light::render`.
 #![forbid(unsafe_code)]
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -13,31 +14,7 @@ pub mod face_gpu;
 pub mod gpu_scene;
 pub mod passes;
 pub mod projector_gpu;
+pub mod renderer;
 
+pub use renderer::{RenderError, Renderer};
 pub use showcase_light::render::RenderSetupError;
-
-/// Why a GPU frame cannot be drawn or read back.
-#[derive(Debug, thiserror::Error)]
-pub enum FrameError {
-    /// The frame's scene or inputs cannot be rendered.
-    #[error(transparent)]
-    Setup(#[from] RenderSetupError),
-    /// A frame was read back before one was drawn.
-    #[error("no frame has been drawn yet")]
-    NothingDrawn,
-    /// A GPU operation failed.
-    #[error(transparent)]
-    Gpu(#[from] crate::gpu::GpuError),
-}
-
-impl From<showcase_light::GeometryError> for FrameError {
-    fn from(e: showcase_light::GeometryError) -> Self {
-        Self::Setup(e.into())
-    }
-}
-
-impl From<showcase_light::DeviceError> for FrameError {
-    fn from(e: showcase_light::DeviceError) -> Self {
-        Self::Setup(e.into())
-    }
-}

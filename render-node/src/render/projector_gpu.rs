@@ -8,7 +8,7 @@ use std::time::Instant;
 use glam::Vec3;
 use showcase_proto::{ObjectKind, Projector};
 
-use super::FrameError;
+use super::RenderError;
 use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
 use super::passes::{Pass, PassList, bounding_sphere};
 use crate::gpu::frame_arrays::ARRAY_USAGE;
@@ -166,7 +166,7 @@ impl ProjectorPipeline {
         projector: &Projector,
         passes: &PassList,
         timed: bool,
-    ) -> Result<PassTimes, FrameError> {
+    ) -> Result<PassTimes, RenderError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let start = Instant::now();
         self.scene.update(device, queue, &frame.showcase)?;
@@ -252,10 +252,10 @@ impl ProjectorPipeline {
             self.irradiance_bind = None;
         }
         let Some(blend) = self.blend.as_ref() else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
         let Some(maps) = self.maps.as_mut() else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
         let views_generation = self.views.generation();
         if self
@@ -314,7 +314,7 @@ impl ProjectorPipeline {
         let (Some(targets), Some((_, shadow_bind)), Some((_, irradiance_bind))) =
             (&self.targets, &self.shadow_bind, &self.irradiance_bind)
         else {
-            return Err(FrameError::NothingDrawn);
+            return Err(RenderError::NothingDrawn);
         };
 
         let mut times = Vec::new();
@@ -322,7 +322,7 @@ impl ProjectorPipeline {
         let mut since = start;
         let mut flush = |encoder: &mut wgpu::CommandEncoder,
                          step: &'static str|
-         -> Result<(), FrameError> {
+         -> Result<(), RenderError> {
             if timed {
                 let done =
                     std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
@@ -403,8 +403,8 @@ impl ProjectorPipeline {
 
     /// Copy both targets of the last drawn frame to their readback
     /// buffers and submit the copies.
-    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, FrameError> {
-        let targets = self.targets.as_ref().ok_or(FrameError::NothingDrawn)?;
+    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, RenderError> {
+        let targets = self.targets.as_ref().ok_or(RenderError::NothingDrawn)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
         targets.readback[1].encode_copy(&mut encoder, &targets.value);
@@ -414,7 +414,7 @@ impl ProjectorPipeline {
 
     /// Read the last drawn frame back (waits for the GPU). Non-finite
     /// values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, FrameError> {
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderError> {
         let targets = self.submit_readback(ctx)?;
         let mut read = read_colours(&ctx.device, &[&targets.readback[0], &targets.readback[1]])?;
         let value = read.pop().unwrap_or_default();
@@ -437,7 +437,7 @@ impl ProjectorPipeline {
     /// the device values and the clipped fraction, equal to
     /// [`Self::read`]'s. The `L` target is copied back too, but only its
     /// state codes are looked at, in place, so no image of it is built.
-    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, FrameError> {
+    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, RenderError> {
         let targets = self.submit_readback(ctx)?;
         let (w, h) = (targets.value.width(), targets.value.height());
         let mut value: Vec<[f32; 4]> = Vec::with_capacity(w as usize * h as usize);
@@ -477,7 +477,7 @@ impl ProjectorPipeline {
         frame: &FrameScene,
         projector: &Projector,
         passes: &PassList,
-    ) -> Result<GpuIrradianceMap, FrameError> {
+    ) -> Result<GpuIrradianceMap, RenderError> {
         self.draw(ctx, frame, projector, passes, false)?;
         self.read(ctx)
     }

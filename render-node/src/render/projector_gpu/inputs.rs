@@ -7,7 +7,7 @@ use showcase_proto::{ObjectKind, Showcase};
 
 use crate::gpu::shadow_lookup::LightSampleGpu;
 use crate::gpu::shadow_views::{ShadowView, WorldVertex, cube_views};
-use crate::render::FrameError;
+use crate::render::RenderError;
 use showcase_light::render::frame::{FrameScene, Lobe};
 use showcase_light::world_matrix;
 
@@ -16,7 +16,7 @@ use showcase_light::world_matrix;
 pub fn world_vertices(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<Vec<WorldVertex>, FrameError> {
+) -> Result<Vec<WorldVertex>, RenderError> {
     Ok(world_vertices_by_object(showcase, kind)?.0)
 }
 
@@ -28,7 +28,7 @@ pub type ObjectRange = (usize, std::ops::Range<u32>);
 pub fn world_vertices_by_object(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), FrameError> {
+) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderError> {
     let mut out = Vec::new();
     let mut ranges = Vec::new();
     for (oi, o) in showcase.objects.iter().enumerate() {
