@@ -71,7 +71,7 @@ fn cube_face(d: vec3<f32>) -> CubeFace {
 // objects).
 
 // Visibility from a light sample: with shadows on, every sample has the six
-// cube views (projector_gpu::light_inputs), so the cube lookup is taken
+// cube views (render::gpu_frame::light_inputs), so the cube lookup is taken
 // directly. On llvmpipe both sides of a branch that differs between
 // pixels, and every iteration of such a loop, run for all pixels, so
 // straight code is what is cheap.

@@ -140,7 +140,7 @@ const PARALLAX_SECANT_STEPS: u32 = 4u;
 const PARALLAX_SURFACE_TOLERANCE: f32 = 0.05;
 
 // The four texels of cube map `k` a bilinear lookup along `d` reads
-// (d's face, cube_coords; clamped at the face's edges) and the weights.
+// (d's face, cube_face; clamped at the face's edges) and the weights.
 struct CubeTexels {
     layer: u32,
     p0: vec2<u32>,

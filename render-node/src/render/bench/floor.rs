@@ -21,8 +21,7 @@ use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
 use crate::render::RenderError;
-use crate::render::gpu_scene::{SceneBuffers, VertexSet, stable_far};
-use crate::render::projector_gpu::{light_inputs, shadow_far};
+use crate::render::gpu_frame::{SceneBuffers, VertexSet, light_inputs, shadow_far, stable_far};
 use showcase_light::metrics::percentile;
 use showcase_light::render::frame::FrameScene;
 
