@@ -56,7 +56,7 @@ impl FrameSink for WindowSink {
     fn show(&mut self, frame: u64, image: OutputImage) -> Result<(), RenderError> {
         self.0
             .send_event(WindowMessage::Frame(frame, image))
-            .map_err(|_| RenderError("the window was closed".into()))
+            .map_err(|_| RenderError::WindowClosed)
     }
 }
 

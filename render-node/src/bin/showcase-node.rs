@@ -8,7 +8,7 @@ use showcase_proto::config::ClusterConfig;
 use showcase_render::gpu::GpuContext;
 use showcase_render::net::ClusterIdentity;
 use showcase_render::node::{NodeRuntime, OutputRenderer, Renderer, StateHashRenderer, run_node};
-use showcase_render::render::projector_gpu::DEFAULT_SHADOW_RES;
+use showcase_render::render::gpu_frame::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

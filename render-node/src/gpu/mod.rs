@@ -17,7 +17,7 @@ pub mod frame_arrays;
 pub mod hemicube;
 pub mod irradiance_map;
 pub(crate) mod pipeline;
-mod shadow_lookup;
+pub mod shadow_lookup;
 pub mod shadow_views;
 pub mod target;
 pub mod upload;

@@ -1,9 +1,69 @@
 // Shadow-map lookups shared by the irradiance-map and face-view passes
-// (gpu::shadow_lookup appends this file to each): visible_from_light,
-// visible_from_eye, intensity_towards. A shader that uses it
-// declares `frame` (with counts.z the shadow map size and shadow.xy the
-// views' near and far), `views` (an array of ShadowView), `maps:
-// texture_depth_2d_array` and the struct `LightSample`.
+// (gpu::shadow_lookup appends this file to each), and the per-frame
+// records both read: the structs LightSample, Eye and ShadowView,
+// cube_face, visible_from_light, visible_from_eye, intensity_towards. A
+// shader that uses it declares `frame` (with counts.z the shadow map size
+// and shadow.xy the views' near and far), `views` (an array of
+// ShadowView) and `maps: texture_depth_2d_array`.
+
+// A light sample (Rust: gpu::shadow_lookup::LightSampleGpu).
+struct LightSample {
+    // xyz position.
+    position: vec4<f32>,
+    // rgb peak radiant intensity (W/sr).
+    intensity: vec4<f32>,
+    // xyz: spot axis or emitter normal; w: 0 isotropic, 1 spot, 2 cosine.
+    axis: vec4<f32>,
+    // cos inner, cos outer.
+    cone: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+// A tracked eye whose occlusion shadows are looked up (Rust:
+// gpu::shadow_lookup::EyeGpu).
+struct Eye {
+    // xyz position.
+    position: vec4<f32>,
+    // first shadow view, view count.
+    views: vec4<u32>,
+}
+
+// One shadow view (Rust: gpu::shadow_views::ShadowView).
+struct ShadowView {
+    clip_from_world: mat4x4<f32>,
+    // xyz origin, w texel angle (radians).
+    origin: vec4<f32>,
+}
+
+// The cube face holding direction d and d's (right, up, forward) in that
+// face's view (look_to_rh axes), as cube_face returns them.
+struct CubeFace {
+    face: u32,
+    c: vec3<f32>,
+}
+
+// The face of six views that are a cube (shadow_views::cube_views: +x,
+// -x, +y, -y, +z, -z) holding direction d: the face of its major axis,
+// whose projection is an axis permutation, so no view needs to be read.
+// Mirrors showcase_light::render::cube_map::world_to_face.
+fn cube_face(d: vec3<f32>) -> CubeFace {
+    let a = abs(d);
+    var face = 5u;
+    // (right, up, forward) of d in the face's view (look_to_rh axes).
+    var c = vec3<f32>(d.x, d.y, -d.z);
+    if (a.x >= a.y && a.x >= a.z) {
+        face = select(1u, 0u, d.x > 0.0);
+        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
+    } else if (a.y >= a.z) {
+        face = select(3u, 2u, d.y > 0.0);
+        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
+    } else if (d.z > 0.0) {
+        face = 4u;
+        c = vec3<f32>(-d.x, d.y, d.z);
+    }
+    return CubeFace(face, c);
+}
 
 // A surface point p (normal n) is visible from a view's origin when the
 // views of that origin see nothing nearer to it than p along the line to
@@ -11,7 +71,7 @@
 // objects).
 
 // Visibility from a light sample: with shadows on, every sample has the six
-// cube views (projector_gpu::light_inputs), so the cube lookup is taken
+// cube views (render::gpu_frame::light_inputs), so the cube lookup is taken
 // directly. On llvmpipe both sides of a branch that differs between
 // pixels, and every iteration of such a loop, run for all pixels, so
 // straight code is what is cheap.
@@ -38,34 +98,19 @@ fn visible_from_eye(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32, c
     return nearest_or_nearer(n, p - v.origin.xyz, ndc, first, v.origin.w);
 }
 
-// Visibility through six views that are a cube around `origin`
-// (shadow_views::cube_views: +x, -x, +y, -y, +z, -z): only the face of
-// the major axis can hold p, and its projection is an axis permutation,
-// so no view needs to be read (shadow_views::cube_coords mirrors this).
+// Visibility through six views that are a cube around `origin`: only
+// the face cube_face picks can hold p.
 fn visible_in_cube(p: vec3<f32>, n: vec3<f32>, origin: vec3<f32>, first: u32) -> bool {
     let d = p - origin;
-    let a = abs(d);
-    var face = 5u;
-    // (right, up, forward) of d in the face's view (look_to_rh axes).
-    var c = vec3<f32>(d.x, d.y, -d.z);
-    if (a.x >= a.y && a.x >= a.z) {
-        face = select(1u, 0u, d.x > 0.0);
-        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
-    } else if (a.y >= a.z) {
-        face = select(3u, 2u, d.y > 0.0);
-        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
-    } else if (d.z > 0.0) {
-        face = 4u;
-        c = vec3<f32>(-d.x, d.y, d.z);
-    }
-    if (c.z <= 0.0) {
+    let cube = cube_face(d);
+    if (cube.c.z <= 0.0) {
         return true;
     }
-    let ndc = c.xy / c.z;
+    let ndc = cube.c.xy / cube.c.z;
     if (abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0) {
         return true;
     }
-    return nearest_or_nearer(n, d, ndc, first + face, 2.0 / f32(frame.counts.z));
+    return nearest_or_nearer(n, d, ndc, first + cube.face, 2.0 / f32(frame.counts.z));
 }
 
 // The distance from a view's origin to the surface whose depth `z` a

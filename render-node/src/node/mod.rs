@@ -1,5 +1,7 @@
-//! The render node's runtime: the [`Renderer`] seam and the tokio/quinn
-//! driver around the sans-IO `NodeCore`.
+//! The render node's runtime: the tokio/quinn driver around the sans-IO
+//! `NodeCore`, which drives one output through the [`Renderer`] seam
+//! (declared in `crate::render::renderer`, re-exported here), the
+//! renderer a real node runs, presenting and PNG output.
 
 pub mod driver;
 pub mod output;

@@ -65,9 +65,7 @@ impl OutputRenderer {
     ) -> Result<Self, RenderError> {
         let output = output.into();
         if !matches!(role, Role::Projector | Role::Face) {
-            return Err(RenderError(format!(
-                "output {output:?}: role {role:?} has no renderer (only projectors and faces render)"
-            )));
+            return Err(RenderError::NoRenderer { output, role });
         }
         Ok(Self {
             ctx,
@@ -87,12 +85,10 @@ impl Renderer for OutputRenderer {
                     .projectors
                     .iter()
                     .position(|p| p.name == self.output)
-                    .ok_or_else(|| {
-                        RenderError(format!(
-                            "the scene has no projector {:?} (it has {:?})",
-                            self.output,
-                            scene.projectors.iter().map(|p| &p.name).collect::<Vec<_>>()
-                        ))
+                    .ok_or_else(|| RenderError::NoOutput {
+                        role: "projector",
+                        name: self.output.clone(),
+                        have: scene.projectors.iter().map(|p| p.name.clone()).collect(),
                     })?;
                 Inner::Projector(Box::new(ProjectorRenderer::new(
                     self.ctx.clone(),
@@ -105,19 +101,15 @@ impl Renderer for OutputRenderer {
                     .faces
                     .iter()
                     .position(|f| f.name == self.output)
-                    .ok_or_else(|| {
-                        RenderError(format!(
-                            "the scene has no face {:?} (it has {:?})",
-                            self.output,
-                            scene.faces.iter().map(|f| &f.name).collect::<Vec<_>>()
-                        ))
+                    .ok_or_else(|| RenderError::NoOutput {
+                        role: "face",
+                        name: self.output.clone(),
+                        have: scene.faces.iter().map(|f| f.name.clone()).collect(),
                     })?;
-                let observer = observer_in_front(&scene, index).ok_or_else(|| {
-                    RenderError(format!(
-                        "face {:?}: no observer stands in front of its mirror",
-                        self.output
-                    ))
-                })?;
+                let observer =
+                    observer_in_front(&scene, index).ok_or_else(|| RenderError::NoObserver {
+                        face: self.output.clone(),
+                    })?;
                 Inner::Face(Box::new(FaceRenderer::new(
                     self.ctx.clone(),
                     index,
@@ -142,10 +134,10 @@ impl Renderer for OutputRenderer {
         match &mut self.inner {
             Inner::Projector(r) => r.render(frame, scene),
             Inner::Face(r) => r.render(frame, scene),
-            Inner::None => Err(RenderError(format!(
-                "output {:?}: frame {} arrived before any scene",
-                self.output, frame.frame
-            ))),
+            Inner::None => Err(RenderError::NoScene {
+                output: self.output.clone(),
+                frame: frame.frame,
+            }),
         }
     }
 

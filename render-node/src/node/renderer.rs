@@ -1,67 +1,15 @@
-//! The seam between the cluster runtime and rendering: a node drives one
-//! output through a [`Renderer`]. The real-time renderer (projector
-//! irradiance maps, face views) implements it; [`StateHashRenderer`] is a
-//! renderer for tests and replay checks that renders nothing but a
-//! deterministic digest of exactly what it was asked to draw.
+//! The seam a node drives its output through, as the runtime sees it
+//! ([`Renderer`], declared with the real-time renderers in
+//! `crate::render::renderer`), and [`StateHashRenderer`], a renderer for
+//! tests and replay checks that renders nothing but a deterministic
+//! digest of exactly what it was asked to draw.
 
+pub use crate::render::renderer::{
+    OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
+};
 pub use showcase_light::digest::{Fnv64, hash_pixels};
 use showcase_proto::{FrameState, Role, Showcase};
 use std::sync::Arc;
-
-/// What one render produced.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RenderOutput {
-    /// A hash of the output pixels (or of the state, for renderers without
-    /// pixels). Equal inputs must give equal hashes on every run.
-    pub hash: u64,
-    /// The rendered image, linear RGBA f32, when the renderer keeps one
-    /// (headless nodes write selected frames to disk).
-    pub image: Option<OutputImage>,
-}
-
-/// A rendered image.
-#[derive(Clone, Debug, PartialEq)]
-pub struct OutputImage {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Row-major linear RGBA.
-    pub rgba: Vec<[f32; 4]>,
-}
-
-/// A renderer failure; the node reports it and leaves the cluster.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct RenderError(pub String);
-
-/// Renders one output of the showcase (a face, a projector or a camera).
-pub trait Renderer: Send {
-    /// A new scene arrived (join, rejoin or scene change).
-    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError>;
-    /// Render `frame` of `scene` into the back buffer.
-    fn render(&mut self, frame: &FrameState, scene: &Showcase)
-    -> Result<RenderOutput, RenderError>;
-    /// Show the last rendered frame (the swap).
-    fn present(&mut self, frame: u64) -> Result<(), RenderError>;
-}
-
-/// The error of a renderer (`what`, e.g. "projector 0") asked to draw
-/// `frame` while it holds scene version `have`; `Ok` when they match.
-pub fn check_scene_version(
-    what: &str,
-    frame: &FrameState,
-    have: Option<u64>,
-) -> Result<(), RenderError> {
-    if have == Some(frame.scene_version) {
-        Ok(())
-    } else {
-        Err(RenderError(format!(
-            "{what}: frame {} is for scene version {} but the renderer has {have:?}",
-            frame.frame, frame.scene_version
-        )))
-    }
-}
 
 /// A renderer that draws nothing and digests exactly the state a real one
 /// would draw for its output: the frame number, the scene version, the
@@ -142,22 +90,6 @@ impl Renderer for StateHashRenderer {
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         self.presented.push(frame);
         Ok(())
-    }
-}
-
-impl<R: Renderer + ?Sized> Renderer for Box<R> {
-    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
-        (**self).set_scene(version, scene)
-    }
-    fn render(
-        &mut self,
-        frame: &FrameState,
-        scene: &Showcase,
-    ) -> Result<RenderOutput, RenderError> {
-        (**self).render(frame, scene)
-    }
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        (**self).present(frame)
     }
 }
 

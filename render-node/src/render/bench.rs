@@ -1,5 +1,5 @@
 //! The renderer benchmark (`showcase-master bench render --json`): the
-//! issue's scene (Cornell walls as the real room, a real bunny, a virtual
+//! bench scene (Cornell walls as the real room, a real bunny, a virtual
 //! reflective sphere and a virtual bunny, a moving virtual point light,
 //! two observers) in its variants, timed per frame and per pass, with the
 //! GPU-versus-CPU and end-to-end consistency errors of each variant.
@@ -16,11 +16,12 @@ use showcase_proto::{
     PinholeDevice, Plane, Pose, Projector, ProjectorResponse, Rect3, Showcase, Transform,
 };
 
-use super::FrameError;
+use super::RenderError;
 use super::compare::{compare_maps, gpu_map_with_reference_state};
 use super::face_gpu::{FacePipeline, other_eyes};
+use super::gpu_frame::DEFAULT_SHADOW_RES;
 use super::passes::{FrameKey, PassList};
-use super::projector_gpu::{DEFAULT_SHADOW_RES, ProjectorPipeline};
+use super::projector_gpu::ProjectorPipeline;
 use crate::gpu::{GpuContext, wait_idle};
 use showcase_light::Image;
 use showcase_light::metrics::{percentile, relative_rmse};
@@ -195,7 +196,7 @@ pub fn bench_camera(width: u32, height: u32) -> PinholeDevice {
     )
 }
 
-/// The scene from the Cornell walls (`(name, mesh, albedo)`, in
+/// The bench scene from the Cornell walls (`(name, mesh, albedo)`, in
 /// metres) and the bunny mesh (about 10 units tall, as shipped).
 pub fn bench_scene(walls: Vec<(String, Mesh, Vec3)>, bunny: Mesh) -> Showcase {
     let mut s = Showcase {
@@ -367,7 +368,7 @@ pub fn bench_render(
     ctx: &GpuContext,
     scene: &Showcase,
     options: &BenchOptions,
-) -> Result<Vec<Record>, FrameError> {
+) -> Result<Vec<Record>, RenderError> {
     let mut pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
     let mut face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
@@ -481,7 +482,7 @@ fn bench_face_variant(
     width: u32,
     height: u32,
     options: &BenchOptions,
-) -> Result<Record, FrameError> {
+) -> Result<Record, RenderError> {
     let s = variant_scene(scene, variant);
     let face = bench_face(width, height);
     let eyes_of = |state: &FrameState| {

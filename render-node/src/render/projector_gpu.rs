@@ -1,72 +1,54 @@
-//! The projector role on the GPU: the pass list's shadow views and the
-//! irradiance map for one projector, and the renderer a projector node
-//! runs (with whole-frame reuse). CPU reference:
+//! The projector role on the GPU: the irradiance map of one projector,
+//! drawn after the frame layer's shadow stage, and the renderer a
+//! projector node runs (with whole-frame reuse). CPU reference:
 //! [`showcase_light::render::projector::irradiance_map_cpu`].
 
-use std::time::Instant;
+use showcase_proto::Projector;
 
-use glam::Vec3;
-use showcase_proto::{ObjectKind, Projector};
-
-use super::FrameError;
-use super::gpu_scene::{SceneBuffers, VertexSet, ensure_maps, stable_far};
-use super::passes::{Pass, PassList, bounding_sphere};
-use crate::gpu::frame_arrays::ARRAY_USAGE;
+use super::RenderError;
+use super::gpu_frame::{
+    FrameInputs, LightOccluders, PassTimes, SceneBuffers, ShadowStage, TimedEncoder, VertexSet,
+};
+use super::passes::{Pass, PassList};
+use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
 use crate::gpu::irradiance_map::{
-    self, EyeGpu, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass,
-    LightSampleGpu, state,
+    self, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass, state,
 };
-use crate::gpu::shadow_views::occluders::{cube_occluder_ranges, ranges_identity};
-use crate::gpu::shadow_views::{
-    LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, ShadowView, ShadowViewsPass, fitted_views,
-};
+use crate::gpu::shadow_lookup::EyeGpu;
+use crate::gpu::shadow_views::SHADOW_NEAR;
 use crate::gpu::target::{ColourReadback, read_colours, visit_colours};
 use crate::gpu::upload::UploadBuffer;
-use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
+use crate::gpu::{GpuContext, OffscreenTarget};
 use showcase_light::render::frame::FrameScene;
 use showcase_light::render::projector::COS_FLOOR;
 
 mod blend_texture;
-mod inputs;
 mod renderer;
 
 use blend_texture::{BlendTexture, blend_key};
-pub use inputs::{ObjectRange, light_inputs, shadow_far, world_vertices, world_vertices_by_object};
 pub use renderer::{FrameReport, ProjectorRenderer};
-
-/// Default size of each shadow distance map (texels per side).
-pub const DEFAULT_SHADOW_RES: u32 = 1024;
 
 /// The compiled projector pipeline and the GPU state it keeps across
 /// frames (create once per device and projector): the scene's vertices
-/// (uploaded when they change), the shadow maps (a layer whose light or
-/// eye did not move is not drawn again), the per-frame uploads, bind
-/// groups, targets and readback buffers.
+/// and the shadow stage (see [`super::gpu_frame`]), the irradiance pass's
+/// uploads and bind group, the blend weights, targets and readback
+/// buffers.
 #[derive(Debug)]
 pub struct ProjectorPipeline {
-    shadow: ShadowViewsPass,
-    irradiance: IrradianceMapPass,
-    shadow_res: u32,
     scene: SceneBuffers,
+    shadow: ShadowStage,
+    irradiance: IrradianceMapPass,
     frame_uniform: UploadBuffer,
-    lights: UploadBuffer,
     eyes: UploadBuffer,
-    views: UploadBuffer,
-    maps: Option<ShadowMaps>,
-    /// The shadow bind group and the views buffer generation it names.
-    shadow_bind: Option<(u64, wgpu::BindGroup)>,
     /// The irradiance bind group and the buffer generations and array
     /// space it names.
-    irradiance_bind: Option<(
-        ([u64; 4], crate::gpu::frame_arrays::ArraySpace),
-        IrradianceBindGroup,
-    )>,
+    irradiance_bind: Option<(([u64; 4], ArraySpace), IrradianceBindGroup)>,
     targets: Option<ProjectorTargets>,
     /// The blend weights in use and what they were computed from.
     blend: Option<BlendTexture>,
-    last_layers_drawn: u32,
-    /// Draw only the objects that can occlude into each light cube face.
-    cull_light_occluders: bool,
+    /// What the light samples' cube faces draw (the projector culls;
+    /// [`LightOccluders`] says why).
+    light_occluders: LightOccluders,
 }
 
 /// A projector frame read back from the GPU.
@@ -105,54 +87,44 @@ struct ProjectorTargets {
     readback: [ColourReadback; 2],
 }
 
-/// Wall time of each step of a frame in milliseconds (each submitted and
-/// waited for separately): `setup` (CPU work and uploads), then the passes
-/// by [`Pass::name`].
-pub type PassTimes = Vec<(&'static str, f64)>;
-
 impl ProjectorPipeline {
     /// Compile the passes; shadow maps get `shadow_res` texels per side.
     pub fn new(device: &wgpu::Device, shadow_res: u32) -> Self {
-        // Bindable as the irradiance shader's uniform arrays (whole
-        // capacity) or as storage (the shadow views pass, long frames).
-        let array = |label, bytes: usize| {
-            UploadBuffer::with_min_size(device, label, ARRAY_USAGE, bytes as u64)
-        };
-        let cap = irradiance_map::capacity;
+        // Bindable as the irradiance shader's uniform array (whole
+        // capacity) or as storage (long frames).
+        let eye_bytes = irradiance_map::capacity("eyes") * size_of::<EyeGpu>();
         Self {
-            shadow: ShadowViewsPass::new(device),
-            irradiance: IrradianceMapPass::new(device),
-            shadow_res: shadow_res.max(1),
             scene: SceneBuffers::new(device),
+            shadow: ShadowStage::new(device, shadow_res, irradiance_map::capacity),
+            irradiance: IrradianceMapPass::new(device),
             frame_uniform: UploadBuffer::new(
                 device,
                 "irradiance frame",
                 wgpu::BufferUsages::UNIFORM,
             ),
-            lights: array("light samples", cap("lights") * size_of::<LightSampleGpu>()),
-            eyes: array("eyes", cap("eyes") * size_of::<EyeGpu>()),
-            views: array("shadow views", cap("views") * size_of::<ShadowView>()),
-            maps: None,
-            shadow_bind: None,
+            eyes: UploadBuffer::with_min_size(device, "eyes", ARRAY_USAGE, eye_bytes as u64),
             irradiance_bind: None,
             targets: None,
             blend: None,
-            last_layers_drawn: 0,
-            cull_light_occluders: true,
+            light_occluders: LightOccluders::ShadowingReal,
         }
     }
 
     /// Whether the light samples' cube faces hold only the objects that
     /// can shadow a real surface and reach into the face (the default),
-    /// or every object (as before; for comparisons).
+    /// or every object (for comparisons); see [`LightOccluders`].
     pub fn set_light_occluder_culling(&mut self, on: bool) {
-        self.cull_light_occluders = on;
+        self.light_occluders = if on {
+            LightOccluders::ShadowingReal
+        } else {
+            LightOccluders::Every
+        };
     }
 
     /// Shadow map layers the last [`Self::draw`] drew (the others held
     /// the same view and geometry already).
     pub fn last_layers_drawn(&self) -> u32 {
-        self.last_layers_drawn
+        self.shadow.last_layers_drawn()
     }
 
     /// Draw `projector`'s frame with the passes of `passes` (a pass not in
@@ -166,137 +138,99 @@ impl ProjectorPipeline {
         projector: &Projector,
         passes: &PassList,
         timed: bool,
-    ) -> Result<PassTimes, FrameError> {
-        let (device, queue) = (&ctx.device, &ctx.queue);
-        let start = Instant::now();
-        self.scene.update(device, queue, &frame.showcase)?;
+    ) -> Result<PassTimes, RenderError> {
+        let mut steps = TimedEncoder::new(ctx, timed);
+        self.scene
+            .update(&ctx.device, &ctx.queue, &frame.showcase)?;
+        // Every tracked eye's occlusion shadows are darkened.
+        let eyes = frame.eyes.iter().copied();
         let centre = projector.device.center();
-        let far = stable_far(shadow_far(frame, self.scene.all(), centre));
-        let near = SHADOW_NEAR;
-
-        let shadows = passes.runs(Pass::LightShadowViews);
-        let (mut views, lights) = light_inputs(frame, shadows, near, far, self.shadow_res);
-        let light_layers = 0..views.len() as u32;
-        let occlusion = passes.runs(Pass::EyeShadowViews);
-        let virtual_sphere = if occlusion {
-            let (all, ranges) = (self.scene.all(), self.scene.ranges());
-            bounding_sphere(
-                ranges
-                    .iter()
-                    .filter(|(oi, _)| frame.showcase.objects[*oi].kind == ObjectKind::Virtual)
-                    .flat_map(|(_, r)| all[r.start as usize..r.end as usize].iter())
-                    .map(|w| Vec3::from_array(w.position).as_dvec3()),
-            )
-        } else {
-            None
-        };
-        let mut eyes = Vec::with_capacity(frame.eyes.len());
-        for e in &frame.eyes {
-            let first = views.len() as u32;
-            if let (true, Some((c, r))) = (occlusion, virtual_sphere) {
-                views.extend(fitted_views(
-                    e.as_vec3(),
-                    c.as_vec3(),
-                    (r * 1.001 + 1e-6) as f32,
-                    near,
-                    far,
-                    self.shadow_res,
-                ));
-            }
-            eyes.push(EyeGpu {
-                position: e.as_vec3().extend(0.0).to_array(),
-                views: [first, views.len() as u32 - first, 0, 0],
-            });
+        let res = self.shadow.res();
+        let inputs = FrameInputs::new(frame, &self.scene, centre, eyes, passes, res);
+        if self.shadow.prepare(&ctx.device, &ctx.queue, &inputs)? {
+            self.irradiance_bind = None;
         }
-        let eye_layers = light_layers.end..views.len() as u32;
+        self.prepare_irradiance(ctx, frame, projector, &inputs)?;
+        steps.step("setup")?;
+        let occluders = self.light_occluders;
+        self.shadow
+            .encode(&mut steps, &self.scene, frame, &inputs, occluders)?;
+        self.encode_irradiance(steps.encoder())?;
+        steps.step(Pass::IrradianceMap.name())?;
+        Ok(steps.submit())
+    }
 
-        let maps_changed =
-            ensure_maps(&mut self.maps, device, self.shadow_res, views.len() as u32)?;
-        self.views.write(device, queue, &views);
-        self.lights.write(device, queue, &lights);
-        self.eyes.write(device, queue, &eyes);
-        let response = &projector.response;
+    /// Upload the eyes and the frame uniform, and bring the blend weights,
+    /// the bind group and the targets up to date for this frame.
+    fn prepare_irradiance(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameScene,
+        projector: &Projector,
+        inputs: &FrameInputs,
+    ) -> Result<(), RenderError> {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        self.eyes.write(device, queue, &inputs.eyes);
         let key = blend_key(frame, projector);
         // Weights other than 1 exist only where projectors overlap
         // (BlendTexture::new); without them the shader skips the fetch.
         let blending = key.projector.is_some() && key.projectors.len() > 1;
-        let uniform = FrameUniform {
-            clip_from_world: projector
-                .device
-                .clip_from_world()
-                .as_mat4()
-                .to_cols_array_2d(),
-            projector: centre.as_vec3().extend(0.0).to_array(),
-            ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
-            response: [
-                response.gamma,
-                response.eta,
-                response.black_level,
-                COS_FLOOR as f32,
-            ],
-            counts: [
-                lights.len() as u32,
-                eyes.len() as u32,
-                self.shadow_res,
-                u32::from(shadows) | (u32::from(occlusion) << 1) | (u32::from(blending) << 2),
-            ],
-            shadow: [near, far, 0.0, 0.0],
-        };
+        let uniform = frame_uniform(frame, projector, inputs, self.shadow.res(), blending);
         self.frame_uniform.write(device, queue, &[uniform]);
-        if maps_changed {
-            self.irradiance_bind = None;
-        }
-        let (w, h) = (projector.device.width, projector.device.height);
         if self.blend.as_ref().is_none_or(|b| b.key != key) {
             self.blend = Some(BlendTexture::new(ctx, frame, projector, key)?);
             self.irradiance_bind = None;
         }
-        let Some(blend) = self.blend.as_ref() else {
-            return Err(FrameError::NothingDrawn);
-        };
-        let Some(maps) = self.maps.as_mut() else {
-            return Err(FrameError::NothingDrawn);
-        };
-        let views_generation = self.views.generation();
-        if self
-            .shadow_bind
-            .as_ref()
-            .is_none_or(|(g, _)| *g != views_generation)
-        {
-            self.shadow_bind = Some((
-                views_generation,
-                self.shadow.bind_group(device, self.views.buffer()),
-            ));
-        }
-        let space = IrradianceMapPass::space(lights.len(), eyes.len(), views.len());
+        self.bind_irradiance(device, inputs)?;
+        let (w, h) = (projector.device.width, projector.device.height);
+        self.ensure_targets(device, w, h)
+    }
+
+    /// Make the irradiance bind group name this frame's buffers, maps,
+    /// blend weights and array space.
+    fn bind_irradiance(
+        &mut self,
+        device: &wgpu::Device,
+        inputs: &FrameInputs,
+    ) -> Result<(), RenderError> {
+        let (lights, views) = (self.shadow.lights(), self.shadow.views());
+        let space =
+            IrradianceMapPass::space(inputs.lights.len(), inputs.eyes.len(), inputs.views.len());
         let generations = (
             [
                 self.frame_uniform.generation(),
-                self.lights.generation(),
+                lights.generation(),
                 self.eyes.generation(),
-                views_generation,
+                views.generation(),
             ],
             space,
         );
         if self
             .irradiance_bind
             .as_ref()
-            .is_none_or(|(g, _)| *g != generations)
+            .is_some_and(|(g, _)| *g == generations)
         {
-            let bind = self.irradiance.bind_group(
-                device,
-                &IrradianceBindings {
-                    frame: self.frame_uniform.buffer(),
-                    lights: self.lights.buffer(),
-                    eyes: self.eyes.buffer(),
-                    views: self.views.buffer(),
-                    maps,
-                    blend: &blend.view,
-                    space,
-                },
-            );
-            self.irradiance_bind = Some((generations, bind));
+            return Ok(());
         }
+        let blend = self.blend.as_ref().ok_or(RenderError::NothingDrawn)?;
+        let bind = self.irradiance.bind_group(
+            device,
+            &IrradianceBindings {
+                frame: self.frame_uniform.buffer(),
+                lights: lights.buffer(),
+                eyes: self.eyes.buffer(),
+                views: views.buffer(),
+                maps: self.shadow.maps()?,
+                blend: &blend.view,
+                space,
+            },
+        );
+        self.irradiance_bind = Some((generations, bind));
+        Ok(())
+    }
+
+    /// Targets and readback buffers of `w x h` (kept while the size is).
+    fn ensure_targets(&mut self, device: &wgpu::Device, w: u32, h: u32) -> Result<(), RenderError> {
         if self
             .targets
             .as_ref()
@@ -311,100 +245,30 @@ impl ProjectorPipeline {
                 ],
             });
         }
-        let (Some(targets), Some((_, shadow_bind)), Some((_, irradiance_bind))) =
-            (&self.targets, &self.shadow_bind, &self.irradiance_bind)
-        else {
-            return Err(FrameError::NothingDrawn);
-        };
+        Ok(())
+    }
 
-        let mut times = Vec::new();
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let mut since = start;
-        let mut flush = |encoder: &mut wgpu::CommandEncoder,
-                         step: &'static str|
-         -> Result<(), FrameError> {
-            if timed {
-                let done =
-                    std::mem::replace(encoder, device.create_command_encoder(&Default::default()));
-                queue.submit([done.finish()]);
-                wait_idle(device)?;
-                times.push((step, since.elapsed().as_secs_f64() * 1e3));
-                since = Instant::now();
-            }
-            Ok(())
+    /// Record the irradiance map pass over the real objects.
+    fn encode_irradiance(&self, encoder: &mut wgpu::CommandEncoder) -> Result<(), RenderError> {
+        let (Some(targets), Some((_, bind))) = (&self.targets, &self.irradiance_bind) else {
+            return Err(RenderError::NothingDrawn);
         };
-        flush(&mut encoder, "setup")?;
-        let mut layers_drawn = 0;
-        if shadows {
-            // Each light sample's cube faces hold only the objects that
-            // can shadow a real surface and reach into the face
-            // (shadow_views::occluders); the others read as lit anyway.
-            let (vertices, _) = self.scene.buffer(VertexSet::All);
-            let objects = self.scene.object_vertices(&frame.showcase);
-            let geometry = self.scene.geometry(VertexSet::All);
-            let mut per_layer = Vec::with_capacity(light_layers.len());
-            let everything = 0..self.scene.all().len() as u32;
-            for (s, l) in frame.samples.iter().zip(&lights) {
-                let first = l.views[0] as usize;
-                let cube = &views[first..first + l.views[1] as usize];
-                let ranges = if self.cull_light_occluders {
-                    cube_occluder_ranges(self.scene.all(), &objects, s.position, cube)
-                } else {
-                    vec![vec![everything.clone()]; cube.len()]
-                };
-                for (k, ranges) in ranges.into_iter().enumerate() {
-                    per_layer.push(((first + k) as u32, ranges));
-                }
-            }
-            let draws: Vec<LayerDraw<'_>> = per_layer
-                .iter()
-                .map(|(layer, ranges)| LayerDraw {
-                    vertices,
-                    layer: *layer,
-                    ranges,
-                    geometry: ranges_identity(geometry, ranges),
-                })
-                .collect();
-            layers_drawn +=
-                self.shadow
-                    .encode_layers(&mut encoder, maps, shadow_bind, &views, &draws);
-            flush(&mut encoder, Pass::LightShadowViews.name())?;
-        }
-        if occlusion {
-            let (vertices, vertex_count) = self.scene.buffer(VertexSet::Virtual);
-            layers_drawn += self.shadow.encode(
-                &mut encoder,
-                maps,
-                shadow_bind,
-                &views,
-                &[ShadowDraw {
-                    vertices,
-                    vertex_count,
-                    layers: eye_layers,
-                    geometry: self.scene.geometry(VertexSet::Virtual),
-                }],
-            );
-            flush(&mut encoder, Pass::EyeShadowViews.name())?;
-        }
         let (vertices, vertex_count) = self.scene.buffer(VertexSet::Real);
         self.irradiance.encode(
-            &mut encoder,
+            encoder,
             &targets.irradiance,
             &targets.value,
-            irradiance_bind,
+            bind,
             vertices,
             vertex_count,
         )?;
-        flush(&mut encoder, Pass::IrradianceMap.name())?;
-        queue.submit([encoder.finish()]);
-        self.last_layers_drawn = layers_drawn;
-        Ok(times)
+        Ok(())
     }
 
     /// Copy both targets of the last drawn frame to their readback
     /// buffers and submit the copies.
-    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, FrameError> {
-        let targets = self.targets.as_ref().ok_or(FrameError::NothingDrawn)?;
+    fn submit_readback(&self, ctx: &GpuContext) -> Result<&ProjectorTargets, RenderError> {
+        let targets = self.targets.as_ref().ok_or(RenderError::NothingDrawn)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         targets.readback[0].encode_copy(&mut encoder, &targets.irradiance);
         targets.readback[1].encode_copy(&mut encoder, &targets.value);
@@ -414,7 +278,7 @@ impl ProjectorPipeline {
 
     /// Read the last drawn frame back (waits for the GPU). Non-finite
     /// values become 0.
-    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, FrameError> {
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuIrradianceMap, RenderError> {
         let targets = self.submit_readback(ctx)?;
         let mut read = read_colours(&ctx.device, &[&targets.readback[0], &targets.readback[1]])?;
         let value = read.pop().unwrap_or_default();
@@ -437,7 +301,7 @@ impl ProjectorPipeline {
     /// the device values and the clipped fraction, equal to
     /// [`Self::read`]'s. The `L` target is copied back too, but only its
     /// state codes are looked at, in place, so no image of it is built.
-    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, FrameError> {
+    pub fn read_output(&self, ctx: &GpuContext) -> Result<ProjectorOutput, RenderError> {
         let targets = self.submit_readback(ctx)?;
         let (w, h) = (targets.value.width(), targets.value.height());
         let mut value: Vec<[f32; 4]> = Vec::with_capacity(w as usize * h as usize);
@@ -477,9 +341,44 @@ impl ProjectorPipeline {
         frame: &FrameScene,
         projector: &Projector,
         passes: &PassList,
-    ) -> Result<GpuIrradianceMap, FrameError> {
+    ) -> Result<GpuIrradianceMap, RenderError> {
         self.draw(ctx, frame, projector, passes, false)?;
         self.read(ctx)
+    }
+}
+
+/// The irradiance shader's frame uniform for `projector` in `frame`.
+fn frame_uniform(
+    frame: &FrameScene,
+    projector: &Projector,
+    inputs: &FrameInputs,
+    shadow_res: u32,
+    blending: bool,
+) -> FrameUniform {
+    let response = &projector.response;
+    let flags =
+        u32::from(inputs.shadows) | (u32::from(inputs.occlusion) << 1) | (u32::from(blending) << 2);
+    FrameUniform {
+        clip_from_world: projector
+            .device
+            .clip_from_world()
+            .as_mat4()
+            .to_cols_array_2d(),
+        projector: projector.device.center().as_vec3().extend(0.0).to_array(),
+        ambient: frame.ambient().as_vec3().extend(0.0).to_array(),
+        response: [
+            response.gamma,
+            response.eta,
+            response.black_level,
+            COS_FLOOR as f32,
+        ],
+        counts: [
+            inputs.lights.len() as u32,
+            inputs.eyes.len() as u32,
+            shadow_res,
+            flags,
+        ],
+        shadow: [SHADOW_NEAR, inputs.far, 0.0, 0.0],
     }
 }
 

@@ -480,7 +480,7 @@ fn node_readback_equals_the_full_readback() -> Result<()> {
 fn bench_light_faces_leave_out_the_walls() -> Result<()> {
     use showcase_render::gpu::shadow_views::cube_views;
     use showcase_render::gpu::shadow_views::occluders::{ObjectVertices, cube_occluder_ranges};
-    use showcase_render::render::projector_gpu::world_vertices_by_object;
+    use showcase_render::render::gpu_frame::world_vertices_by_object;
     let (frame, _) = bench_frame_scene(None)?;
     let (all, ranges) = world_vertices_by_object(&frame.showcase, None)?;
     let objects: Vec<ObjectVertices> = ranges

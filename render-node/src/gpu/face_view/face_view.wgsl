@@ -33,23 +33,6 @@ struct Frame {
     own: vec4<u32>,
 }
 
-struct LightSample {
-    position: vec4<f32>,
-    intensity: vec4<f32>,
-    // xyz: spot axis or emitter normal; w: 0 isotropic, 1 spot, 2 cosine.
-    axis: vec4<f32>,
-    // cos inner, cos outer.
-    cone: vec4<f32>,
-    // first shadow view, view count.
-    views: vec4<u32>,
-}
-
-struct ShadowView {
-    clip_from_world: mat4x4<f32>,
-    // xyz origin, w texel angle (radians).
-    origin: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per-frame arrays: uniform arrays of fixed capacity, or runtime-sized
 // storage arrays when a frame exceeds one (gpu::frame_arrays). 256 views:
@@ -61,12 +44,6 @@ struct ShadowView {
 // 1 + k for a reflective object with cube map k (layers 6k to 6k + 5).
 // After the draws: xyz of each cube map's centre (frame.cube.z on).
 @group(0) @binding(4) var<uniform> albedos: array<vec4<f32>, 256>;
-
-struct Eye {
-    position: vec4<f32>,
-    // first shadow view, view count.
-    views: vec4<u32>,
-}
 
 // The other observers' eyes.
 @group(0) @binding(5) var<uniform> eyes: array<Eye, 16>;
@@ -97,8 +74,8 @@ fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
     return out;
 }
 
-// visible_from_light, visible_from_eye, intensity_towards:
-// gpu/shadow_lookup.part.wgsl.
+// LightSample, Eye, ShadowView, cube_face, visible_from_light,
+// visible_from_eye, intensity_towards: gpu/shadow_lookup.part.wgsl.
 
 // rho / pi * E at p with unit normal n (the side facing the eye).
 fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
@@ -163,7 +140,7 @@ const PARALLAX_SECANT_STEPS: u32 = 4u;
 const PARALLAX_SURFACE_TOLERANCE: f32 = 0.05;
 
 // The four texels of cube map `k` a bilinear lookup along `d` reads
-// (d's face, cube_coords; clamped at the face's edges) and the weights.
+// (d's face, cube_face; clamped at the face's edges) and the weights.
 struct CubeTexels {
     layer: u32,
     p0: vec2<u32>,
@@ -173,30 +150,18 @@ struct CubeTexels {
 }
 
 fn cube_texels(k: u32, d: vec3<f32>) -> CubeTexels {
-    let a = abs(d);
-    var face = 5u;
-    var c = vec3<f32>(d.x, d.y, -d.z);
-    if (a.x >= a.y && a.x >= a.z) {
-        face = select(1u, 0u, d.x > 0.0);
-        c = select(vec3<f32>(-d.z, d.y, -d.x), vec3<f32>(d.z, d.y, d.x), d.x > 0.0);
-    } else if (a.y >= a.z) {
-        face = select(3u, 2u, d.y > 0.0);
-        c = select(vec3<f32>(-d.x, d.z, -d.y), vec3<f32>(d.x, d.z, d.y), d.y > 0.0);
-    } else if (d.z > 0.0) {
-        face = 4u;
-        c = vec3<f32>(-d.x, d.y, d.z);
-    }
+    let cube = cube_face(d);
     var out: CubeTexels;
-    out.valid = c.z > 0.0;
+    out.valid = cube.c.z > 0.0;
     let res = f32(frame.cube.x);
-    let ndc = select(vec2<f32>(0.0), c.xy / c.z, out.valid);
+    let ndc = select(vec2<f32>(0.0), cube.c.xy / cube.c.z, out.valid);
     let f = vec2<f32>((ndc.x * 0.5 + 0.5) * res - 0.5, (0.5 - ndc.y * 0.5) * res - 0.5);
     let f0 = floor(f);
     out.t = f - f0;
     let hi = vec2<f32>(res - 1.0);
     out.p0 = vec2<u32>(clamp(f0, vec2<f32>(0.0), hi));
     out.p1 = vec2<u32>(clamp(f0 + 1.0, vec2<f32>(0.0), hi));
-    out.layer = 6u * k + face;
+    out.layer = 6u * k + cube.face;
     return out;
 }
 

@@ -46,7 +46,7 @@ pub const NO_OWN_EYE: u32 = u32::MAX;
 pub struct FaceBindings<'a> {
     /// This eye's [`FaceFrameUniform`].
     pub frame: &'a wgpu::Buffer,
-    /// [`super::irradiance_map::LightSampleGpu`]s (at least one element, may be a placeholder).
+    /// [`super::shadow_lookup::LightSampleGpu`]s (at least one element, may be a placeholder).
     pub lights: &'a wgpu::Buffer,
     /// The shadow views buffer.
     pub views: &'a wgpu::Buffer,
@@ -56,7 +56,7 @@ pub struct FaceBindings<'a> {
     /// phantoms (`[f32; 4]` each, at least one); then the cube maps'
     /// centres (xyz, from [`FaceFrameUniform::cube`]`[2]`).
     pub albedos: &'a wgpu::Buffer,
-    /// The other observers' eyes as [`super::irradiance_map::EyeGpu`]s (at least one element).
+    /// The other observers' eyes as [`super::shadow_lookup::EyeGpu`]s (at least one element).
     pub other_eyes: &'a wgpu::Buffer,
     /// The cube maps' array view (six layers per map, at least one
     /// layer); `None` for the cube-map pass, which draws them.

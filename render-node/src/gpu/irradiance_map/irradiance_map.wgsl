@@ -21,32 +21,6 @@ struct Frame {
     shadow: vec4<f32>,
 }
 
-struct LightSample {
-    // xyz position.
-    position: vec4<f32>,
-    // rgb peak radiant intensity (W/sr).
-    intensity: vec4<f32>,
-    // xyz: spot axis or emitter normal; w: 0 isotropic, 1 spot, 2 cosine.
-    axis: vec4<f32>,
-    // cos inner, cos outer.
-    cone: vec4<f32>,
-    // first shadow view, view count.
-    views: vec4<u32>,
-}
-
-struct Eye {
-    // xyz position.
-    position: vec4<f32>,
-    // first shadow view, view count.
-    views: vec4<u32>,
-}
-
-struct ShadowView {
-    clip_from_world: mat4x4<f32>,
-    // xyz origin, w texel angle (radians).
-    origin: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per-frame arrays: uniform arrays of fixed capacity, or runtime-sized
 // storage arrays when a frame exceeds one (gpu::frame_arrays). 256 views:
@@ -86,8 +60,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-// visible_from_light, visible_from_eye, intensity_towards:
-// gpu/shadow_lookup.part.wgsl.
+// LightSample, Eye, ShadowView, visible_from_light, visible_from_eye,
+// intensity_towards: gpu/shadow_lookup.part.wgsl.
 
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {

@@ -36,32 +36,6 @@ pub struct FrameUniform {
     pub shadow: [f32; 4],
 }
 
-/// Mirrors WGSL `struct LightSample` in `irradiance_map.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct LightSampleGpu {
-    /// xyz position.
-    pub position: [f32; 4],
-    /// rgb peak intensity.
-    pub intensity: [f32; 4],
-    /// xyz axis or normal, w kind (0 isotropic, 1 spot, 2 cosine).
-    pub axis: [f32; 4],
-    /// cos inner, cos outer.
-    pub cone: [f32; 4],
-    /// first view, view count.
-    pub views: [u32; 4],
-}
-
-/// Mirrors WGSL `struct Eye` in `irradiance_map.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct EyeGpu {
-    /// xyz position.
-    pub position: [f32; 4],
-    /// first view, view count.
-    pub views: [u32; 4],
-}
-
 /// Alpha codes of the irradiance output.
 pub mod state {
     /// No real surface.
@@ -120,9 +94,11 @@ impl IrradianceBindGroup {
 pub struct IrradianceBindings<'a> {
     /// The [`FrameUniform`].
     pub frame: &'a wgpu::Buffer,
-    /// [`LightSampleGpu`]s (at least one element, may be a placeholder).
+    /// [`LightSampleGpu`](super::shadow_lookup::LightSampleGpu)s (at
+    /// least one element, may be a placeholder).
     pub lights: &'a wgpu::Buffer,
-    /// [`EyeGpu`]s (at least one element, may be a placeholder).
+    /// [`EyeGpu`](super::shadow_lookup::EyeGpu)s (at least one element,
+    /// may be a placeholder).
     pub eyes: &'a wgpu::Buffer,
     /// The shadow views buffer.
     pub views: &'a wgpu::Buffer,

@@ -20,7 +20,7 @@ pub mod occluders;
 pub const SHADOW_NEAR: f32 = 1e-3;
 
 /// Mirrors WGSL `struct ShadowView` in `shadow_views.wgsl` (and in
-/// `irradiance_map.wgsl`).
+/// `shadow_lookup.part.wgsl`, which the sampling passes share).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct ShadowView {

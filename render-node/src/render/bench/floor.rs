@@ -20,9 +20,8 @@ use crate::gpu::shadow_views::{LayerDraw, SHADOW_NEAR, ShadowDraw, ShadowMaps, S
 use crate::gpu::target::{ColourReadback, read_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget, wait_idle};
-use crate::render::FrameError;
-use crate::render::gpu_scene::{SceneBuffers, VertexSet, stable_far};
-use crate::render::projector_gpu::{light_inputs, shadow_far};
+use crate::render::RenderError;
+use crate::render::gpu_frame::{SceneBuffers, VertexSet, light_inputs, shadow_far, stable_far};
 use showcase_light::metrics::percentile;
 use showcase_light::render::frame::FrameScene;
 
@@ -31,7 +30,7 @@ use showcase_light::render::frame::FrameScene;
 pub enum FloorBenchError {
     /// The bench scene could not be set up or drawn.
     #[error(transparent)]
-    Setup(#[from] FrameError),
+    Setup(#[from] RenderError),
     /// A GPU operation failed.
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
@@ -136,7 +135,7 @@ pub fn bench_floor(
         s.projectors = vec![bench_projector(width, height)];
         let projector = s.projectors[0].clone();
         let frame =
-            FrameScene::resolve(&s, &bench_frame(&s, "full", 1)).map_err(FrameError::from)?;
+            FrameScene::resolve(&s, &bench_frame(&s, "full", 1)).map_err(RenderError::from)?;
         scene_buffers.update(device, queue, &frame.showcase)?;
         let far = stable_far(shadow_far(
             &frame,

@@ -4,7 +4,7 @@
 use showcase_proto::{ObjectKind, Projector};
 
 use crate::gpu::GpuContext;
-use crate::render::FrameError;
+use crate::render::RenderError;
 use showcase_light::render::frame::FrameScene;
 
 /// What a projector's blend weights depend on: the projectors, which one
@@ -32,7 +32,7 @@ impl BlendTexture {
         frame: &FrameScene,
         projector: &Projector,
         key: BlendKey,
-    ) -> Result<Self, FrameError> {
+    ) -> Result<Self, RenderError> {
         let (w, h) = (projector.device.width, projector.device.height);
         let weights: Vec<f32> = match key.projector {
             Some(i) if key.projectors.len() > 1 => {

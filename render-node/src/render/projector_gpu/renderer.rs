@@ -6,11 +6,12 @@ use std::sync::Arc;
 use showcase_proto::{FrameState, Showcase};
 
 use crate::gpu::GpuContext;
-use crate::node::renderer::{
-    OutputImage, RenderError, RenderOutput, Renderer, check_scene_version, hash_pixels,
-};
+use crate::render::RenderSetupError;
 use crate::render::passes::{FrameKey, Pass, PassList};
-use crate::render::{FrameError, RenderSetupError};
+use crate::render::renderer::{
+    OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
+};
+use showcase_light::digest::hash_pixels;
 use showcase_light::render::frame::FrameScene;
 
 use super::ProjectorPipeline;
@@ -75,7 +76,7 @@ impl ProjectorRenderer {
         &mut self,
         frame: &FrameState,
         scene: &Showcase,
-    ) -> Result<RenderOutput, FrameError> {
+    ) -> Result<RenderOutput, RenderError> {
         let projector =
             scene
                 .projectors
@@ -139,12 +140,12 @@ impl Renderer for ProjectorRenderer {
             frame,
             self.scene_version,
         )?;
-        self.render_frame(frame, scene).map_err(|e| {
-            RenderError(format!(
-                "projector {}: frame {}: {e}",
-                self.projector, frame.frame
-            ))
-        })
+        self.render_frame(frame, scene)
+            .map_err(|e| RenderError::ProjectorFrame {
+                projector: self.projector,
+                frame: frame.frame,
+                error: Box::new(e),
+            })
     }
 
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {

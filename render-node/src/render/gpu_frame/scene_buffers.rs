@@ -1,17 +1,18 @@
-//! GPU state both roles keep across frames: the scene's world-space
-//! vertices (uploaded only when they change), the shadow distance maps
-//! (reallocated only when they must grow) and the per-frame uploads. Only
-//! what a frame changes is sent to the GPU; on a CPU rasteriser every
-//! allocation and upload is a fixed per-frame cost.
+//! The scene's world-space vertices, as both roles draw them: made from
+//! a frame's objects on the CPU (flat normals, degenerate triangles left
+//! out) and kept on the GPU across frames, uploaded only when they change.
+//! On a CPU rasteriser every allocation and upload is a fixed per-frame
+//! cost.
 
+use glam::DVec3;
 use showcase_proto::{ObjectKind, Showcase};
 
-use super::FrameError;
-use super::projector_gpu::{ObjectRange, world_vertices_by_object};
 use crate::gpu::GpuError;
+use crate::gpu::shadow_views::WorldVertex;
 use crate::gpu::shadow_views::occluders::ObjectVertices;
-use crate::gpu::shadow_views::{ShadowMaps, WorldVertex};
 use crate::gpu::upload::UploadBuffer;
+use crate::render::RenderError;
+use showcase_light::world_matrix;
 
 /// Which vertex buffer of [`SceneBuffers`] a shadow draw uses (part of
 /// its geometry identity).
@@ -62,7 +63,7 @@ impl SceneBuffers {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         showcase: &Showcase,
-    ) -> Result<bool, FrameError> {
+    ) -> Result<bool, RenderError> {
         let (all, ranges) = world_vertices_by_object(showcase, None)?;
         let kinds: Vec<ObjectKind> = ranges
             .iter()
@@ -145,50 +146,69 @@ impl SceneBuffers {
     }
 }
 
-/// Make `maps` hold at least `layers` layers of `res` texels (keeping
-/// them, and what they hold, when they already do). Returns true when
-/// the maps were (re)allocated, so that bind groups naming them must be
-/// rebuilt.
-pub fn ensure_maps(
-    maps: &mut Option<ShadowMaps>,
-    device: &wgpu::Device,
-    res: u32,
-    layers: u32,
-) -> Result<bool, FrameError> {
-    if let Some(m) = maps
-        && m.res() == res
-        && m.layers() >= layers
-    {
-        return Ok(false);
-    }
-    *maps = Some(ShadowMaps::new(device, res, layers)?);
-    Ok(true)
+/// World-space vertices (three per triangle, flat normals) of the objects
+/// of `kind` (`None`: all); degenerate triangles are left out.
+pub fn world_vertices(
+    showcase: &Showcase,
+    kind: Option<ObjectKind>,
+) -> Result<Vec<WorldVertex>, RenderError> {
+    Ok(world_vertices_by_object(showcase, kind)?.0)
 }
 
-/// A far plane at least `far`, rounded up to a power of two, so that a
-/// moving light or eye changes the shadow views' projection (and forces
-/// layers to be redrawn) only when the scene's extent really changes.
-pub fn stable_far(far: f32) -> f32 {
-    if !(far.is_finite() && far > 0.0) {
-        return far;
-    }
-    let rounded = 2f32.powi(far.log2().ceil() as i32);
-    if rounded >= far {
-        rounded
-    } else {
-        2.0 * rounded
-    }
-}
+/// An object index and its vertex range in a vertex buffer.
+pub type ObjectRange = (usize, std::ops::Range<u32>);
 
-#[cfg(test)]
-mod tests {
-    use super::stable_far;
-
-    #[test]
-    fn stable_far_rounds_up_to_a_power_of_two() {
-        for (far, expected) in [(1.0, 1.0), (3.2, 4.0), (4.0, 4.0), (4.01, 8.0), (0.3, 0.5)] {
-            assert_eq!(stable_far(far), expected, "{far}");
+/// [`world_vertices`] with the vertex range of each object drawn, as
+/// `(object index, range)` in object order.
+pub fn world_vertices_by_object(
+    showcase: &Showcase,
+    kind: Option<ObjectKind>,
+) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderError> {
+    let mut out = Vec::new();
+    let mut ranges = Vec::new();
+    for (oi, o) in showcase.objects.iter().enumerate() {
+        if kind.is_some_and(|k| k != o.kind) {
+            continue;
         }
-        assert!(stable_far(f32::NAN).is_nan());
+        let start = out.len() as u32;
+        let name = || o.name.clone();
+        let mesh =
+            showcase
+                .mesh(&o.mesh)
+                .ok_or_else(|| showcase_light::GeometryError::MissingMesh {
+                    object: oi,
+                    name: name(),
+                })?;
+        let m = world_matrix(&o.transform).ok_or_else(|| {
+            showcase_light::GeometryError::BadTransform {
+                object: oi,
+                name: name(),
+            }
+        })?;
+        for (ti, tri) in mesh.triangles.iter().enumerate() {
+            let mut v = [DVec3::ZERO; 3];
+            for (k, &i) in tri.iter().enumerate() {
+                let p = mesh.positions.get(i as usize).ok_or_else(|| {
+                    showcase_light::GeometryError::IndexOutOfRange {
+                        object: oi,
+                        name: name(),
+                        triangle: ti,
+                        index: i,
+                    }
+                })?;
+                v[k] = m.transform_point3(p.as_dvec3());
+            }
+            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+            if n == DVec3::ZERO || !n.is_finite() {
+                continue;
+            }
+            let normal = n.as_vec3().to_array();
+            out.extend(v.iter().map(|p| WorldVertex {
+                position: p.as_vec3().to_array(),
+                normal,
+            }));
+        }
+        ranges.push((oi, start..out.len() as u32));
     }
+    Ok((out, ranges))
 }
