@@ -1,4 +1,7 @@
-//! wgpu device bring-up and GPU passes. Every pass has a CPU reference in `showcase_light`.
+//! wgpu device bring-up and GPU passes. Every pass that computes a result
+//! the product uses has a CPU reference in `showcase_light` and a test
+//! comparing the two; the shadow views are checked through the passes that
+//! read them, and the floor passes (timing only) have none.
 //!
 //! The shape follows the wgpu examples: [`GpuContext::new_headless`] opens
 //! a device without any surface, and all work functions take

@@ -78,8 +78,12 @@ pub fn face_to_world(face: usize, c: DVec3) -> DVec3 {
     }
 }
 
-/// `showcase_render::gpu::shadow_views::cube_coords` in f64: the face holding
-/// direction `d` and `d`'s `(right, up, forward)` in that face's view.
+/// Cube-face selection, its one home in Rust: the face (0 to 5: +x, -x,
+/// +y, -y, +z, -z, the order of the GPU's cube views) holding direction
+/// `d`, and `d`'s `(right, up, forward)` components in that face's view.
+/// The major axis picks the face and the view's axes are a signed
+/// permutation of `d`, so f32 callers lose nothing by converting. Mirrors
+/// WGSL `cube_face` in `shadow_lookup.part.wgsl`.
 pub fn world_to_face(d: DVec3) -> (usize, DVec3) {
     let a = d.abs();
     if a.x >= a.y && a.x >= a.z {

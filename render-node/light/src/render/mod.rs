@@ -1,7 +1,7 @@
 //! The real-time renderer of paper section 5, its pure half: the frame
 //! model every role draws from ([`frame`]: lights resolved into samples,
-//! eyes, occluders), and the CPU references that every GPU pass is
-//! checked against: the projector role's irradiance maps with shadows,
+//! eyes, occluders), and the CPU references that the GPU passes which
+//! compute a result are checked against: the projector role's irradiance maps with shadows,
 //! ambient, occlusion shadows and device compensation ([`projector`]),
 //! the face role's views through the beam splitter ([`face`]) with
 //! cube-map reflections ([`cube_map`]), projector blending ([`blend`]) and
