@@ -11,6 +11,4 @@ pub mod renderer;
 
 pub use driver::{NodeLog, NodeRunError, NodeRuntime, run_node};
 pub use output::{OutputRenderer, observer_in_front};
-pub use renderer::{
-    Fnv64, OutputImage, RenderError, RenderOutput, Renderer, StateHashRenderer, hash_pixels,
-};
+pub use renderer::{OutputImage, RenderError, RenderOutput, Renderer, StateHashRenderer};

@@ -7,7 +7,7 @@
 pub use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
 };
-pub use showcase_light::digest::{Fnv64, hash_pixels};
+use showcase_light::digest::Fnv64;
 use showcase_proto::{FrameState, Role, Showcase};
 use std::sync::Arc;
 
