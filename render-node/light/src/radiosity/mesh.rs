@@ -9,18 +9,16 @@
 //! primitive. Vertices are shared between elements of one object with the
 //! same plane orientation, for per-vertex (Gouraud) interpolation.
 
-use crate::SceneGeometry;
-use crate::finite::finite_or_zero;
 use glam::{DVec2, DVec3};
-use showcase_proto::{ObjectKind, Showcase};
 use std::collections::HashMap;
+
+mod build;
+mod refine;
 
 /// Sentinel for "no element / no child".
 const NONE: u32 = u32::MAX;
 /// Largest albedo used, so that energy always decays.
 pub const MAX_REFLECTANCE: f64 = 0.999;
-/// Vertex positions are merged on a grid of this size (metres).
-const VERTEX_WELD: f64 = 1e-7;
 
 /// Why a radiosity mesh could not be built.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -159,23 +157,6 @@ pub struct RadiosityMesh {
     lookup: HashMap<(u32, u32), u32>,
 }
 
-fn sanitize(v: DVec3, max: f64) -> DVec3 {
-    let v = DVec3::from_array(v.to_array().map(finite_or_zero));
-    v.clamp(DVec3::ZERO, DVec3::splat(max))
-}
-
-fn split(b: [DVec2; 3]) -> [[DVec2; 3]; 4] {
-    let m01 = 0.5 * (b[0] + b[1]);
-    let m12 = 0.5 * (b[1] + b[2]);
-    let m20 = 0.5 * (b[2] + b[0]);
-    [
-        [b[0], m01, m20],
-        [m01, b[1], m12],
-        [m20, m12, b[2]],
-        [m12, m20, m01],
-    ]
-}
-
 impl Primitive {
     /// World point at barycentric `(u, v)` (weights of the second and third
     /// vertex).
@@ -195,214 +176,6 @@ pub fn triangle_area(v: &[DVec3; 3]) -> f64 {
 }
 
 impl RadiosityMesh {
-    /// Mesh the objects of `geometry` (built from `showcase`) with their
-    /// materials: albedo (sampled at the element centre where textured) as
-    /// rho, and `pi * emission` as emitted exitance.
-    pub fn build(
-        showcase: &Showcase,
-        geometry: &SceneGeometry,
-        options: &MeshOptions,
-    ) -> Result<Self, MeshError> {
-        if !(options.max_patch_area > 0.0 && options.max_patch_area.is_finite()) {
-            return Err(MeshError::BadPatchArea(options.max_patch_area));
-        }
-        if options.element_depth > 6 {
-            return Err(MeshError::BadElementDepth(options.element_depth));
-        }
-        let mut mesh = Self {
-            primitives: Vec::new(),
-            patches: Vec::new(),
-            elements: Vec::new(),
-            vertices: Vec::new(),
-            nodes: Vec::new(),
-            lookup: HashMap::new(),
-        };
-        // Count first, so a huge request fails before allocating.
-        let mut count = 0usize;
-        for t in geometry.triangles().filter(|t| t.area > 0.0) {
-            let depth = patch_depth(t.area, options.max_patch_area);
-            count = count.saturating_add(4usize.saturating_pow(depth + options.element_depth));
-        }
-        if count > options.max_elements {
-            return Err(MeshError::TooManyElements {
-                count,
-                limit: options.max_elements,
-            });
-        }
-        for t in geometry.triangles().filter(|t| t.area > 0.0) {
-            let pi = mesh.primitives.len() as u32;
-            let root = mesh.nodes.len() as u32;
-            mesh.nodes.push(Node {
-                barycentric: [DVec2::ZERO, DVec2::X, DVec2::Y],
-                children: NONE,
-                element: NONE,
-            });
-            mesh.primitives.push(Primitive {
-                object: t.object,
-                triangle: t.triangle,
-                vertices: t.vertices,
-                normal: t.normal,
-                root,
-            });
-            mesh.lookup.insert((t.object, t.triangle), pi);
-            let depth = patch_depth(t.area, options.max_patch_area);
-            mesh.grow_patches(showcase, pi, root, depth, options.element_depth);
-        }
-        mesh.rebuild_vertices();
-        Ok(mesh)
-    }
-
-    fn grow_patches(
-        &mut self,
-        showcase: &Showcase,
-        primitive: u32,
-        node: u32,
-        depth: u32,
-        element_depth: u32,
-    ) {
-        if depth > 0 {
-            let first = self.subdivide(node);
-            for c in 0..4 {
-                self.grow_patches(showcase, primitive, first + c, depth - 1, element_depth);
-            }
-            return;
-        }
-        let prim = &self.primitives[primitive as usize];
-        let b = self.nodes[node as usize].barycentric;
-        let vertices = b.map(|x| prim.point(x));
-        let pi = self.patches.len() as u32;
-        self.patches.push(Patch {
-            primitive,
-            object: prim.object,
-            vertices,
-            center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
-            normal: prim.normal,
-            area: triangle_area(&vertices),
-            elements: Vec::new(),
-        });
-        self.grow_elements(showcase, pi, node, element_depth);
-    }
-
-    fn grow_elements(&mut self, showcase: &Showcase, patch: u32, node: u32, depth: u32) {
-        if depth > 0 {
-            let first = self.subdivide(node);
-            for c in 0..4 {
-                self.grow_elements(showcase, patch, first + c, depth - 1);
-            }
-            return;
-        }
-        let p = &self.patches[patch as usize];
-        let prim = &self.primitives[p.primitive as usize];
-        let b = self.nodes[node as usize].barycentric;
-        let (reflectance, emission, real) = material(showcase, prim, (b[0] + b[1] + b[2]) / 3.0);
-        let e = self.make_element(patch, node, reflectance, emission, real);
-        self.patches[patch as usize].elements.push(e);
-    }
-
-    fn make_element(
-        &mut self,
-        patch: u32,
-        node: u32,
-        reflectance: DVec3,
-        emission: DVec3,
-        real: bool,
-    ) -> u32 {
-        let p = &self.patches[patch as usize];
-        let prim = &self.primitives[p.primitive as usize];
-        let b = self.nodes[node as usize].barycentric;
-        let vertices = b.map(|x| prim.point(x));
-        let ei = self.elements.len() as u32;
-        self.elements.push(Element {
-            primitive: p.primitive,
-            object: p.object,
-            patch,
-            barycentric: b,
-            vertices,
-            vertex_ids: [NONE; 3],
-            center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
-            normal: prim.normal,
-            area: triangle_area(&vertices),
-            reflectance,
-            emission,
-            real,
-            node,
-        });
-        self.nodes[node as usize].element = ei;
-        ei
-    }
-
-    /// Split a leaf node into four children; returns the first child.
-    fn subdivide(&mut self, node: u32) -> u32 {
-        let first = self.nodes.len() as u32;
-        for b in split(self.nodes[node as usize].barycentric) {
-            self.nodes.push(Node {
-                barycentric: b,
-                children: NONE,
-                element: NONE,
-            });
-        }
-        self.nodes[node as usize].children = first;
-        self.nodes[node as usize].element = NONE;
-        first
-    }
-
-    /// Split element `element` into four (its slot becomes the first child,
-    /// three new elements are appended). Returns the indices of the four.
-    /// Vertices are not rebuilt: call [`Self::rebuild_vertices`] after a
-    /// round of splits.
-    pub fn split_element(&mut self, element: u32) -> Option<[u32; 4]> {
-        let e = self.elements.get(element as usize)?.clone();
-        let first = self.subdivide(e.node);
-        let prim = &self.primitives[e.primitive as usize];
-        let mut out = [element; 4];
-        for c in 0..4u32 {
-            let node = first + c;
-            let b = self.nodes[node as usize].barycentric;
-            let vertices = b.map(|x| prim.point(x));
-            let child = Element {
-                barycentric: b,
-                vertices,
-                vertex_ids: [NONE; 3],
-                center: (vertices[0] + vertices[1] + vertices[2]) / 3.0,
-                area: triangle_area(&vertices),
-                node,
-                ..e.clone()
-            };
-            let index = if c == 0 {
-                self.elements[element as usize] = child;
-                element
-            } else {
-                self.elements.push(child);
-                let i = self.elements.len() as u32 - 1;
-                self.patches[e.patch as usize].elements.push(i);
-                i
-            };
-            self.nodes[node as usize].element = index;
-            out[c as usize] = index;
-        }
-        Some(out)
-    }
-
-    /// Recompute the shared vertices of all elements.
-    pub fn rebuild_vertices(&mut self) {
-        let mut map: HashMap<(u32, [i64; 3], [i64; 3]), u32> = HashMap::new();
-        self.vertices.clear();
-        for e in &mut self.elements {
-            let nkey = (e.normal * 1e4).round().as_i64vec3().to_array();
-            for (k, v) in e.vertices.iter().enumerate() {
-                let pkey = (*v / VERTEX_WELD).round().as_i64vec3().to_array();
-                let id = *map.entry((e.object, nkey, pkey)).or_insert_with(|| {
-                    self.vertices.push(MeshVertex {
-                        position: *v,
-                        normal: e.normal,
-                    });
-                    self.vertices.len() as u32 - 1
-                });
-                e.vertex_ids[k] = id;
-            }
-        }
-    }
-
     /// The primitive of scene triangle `triangle` of object `object`.
     pub fn primitive_of(&self, object: u32, triangle: u32) -> Option<u32> {
         self.lookup.get(&(object, triangle)).copied()
@@ -491,17 +264,6 @@ pub fn barycentric_point(v: &[DVec3; 3], b: DVec2) -> DVec3 {
     (1.0 - b.x - b.y) * v[0] + b.x * v[1] + b.y * v[2]
 }
 
-/// Patch subdivision depth: each level quarters the area.
-fn patch_depth(area: f64, max_area: f64) -> u32 {
-    let mut depth = 0;
-    let mut a = area;
-    while a > max_area && depth < 12 {
-        a *= 0.25;
-        depth += 1;
-    }
-    depth
-}
-
 /// Barycentric weights of uv point `b` in the uv triangle `t`.
 fn local_weights(t: [DVec2; 3], b: DVec2) -> DVec3 {
     let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], b - t[0]);
@@ -514,41 +276,12 @@ fn local_weights(t: [DVec2; 3], b: DVec2) -> DVec3 {
     DVec3::new(1.0 - w1 - w2, w1, w2)
 }
 
-/// Reflectance, emitted exitance and realness of a primitive's material at
-/// barycentric point `b`.
-fn material(showcase: &Showcase, prim: &Primitive, b: DVec2) -> (DVec3, DVec3, bool) {
-    let Some(object) = showcase.objects.get(prim.object as usize) else {
-        return (DVec3::ZERO, DVec3::ZERO, false);
-    };
-    let m = &object.material;
-    let mut albedo = m.albedo.as_dvec3();
-    if m.texture.is_some() {
-        let uv = showcase.mesh(&object.mesh).and_then(|mesh| {
-            let tri = mesh.triangles.get(prim.triangle as usize)?;
-            let uvs = tri.map(|i| mesh.uvs.get(i as usize).copied());
-            let [Some(a), Some(b1), Some(c)] = uvs else {
-                return None;
-            };
-            Some((1.0 - b.x - b.y) * a.as_dvec2() + b.x * b1.as_dvec2() + b.y * c.as_dvec2())
-        });
-        if let Some(uv) = uv {
-            albedo = m.albedo_at(uv.as_vec2()).as_dvec3();
-        }
-    }
-    let emission = sanitize(m.emission.as_dvec3(), f64::MAX) * std::f64::consts::PI;
-    (
-        sanitize(albedo, MAX_REFLECTANCE),
-        sanitize(emission, f64::MAX),
-        object.kind == ObjectKind::Real,
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ObjectFilter;
+    use crate::{ObjectFilter, SceneGeometry};
     use glam::Vec3;
-    use showcase_proto::{Material, Mesh, Object, Transform};
+    use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
 
     pub(crate) fn quad_scene(size: f32) -> Showcase {
         let mut s = Showcase::default();

@@ -30,141 +30,25 @@
 //! shooters per call: when a shooter's row is missing, the rows of the
 //! next patches by unshot power that have none yet are computed with it
 //! and cached (rows do not depend on when they are computed).
+//!
+//! [`ItemBufferRasteriser`]: super::hemicube::ItemBufferRasteriser
 
-use super::hemicube::{
-    HemiCube, HemiCubeShot, ItemBufferError, ItemBufferRasteriser, ItemBufferScene, ItemTriangle,
-    NO_ITEM,
-};
-use super::mesh::{Element, RadiosityMesh};
+use super::hemicube::{HemiCube, ItemBufferScene, ItemTriangle};
+use super::mesh::RadiosityMesh;
 use super::sources::direct_irradiance;
 use crate::SceneGeometry;
 use crate::finite::finite_or_zero;
-use crate::sampling::{hash64, stratified, unit};
 use glam::DVec3;
 use rayon::prelude::*;
 use showcase_proto::Light;
-use std::sync::Arc;
 
+mod form_factor_rows;
 mod moving;
+mod options;
 mod ray_cast;
 pub use moving::{MoveError, MoveStats};
+pub use options::{FormFactorMethod, ItemBufferBackend, SolveError, SolveOptions};
 pub(crate) use ray_cast::RayMask;
-use ray_cast::{normalise, ray_cast_entry};
-
-/// How a shot's form factors are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum FormFactorMethod {
-    /// Hemi-cube at the shooter's centre for every receiver.
-    HemiCube,
-    /// Ray-cast form factors for every receiver (Wallace-style): the
-    /// closed-form point-to-polygon form factor to the whole shooting patch,
-    /// averaged over `n^2` sub-triangle centroids of the receiver (`n` from
-    /// 1 to 8, growing as the pair gets close relative to its size), times
-    /// the visible fraction of `visibility_samples` rays between paired
-    /// jittered points of the receiver and the patch.
-    RayCast,
-    /// The hemi-cube, except for receivers where it is known to fail: close
-    /// to the shooter (distance below `proximity * sqrt(A_shooter)`, where
-    /// the shooter is not a point) and small receivers (expected to cover
-    /// fewer than `min_pixels` hemi-cube pixels, where it aliases); those
-    /// are ray-cast.
-    Hybrid,
-}
-
-/// Who makes the hemi-cube's item buffers (where [`FormFactorMethod`]
-/// uses the hemi-cube: `HemiCube` and `Hybrid`).
-#[derive(Clone, Default)]
-pub enum ItemBufferBackend {
-    /// One ray per pixel centre into the shared BVH, on the CPU.
-    #[default]
-    Cpu,
-    /// A rasteriser, e.g. `showcase_render::gpu::hemicube::GpuHemiCube`.
-    Raster(Arc<dyn ItemBufferRasteriser>),
-}
-
-impl std::fmt::Debug for ItemBufferBackend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Cpu => f.write_str("Cpu"),
-            Self::Raster(r) => write!(f, "Raster({})", r.describe()),
-        }
-    }
-}
-
-impl PartialEq for ItemBufferBackend {
-    /// Equal when both are the CPU or both the same rasteriser object.
-    fn eq(&self, other: &Self) -> bool {
-        match (self, other) {
-            (Self::Cpu, Self::Cpu) => true,
-            (Self::Raster(a), Self::Raster(b)) => Arc::ptr_eq(a, b),
-            _ => false,
-        }
-    }
-}
-
-/// Why a solve cannot start.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum SolveError {
-    /// The hemi-cube resolution is invalid.
-    #[error(transparent)]
-    HemiCube(#[from] super::hemicube::HemiCubeError),
-    /// The threshold is not in `(0, 1)`.
-    #[error("unshot-energy threshold {0} must be in (0, 1)")]
-    BadThreshold(f64),
-    /// The item-buffer rasteriser could not take the mesh.
-    #[error(transparent)]
-    ItemBuffer(#[from] ItemBufferError),
-    /// The active mask does not have one entry per element.
-    #[error("active mask has {got} entries for {elements} elements")]
-    MaskLength {
-        /// Entries given.
-        got: usize,
-        /// Elements in the mesh.
-        elements: usize,
-    },
-}
-
-/// Settings of a progressive-refinement solve.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SolveOptions {
-    /// Hemi-cube top-face resolution (even).
-    pub hemicube: u32,
-    /// Stop when unshot power / injected power falls below this.
-    pub threshold: f64,
-    /// Form-factor method.
-    pub method: FormFactorMethod,
-    /// Hard limit on shots.
-    pub max_shots: usize,
-    /// Seed of the per-shot hemi-cube rotation and sample jitter.
-    pub seed: u64,
-    /// Hybrid: receivers closer than `proximity * sqrt(A_shooter)` are ray-cast.
-    pub proximity: f64,
-    /// Hybrid: receivers expected to cover fewer pixels are ray-cast.
-    pub min_pixels: f64,
-    /// Visibility rays per ray-cast form factor (and per area light).
-    pub visibility_samples: u32,
-    /// Memory for cached form-factor rows (bytes); 0 disables the cache.
-    pub form_factor_cache_bytes: usize,
-    /// Who makes the hemi-cube item buffers.
-    pub item_buffer: ItemBufferBackend,
-}
-
-impl Default for SolveOptions {
-    fn default() -> Self {
-        Self {
-            hemicube: 64,
-            threshold: 1e-3,
-            method: FormFactorMethod::Hybrid,
-            max_shots: 1_000_000,
-            seed: 1,
-            proximity: 2.0,
-            min_pixels: 4.0,
-            visibility_samples: 4,
-            form_factor_cache_bytes: 1 << 30,
-            item_buffer: ItemBufferBackend::Cpu,
-        }
-    }
-}
 
 /// One point of the convergence curve.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -488,180 +372,6 @@ impl<'a> Shooter<'a> {
         true
     }
 
-    /// Seed of patch `p`'s hemi-cube rotation and sample jitter.
-    fn row_seed(&self, p: usize) -> u64 {
-        hash64(self.options.seed ^ (p as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
-    }
-
-    /// The hemi-cube of patch `p` (its centre, normal and seeded rotation).
-    fn shot_of(&self, p: usize) -> HemiCubeShot {
-        let patch = &self.mesh.patches[p];
-        HemiCubeShot {
-            origin: patch.center,
-            normal: patch.normal,
-            rotation: unit(self.row_seed(p)) * std::f64::consts::TAU,
-        }
-    }
-
-    /// The row of `shooter` through the rasteriser, computed in one batch
-    /// with the rows of the patches with most unshot power that have no
-    /// cached row yet (those are cached here while the cache has room;
-    /// without a cache the batch is the shooter alone).
-    fn rasterised_rows(&mut self, shooter: usize) -> ComputedRow {
-        let Some(raster) = self.raster.as_ref() else {
-            return self.form_factors(shooter, self.row_seed(shooter), None);
-        };
-        let mut batch = vec![shooter];
-        if self.options.form_factor_cache_bytes > 0 {
-            let mut others: Vec<(f64, usize)> = (0..self.mesh.patches.len())
-                .filter(|&p| p != shooter && self.patch_active[p] && self.rows[p].is_none())
-                .map(|p| (power(self.unshot[p], self.mesh.patches[p].area), p))
-                .collect();
-            others.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-            batch.extend(
-                others
-                    .iter()
-                    .take(raster.batch_size().max(1) - 1)
-                    .map(|&(_, p)| p),
-            );
-        }
-        let shots: Vec<HemiCubeShot> = batch.iter().map(|&p| self.shot_of(p)).collect();
-        let buffers = match raster.render(&shots) {
-            Ok(b) if b.len() == shots.len() => Some(b),
-            Ok(b) => {
-                tracing::warn!(
-                    got = b.len(),
-                    shots = shots.len(),
-                    "item-buffer rasteriser returned the wrong number of buffers; casting rays"
-                );
-                None
-            }
-            Err(e) => {
-                tracing::warn!(error = %e, "item-buffer rasteriser failed; casting rays");
-                None
-            }
-        };
-        let Some(buffers) = buffers else {
-            self.raster_fallbacks += 1;
-            self.rows_computed += 1;
-            return self.form_factors(shooter, self.row_seed(shooter), None);
-        };
-        let rows: Vec<ComputedRow> = batch
-            .iter()
-            .zip(&buffers)
-            .map(|(&p, items)| self.form_factors(p, self.row_seed(p), Some(items)))
-            .collect();
-        self.rows_computed += rows.len();
-        let mut rows = rows.into_iter();
-        let own = rows.next().unwrap_or((Vec::new(), 1.0, None));
-        for (&p, row) in batch[1..].iter().zip(rows) {
-            self.cache_row(p, row);
-        }
-        own
-    }
-
-    /// Keep `row` as patch `p`'s cached row while the cache has room.
-    fn cache_row(&mut self, p: usize, (row, scale, rays): ComputedRow) {
-        let bytes = row.capacity() * std::mem::size_of::<(u32, f64)>()
-            + rays
-                .as_ref()
-                .map_or(0, |r| r.capacity() * std::mem::size_of::<RayMask>());
-        if self.options.form_factor_cache_bytes > 0
-            && self.row_bytes + bytes <= self.options.form_factor_cache_bytes
-        {
-            self.row_bytes += bytes;
-            self.rows[p] = Some(row);
-            self.row_scale[p] = scale;
-            self.row_rays[p] = rays;
-        }
-    }
-
-    /// Form factors `F_pj` from patch `shooter` to the active receivers,
-    /// scaled to sum to at most 1, and the scale applied. `raster_items` is
-    /// the shooter's rasterised item buffer (active elements seen front-on),
-    /// or `None` to cast it on the CPU.
-    fn form_factors(&self, shooter: usize, seed: u64, raster_items: Option<&[u32]>) -> ComputedRow {
-        let mesh = self.mesh;
-        let p = &mesh.patches[shooter];
-        let method = self.options.method;
-        let pixels = self
-            .hemicube
-            .as_ref()
-            .map_or(1.0, |h| h.pixel_count() as f64);
-        let near2 = self.options.proximity * self.options.proximity * p.area;
-        let small = self.options.min_pixels / pixels;
-        let use_ray = |e: &Element| -> bool {
-            match method {
-                FormFactorMethod::RayCast => true,
-                FormFactorMethod::HemiCube => false,
-                FormFactorMethod::Hybrid => {
-                    let d = e.center - p.center;
-                    let r2 = d.length_squared();
-                    if r2 < near2 {
-                        return true;
-                    }
-                    let r = r2.sqrt();
-                    let estimate =
-                        (p.normal.dot(d) / r).max(0.0) * (-e.normal.dot(d) / r).max(0.0) * e.area
-                            / (std::f64::consts::PI * r2);
-                    estimate > 0.0 && estimate < small
-                }
-            }
-        };
-        let receivers: Vec<u32> = (0..mesh.elements.len() as u32)
-            .filter(|&j| {
-                let e = &mesh.elements[j as usize];
-                self.active[j as usize] && e.patch as usize != shooter && use_ray(e)
-            })
-            .collect();
-        let samples = stratified(self.options.visibility_samples, seed);
-        let cast: Vec<(u32, f64, RayMask)> = receivers
-            .par_iter()
-            .filter_map(|&j| {
-                ray_cast_entry(mesh, self.geometry, shooter, j, &samples, seed)
-                    .map(|(f, mask)| (j, f, mask))
-            })
-            .collect();
-        let rays = (method == FormFactorMethod::RayCast)
-            .then(|| cast.iter().map(|&(_, _, mask)| mask).collect());
-        let mut out: Vec<(u32, f64)> = cast.into_iter().map(|(j, f, _)| (j, f)).collect();
-        if let (Some(h), false) = (&self.hemicube, method == FormFactorMethod::RayCast) {
-            let rotation = unit(seed) * std::f64::consts::TAU;
-            let active = &self.active;
-            let keep = |e: u32| -> bool {
-                let Some(el) = mesh.elements.get(e as usize) else {
-                    return false;
-                };
-                active[e as usize] && el.patch as usize != shooter && !use_ray(el)
-            };
-            let items = match raster_items {
-                Some(items) => items
-                    .iter()
-                    .map(|&e| if keep(e) { e } else { NO_ITEM })
-                    .collect(),
-                None => h.item_buffer(self.geometry, p.center, p.normal, rotation, |hit| {
-                    if !hit.front_face {
-                        return None;
-                    }
-                    let prim = mesh.primitive_of(hit.object, hit.triangle)?;
-                    let (e, _) = mesh.locate(prim, hit.barycentric)?;
-                    keep(e).then_some(e)
-                }),
-            };
-            let mut ff = vec![0.0; mesh.elements.len()];
-            debug_assert!(
-                items
-                    .iter()
-                    .all(|&i| i == NO_ITEM || (i as usize) < ff.len())
-            );
-            for j in h.accumulate(&items, &mut ff) {
-                out.push((j, ff[j as usize]));
-            }
-        }
-        let scale = normalise(&mut out);
-        (out, scale, rays)
-    }
-
     /// Element radiosity B (exitance, W/m^2) so far.
     pub fn radiosity(&self) -> &[DVec3] {
         &self.radiosity
@@ -675,49 +385,6 @@ impl<'a> Shooter<'a> {
     /// Shots so far.
     pub fn shots(&self) -> usize {
         self.shots
-    }
-
-    /// Form-factor rows computed so far (shots that found no cached row,
-    /// plus rows computed ahead in a rasterised batch).
-    pub fn rows_computed(&self) -> usize {
-        self.rows_computed
-    }
-
-    /// Rows whose rasterised item buffer failed and that were cast on the
-    /// CPU instead (0 unless the rasteriser failed).
-    pub fn item_buffer_fallbacks(&self) -> usize {
-        self.raster_fallbacks
-    }
-
-    /// The form-factor row of patch `p`: `(element, F_pj)` for every
-    /// active receiver with a non-zero form factor, from the cache or
-    /// computed now (not cached); `None` for an inactive or missing patch.
-    pub fn form_factor_row(&self, p: usize) -> Option<Vec<(u32, f64)>> {
-        if !self.patch_active.get(p).copied().unwrap_or(false) {
-            return None;
-        }
-        if let Some(row) = &self.rows[p] {
-            return Some(row.clone());
-        }
-        let items = match &self.raster {
-            Some(r) => match r.render(&[self.shot_of(p)]) {
-                Ok(mut b) if b.len() == 1 => b.pop(),
-                _ => None,
-            },
-            None => None,
-        };
-        Some(self.form_factors(p, self.row_seed(p), items.as_deref()).0)
-    }
-
-    /// The [`RayMask`] of each entry of [`Self::form_factor_row`] (bit `r`:
-    /// ray `r` saw the shooter), from the cache or computed now; `None`
-    /// where the row has none (not every entry was ray-cast).
-    #[cfg(test)]
-    pub(crate) fn row_rays(&self, p: usize) -> Option<Vec<RayMask>> {
-        if self.rows[p].is_some() {
-            return self.row_rays[p].clone();
-        }
-        self.form_factors(p, self.row_seed(p), None).2
     }
 
     /// The unshot fraction after every shot.

@@ -65,25 +65,25 @@
 //!
 //! With hemi-cube methods every row that is needed is recomputed whole
 //! (correct, not faster).
+//!
+//! [`RayMask`]: super::ray_cast::RayMask
 
-use super::ray_cast::{
-    MASK_RAYS, RayMask, UNKNOWN_RAYS, entry_from_mask, facing_away, normalise, ray_cast_entry,
-    receiver_rays, rescaled_entry,
-};
+use super::ray_cast::normalise;
 use super::{ComputedRow, FormFactorMethod, Shooter};
 use crate::SceneGeometry;
 use crate::finite::finite_or_zero;
 use crate::radiosity::mesh::RadiosityMesh;
-use crate::sampling::stratified;
-use cull::{
-    Bounds, Crossing, Places, ball_outside_penumbra, outside_penumbra, penumbra_planes, radius,
-    unchanged,
-};
+use cull::{Bounds, Places};
 use glam::DVec3;
 use rayon::prelude::*;
+use reciprocal::Reciprocal;
+use row_merge::{changes_difference, merge_changes, row_difference};
 use showcase_proto::Light;
 
 mod cull;
+mod reciprocal;
+mod row_merge;
+mod static_rows;
 
 /// Why an object move cannot be applied to a solve.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -158,111 +158,6 @@ pub struct MoveStats {
 /// A row after the move: the row, its scale, its difference from the old
 /// row, and what it took.
 type UpdatedRow = (ComputedRow, Vec<(u32, f64)>, MoveStats);
-
-/// The signed difference `new - old` of two rows sorted by element.
-fn row_difference(old: &[(u32, f64)], new: &[(u32, f64)]) -> Vec<(u32, f64)> {
-    let (mut a, mut b) = (old.iter().peekable(), new.iter().peekable());
-    let mut out = Vec::new();
-    loop {
-        let d = match (a.peek(), b.peek()) {
-            (Some(&&(ja, fa)), Some(&&(jb, fb))) => {
-                if ja == jb {
-                    a.next();
-                    b.next();
-                    (ja, fb - fa)
-                } else if ja < jb {
-                    a.next();
-                    (ja, -fa)
-                } else {
-                    b.next();
-                    (jb, fb)
-                }
-            }
-            (Some(&&(ja, fa)), None) => {
-                a.next();
-                (ja, -fa)
-            }
-            (None, Some(&&(jb, fb))) => {
-                b.next();
-                (jb, fb)
-            }
-            (None, None) => break,
-        };
-        if d.1 != 0.0 {
-            out.push(d);
-        }
-    }
-    out
-}
-
-/// The signed difference `new - old` where `new` is `old` (sorted by
-/// element) with `changes` (sorted) put in: as [`row_difference`] of the
-/// merged row, touching only the changed entries.
-fn changes_difference(old: &[(u32, f64)], changes: &[(u32, f64)]) -> Vec<(u32, f64)> {
-    let mut rest = old;
-    let mut out = Vec::with_capacity(changes.len());
-    for &(j, f) in changes {
-        let k = rest.partition_point(|e| e.0 < j);
-        let before = match rest.get(k) {
-            Some(&(jo, fo)) if jo == j => fo,
-            _ => 0.0,
-        };
-        rest = &rest[k..];
-        if f - before != 0.0 {
-            out.push((j, f - before));
-        }
-    }
-    out
-}
-
-/// `row` (sorted by element) with the entries of `changes` (sorted, a
-/// zero value removes the entry) put in, and the rows' [`RayMask`]s
-/// merged alike (`rays` aligned with `row`, `change_rays` with `changes`;
-/// none when `row` has none).
-fn merge_changes(
-    row: &[(u32, f64)],
-    rays: Option<&[RayMask]>,
-    changes: &[(u32, f64)],
-    change_rays: &[RayMask],
-) -> (Vec<(u32, f64)>, Option<Vec<RayMask>>) {
-    let mut out = Vec::with_capacity(row.len() + changes.len());
-    let mut out_rays = rays.map(|_| Vec::with_capacity(row.len() + changes.len()));
-    let ray_of = |k: usize| rays.map_or(UNKNOWN_RAYS, |r| r[k]);
-    let (mut a, mut c) = (0, 0);
-    loop {
-        let (next, mask) = match (row.get(a), changes.get(c)) {
-            (Some(&(j, f)), Some(&(jc, fc))) => {
-                if jc < j {
-                    c += 1;
-                    ((jc, fc), change_rays[c - 1])
-                } else if jc == j {
-                    a += 1;
-                    c += 1;
-                    ((jc, fc), change_rays[c - 1])
-                } else {
-                    a += 1;
-                    ((j, f), ray_of(a - 1))
-                }
-            }
-            (Some(&x), None) => {
-                a += 1;
-                (x, ray_of(a - 1))
-            }
-            (None, Some(&x)) => {
-                c += 1;
-                (x, change_rays[c - 1])
-            }
-            (None, None) => break,
-        };
-        if next.1 != 0.0 {
-            out.push(next);
-            if let Some(r) = out_rays.as_mut() {
-                r.push(mask);
-            }
-        }
-    }
-    (out, out_rays)
-}
 
 impl<'a> Shooter<'a> {
     /// Apply a move of `object` to this solve: `mesh` and `geometry` are
@@ -458,260 +353,6 @@ impl<'a> Shooter<'a> {
         }
         Ok((new, stats))
     }
-
-    /// The entries of ray-cast row `i` (a static patch, its row before
-    /// the move `old`) that the move of `object` (old and new place in
-    /// `places`) may change, on the moved scene: `(element, raw F)`,
-    /// sorted, zero where it is now zero, and each entry's [`RayMask`]. The
-    /// object's column comes from its own rows by reciprocity where
-    /// `reciprocal` has them, else it is ray-cast like the static entries
-    /// whose rays may see the move. A static entry whose rays' visibility
-    /// the old row recorded is updated from the rays that may see the move
-    /// ([`Self::moved_rays`]); one with no old entry (zero) is unchanged
-    /// when each of its rays is certainly blocked by the new place or was
-    /// certainly not blocked by the old one (so the static scene, which
-    /// did not move, blocked it); any other is ray-cast.
-    fn changed_entries(
-        &self,
-        i: usize,
-        places: &Places,
-        reciprocal: &Reciprocal,
-        (old_row, old_scale, old_rays): &ComputedRow,
-        stats: &mut MoveStats,
-    ) -> (Vec<(u32, f64)>, Vec<RayMask>) {
-        let mesh = self.mesh;
-        let p = &mesh.patches[i];
-        let rp = radius(p.center, &p.vertices);
-        let seed = self.row_seed(i);
-        let samples = stratified(self.options.visibility_samples, seed);
-        let k = samples.len();
-        let mut planes = penumbra_planes(&p.vertices, &places.union);
-        // The scan below looks at every receiver but the row's own
-        // (active, static) elements.
-        let own = p
-            .elements
-            .iter()
-            .filter(|&&e| self.active[e as usize])
-            .count();
-        stats.receivers_scanned += places.receivers.len() - own;
-        let mut hints = [0; 2];
-        let mut out: Vec<(u32, f64, RayMask)> = Vec::new();
-        let cast = |j: u32, stats: &mut MoveStats| {
-            stats.entries_recomputed += 1;
-            let (f, mask) =
-                ray_cast_entry(mesh, self.geometry, i, j, &samples, seed).unwrap_or((0.0, 0));
-            (j, f, mask)
-        };
-        for &j in &places.object_elements {
-            if !self.active[j as usize] {
-                continue;
-            }
-            if let Some(f) = reciprocal.entry(mesh, i, j) {
-                stats.entries_reciprocal += 1;
-                out.push((j, f, UNKNOWN_RAYS));
-            } else {
-                out.push(cast(j, stats));
-            }
-        }
-        // Receivers come in element order, like the old row's entries.
-        let mut cursor = 0;
-        for &(center, rj, j, patch) in &places.receivers {
-            if patch as usize == i || ball_outside_penumbra(&mut planes, center, rj, places.margin)
-            {
-                continue;
-            }
-            let e = &mesh.elements[j as usize];
-            if facing_away(p, e) || outside_penumbra(&planes, &e.vertices, places.margin) {
-                continue;
-            }
-            if places.segment_test && !places.near_segment(p.center, center, rp.max(rj)) {
-                continue;
-            }
-            stats.pairs_near += 1;
-            let mut rays = receiver_rays(mesh, i, j, &samples, seed);
-            let old = if k > MASK_RAYS {
-                None
-            } else {
-                while old_row.get(cursor).is_some_and(|entry| entry.0 < j) {
-                    cursor += 1;
-                }
-                match old_row.get(cursor) {
-                    Some(&(jo, f)) if jo == j => Some((
-                        f / old_scale,
-                        old_rays.as_ref().map_or(UNKNOWN_RAYS, |r| r[cursor]),
-                    )),
-                    _ => Some((0.0, 0)),
-                }
-            };
-            match old {
-                Some((f, mask)) if f > 0.0 && mask != UNKNOWN_RAYS => {
-                    let new_mask = self.moved_rays(e.normal, rays, places, &mut hints, mask, stats);
-                    if new_mask != mask {
-                        stats.entries_rescaled += 1;
-                        let f = rescaled_entry(f, mask.count_ones(), new_mask.count_ones());
-                        out.push((j, f.unwrap_or(0.0), new_mask));
-                    }
-                }
-                // Zero before: every ray was blocked (or the entry is zero
-                // wherever the object is). A ray stays blocked when the
-                // object's new place blocks it, or when the old place did
-                // not (the static scene did); only the others are traced,
-                // and the entry is computed only when one of them now
-                // sees the shooter.
-                Some((_, 0)) => {
-                    let mask = self.moved_rays(e.normal, rays, places, &mut hints, 0, stats);
-                    if mask != 0 {
-                        stats.entries_recomputed += 1;
-                        let f = entry_from_mask(mesh, i, j, mask, k);
-                        out.push((j, f.unwrap_or(0.0), mask));
-                    }
-                }
-                // Rays not recorded: re-cast when one may see a difference.
-                _ => {
-                    if rays.any(|(x, y)| {
-                        stats.rays_tested += 1;
-                        !unchanged(places.classify(x, y, &mut hints))
-                    }) {
-                        out.push(cast(j, stats));
-                    }
-                }
-            }
-        }
-        out.sort_unstable_by_key(|e| e.0);
-        out.into_iter().map(|(j, f, m)| ((j, f), m)).unzip()
-    }
-
-    /// Which of an entry's `rays` (receiver point, patch point; the
-    /// receiver's normal `normal`) see the shooter after the move, from
-    /// which saw it before (`mask`) and how each meets the object's new
-    /// and, where needed, old place (`places`; `hints` as in
-    /// [`Places::classify`]): a ray that the new place certainly blocks is
-    /// blocked; one that was clear stays clear when the new place
-    /// certainly misses it (the static scene did not block it); one that
-    /// was blocked while the old place certainly missed it was blocked by
-    /// the static scene and stays blocked; every other ray is traced again
-    /// in the moved scene. Equal to tracing every ray, given that the
-    /// crossings are sure where they say so. The rays tested and traced
-    /// are counted in `stats`.
-    fn moved_rays(
-        &self,
-        normal: DVec3,
-        rays: impl Iterator<Item = (DVec3, DVec3)>,
-        places: &Places,
-        hints: &mut [usize; 2],
-        mask: RayMask,
-        stats: &mut MoveStats,
-    ) -> RayMask {
-        let (mut out, mut tested, mut traced) = (0, 0, 0);
-        let mut trace = |x, y| {
-            traced += 1;
-            self.geometry.visible(x, normal, y, true)
-        };
-        for (r, (x, y)) in rays.enumerate() {
-            tested += 1;
-            let was_clear = mask & (1 << r) != 0;
-            let s = places.segment(x, y);
-            let clear = match (was_clear, places.crossing(1, &s, &mut hints[1])) {
-                (_, Crossing::Hit) => false,
-                (true, Crossing::Miss) => true,
-                (true, Crossing::Unsure) => trace(x, y),
-                (false, _) => {
-                    places.crossing(0, &s, &mut hints[0]) != Crossing::Miss && trace(x, y)
-                }
-            };
-            if clear {
-                out |= 1 << r;
-            }
-        }
-        stats.rays_tested += tested;
-        stats.rays_traced += traced;
-        out
-    }
-}
-
-/// Reciprocity is used only where the static patch is at most this many
-/// times larger than the object's patch: the reciprocal estimate samples
-/// points on the static patch, the ray-cast one on the object's, and
-/// point sampling was taken to be the more accurate on the smaller of
-/// the two. Measured against a 64-ray reference (the object records of
-/// `bench radiosity`), that premise is not what decides: the small cube's
-/// column at 0.02 m^2 (ratio 11, refused) is about as close by
-/// reciprocity as ray-cast (0.169 vs 0.167 over the cube). What does
-/// decide is whether the static patch emits (see [`Reciprocal`]).
-const RECIPROCAL_AREA_RATIO: f64 = 2.0;
-
-/// The object's column by reciprocity: for an object patch `q` with a
-/// single element (the element is the patch) and its recomputed row,
-/// `F_iq A_i = F_qi A_q` gives the entry of static patch `i`'s row as
-/// `F_iq = (A_q / A_i) sum_{e in i} F_qe` (raw form factors). Both sides
-/// are estimates of the same integral from different sample points, so
-/// the entry differs from a ray-cast one by the discretisation error of
-/// the form factors, not by more (see [`RECIPROCAL_AREA_RATIO`]).
-///
-/// Not for a static patch that emits: its entries carry the direct light,
-/// which dominates the object's radiosity, and the reciprocal estimate
-/// takes it from point samples on the emitter where the ray-cast one
-/// integrates the emitter exactly. Measured on the Cornell short block at
-/// 0.005 m^2, the reciprocal light entries were 0.9 % low on average
-/// (weighted by shot power, against 256-ray, 64-point entries; ray-cast:
-/// 0.1 % high) and the object's error against the 64-ray reference
-/// doubled (0.0365 vs a full re-solve's 0.0181; ray-casting the emitters'
-/// entries alone: 0.0207).
-struct Reciprocal {
-    /// Per element (indexed by element; `None` but for the elements of
-    /// single-element object patches): the raw form factor from its patch
-    /// to every patch (`sum_{e in i} F_qe`).
-    to_patch: Vec<Option<Vec<f64>>>,
-    /// Per patch: one of its elements emits.
-    emits: Vec<bool>,
-}
-
-impl Reciprocal {
-    /// The table from the recomputed rows `own` (empty unless `ray_cast`).
-    fn new(mesh: &RadiosityMesh, object: u32, own: &[Option<ComputedRow>], ray_cast: bool) -> Self {
-        let mut to_patch = vec![None; mesh.elements.len()];
-        if ray_cast {
-            for (q, row) in own.iter().enumerate() {
-                let p = &mesh.patches[q];
-                let (Some((row, scale, _)), true, [e]) =
-                    (row, p.object == object, p.elements.as_slice())
-                else {
-                    continue;
-                };
-                let mut sums = vec![0.0; mesh.patches.len()];
-                for &(j, f) in row {
-                    sums[mesh.elements[j as usize].patch as usize] += f / scale;
-                }
-                to_patch[*e as usize] = Some(sums);
-            }
-        }
-        let emits = mesh
-            .patches
-            .iter()
-            .map(|p| {
-                p.elements
-                    .iter()
-                    .any(|&e| mesh.elements[e as usize].emission != DVec3::ZERO)
-            })
-            .collect();
-        Self { to_patch, emits }
-    }
-
-    /// The raw form factor from static patch `i` to object element `j`,
-    /// `None` where the table has no row for it or `i` emits.
-    fn entry(&self, mesh: &RadiosityMesh, i: usize, j: u32) -> Option<f64> {
-        if self.emits[i] {
-            return None;
-        }
-        let sums = self.to_patch.get(j as usize)?.as_ref()?;
-        let q = &mesh.patches[mesh.elements[j as usize].patch as usize];
-        let p_area = mesh.patches[i].area;
-        if !(p_area <= RECIPROCAL_AREA_RATIO * q.area) {
-            return None;
-        }
-        let f = sums[i] * q.area / p_area;
-        Some(finite_or_zero(f))
-    }
 }
 
 #[cfg(test)]
@@ -750,25 +391,5 @@ mod tests {
             }
         }
         assert!(Bounds::of_places(&m0, &m1, 9).is_none());
-    }
-
-    #[test]
-    fn row_merge_and_difference_are_exact() {
-        let old = [(1, 0.1), (3, 0.3), (5, 0.5)];
-        let changes = [(0, 0.05), (3, 0.0), (5, 0.25), (7, 0.7)];
-        // The rays' masks follow their entries; a removed entry drops its
-        // mask, and a row without masks gets none.
-        let (new, rays) = merge_changes(&old, Some(&[0b01, 0b11, 0b11]), &changes, &[1, 0, 2, 3]);
-        assert_eq!(new, vec![(0, 0.05), (1, 0.1), (5, 0.25), (7, 0.7)]);
-        assert_eq!(rays, Some(vec![1, 0b01, 2, 3]));
-        assert_eq!(
-            merge_changes(&old, None, &changes, &[1, 0, 2, 3]),
-            (new.clone(), None)
-        );
-        let d = row_difference(&old, &new);
-        assert_eq!(d, vec![(0, 0.05), (3, -0.3), (5, -0.25), (7, 0.7)]);
-        assert_eq!(changes_difference(&old, &changes), d);
-        assert!(changes_difference(&new, &[(1, 0.1), (5, 0.25)]).is_empty());
-        assert!(row_difference(&new, &new).is_empty());
     }
 }
