@@ -11,7 +11,7 @@
 
 use anyhow::{Result, bail, ensure};
 use glam::{DVec2, DVec3, Vec3};
-use showcase_light::metrics::relative_rmse;
+use showcase_light::metrics::{percentile, relative_rmse};
 use showcase_light::render::cube_map::{
     CUBE_FACES, CubeMap, NO_SURFACE_DISTANCE, PARALLAX_LINEAR_STEPS, PARALLAX_SECANT_STEPS,
     PARALLAX_SURFACE_TOLERANCE, cube_map_cpu, environment, reflect, reflective_centres,
@@ -202,13 +202,8 @@ fn corrected_lookup_lands_on_the_traced_surface_point() -> Result<()> {
         theirs.push(map.sample(r));
         off_edges.push(!on_edge(&edges, u, RES));
     }
-    let sorted = |v: &[f64]| {
-        let mut v = v.to_vec();
-        v.sort_by(f64::total_cmp);
-        v
-    };
-    let (c, s) = (sorted(&corrected), sorted(&single));
-    let at = |v: &[f64], q: f64| v[((v.len() - 1) as f64 * q) as usize];
+    let (c, s) = (corrected, single);
+    let at = |v: &[f64], q: f64| percentile(v, 100.0 * q).unwrap_or(f64::NAN);
     let image = |v: &[Vec3]| Image {
         width: v.len() as u32,
         height: 1,

@@ -489,7 +489,7 @@ fn simulate(
 /// largest channel, over covered pixels) to 0.9; `None` when no pixel is
 /// covered.
 fn exposure(view: &ObserverView) -> Option<f64> {
-    let mut peaks: Vec<f64> = view
+    let peaks: Vec<f64> = view
         .target
         .data
         .iter()
@@ -497,11 +497,7 @@ fn exposure(view: &ObserverView) -> Option<f64> {
         .filter(|(_, c)| **c)
         .map(|(t, _)| f64::from(t.max_element()))
         .collect();
-    if peaks.is_empty() {
-        return None;
-    }
-    peaks.sort_by(f64::total_cmp);
-    let p99 = peaks[((peaks.len() - 1) as f64 * 0.99) as usize];
+    let p99 = metrics::percentile(&peaks, 99.0)?;
     Some(if p99 > 0.0 { 0.9 / p99 } else { 1.0 })
 }
 
