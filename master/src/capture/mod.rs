@@ -27,6 +27,7 @@ use crate::pfm::write_pfm;
 use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
+use showcase_light::finite::finite_or;
 use showcase_light::hardware::ProjectorDevice;
 use showcase_light::sim::{SimConfig, SimShowcase, render_view};
 use showcase_proto::{PinholeDevice, Showcase};
@@ -259,13 +260,9 @@ pub fn run_capture_with(
         samples_per_pixel: opts.samples_per_pixel.max(1),
         eta: outcome.eta,
         black_level: outcome.black_level,
-        eta_rel_error: if eta_rel_error.is_finite() {
-            eta_rel_error
-        } else {
-            -1.0
-        },
+        eta_rel_error: finite_or(eta_rel_error, -1.0),
         coverage,
-        rel_rmse: if rel_rmse.is_finite() { rel_rmse } else { -1.0 },
+        rel_rmse: finite_or(rel_rmse, -1.0),
         seconds,
         files,
     };

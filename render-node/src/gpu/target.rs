@@ -1,6 +1,7 @@
 //! Offscreen render targets (linear RGBA f32 colour plus f32 depth) and their readback to the CPU.
 
 use super::GpuError;
+use showcase_light::finite::finite_or_zero;
 
 /// Colour format of an [`OffscreenTarget`]: linear RGBA, 32-bit float per
 /// channel (renderable, not blendable, in core WebGPU).
@@ -267,10 +268,7 @@ pub fn read_colours(
         .map(|r| Vec::with_capacity(r.width as usize * r.height as usize))
         .collect();
     visit_colours(device, readbacks, |i, row| {
-        out[i].extend(
-            row.iter()
-                .map(|px| px.map(|v| if v.is_finite() { v } else { 0.0 })),
-        );
+        out[i].extend(row.iter().map(|px| px.map(finite_or_zero)));
     })?;
     Ok(out)
 }

@@ -1,15 +1,12 @@
 //! Writing rendered frames as 8-bit sRGB PNG files.
 
 use super::renderer::OutputImage;
+use showcase_light::finite::finite_or_zero;
 use std::path::Path;
 
 /// Linear to sRGB-encoded 8-bit.
 pub fn srgb8(linear: f32) -> u8 {
-    let c = if linear.is_finite() {
-        linear.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let c = finite_or_zero(linear).clamp(0.0, 1.0);
     let s = if c <= 0.003_130_8 {
         12.92 * c
     } else {

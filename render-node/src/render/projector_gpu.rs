@@ -19,6 +19,7 @@ use crate::gpu::shadow_views::SHADOW_NEAR;
 use crate::gpu::target::{ColourReadback, read_colours, visit_colours};
 use crate::gpu::upload::UploadBuffer;
 use crate::gpu::{GpuContext, OffscreenTarget};
+use showcase_light::finite::finite_or_zero;
 use showcase_light::render::frame::FrameScene;
 use showcase_light::render::projector::COS_FLOOR;
 
@@ -319,9 +320,7 @@ impl ProjectorPipeline {
                     let from = value.len();
                     value.extend_from_slice(row);
                     for v in value[from..].iter_mut().flatten() {
-                        if !v.is_finite() {
-                            *v = 0.0;
-                        }
+                        *v = finite_or_zero(*v);
                     }
                 }
             },

@@ -22,6 +22,7 @@ use super::shadow_views::cube_views;
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, padded_bytes_per_row};
 use super::upload::UploadBuffer;
 use showcase_light::digest::Fnv64;
+use showcase_light::finite::finite_or_zero;
 use showcase_light::render::cube_map::NO_SURFACE_DISTANCE;
 
 /// Near plane of the cube faces (metres from the centre).
@@ -274,7 +275,7 @@ impl CubeMaps {
                                 px[4 * c + 2],
                                 px[4 * c + 3],
                             ]);
-                            if v.is_finite() { v } else { 0.0 }
+                            finite_or_zero(v)
                         })
                     }));
                 }
