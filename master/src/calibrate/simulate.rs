@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use showcase_light::finite::finite_or_zero;
+use showcase_light::sampling::GOLDEN_GAMMA;
 use showcase_proto::scene::PinholeDevice;
 
 /// Centre of the calibration rig of [`fiducial_rig`] (metres, y up).
@@ -72,7 +73,7 @@ pub fn fiducial_plate(count: usize, seed: u64) -> Vec<DVec3> {
 /// of view that holds the rig, slightly non-square pixels and some lens
 /// shift of the principal point.
 pub fn projector_in_showcase(seed: u64) -> PinholeDevice {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ GOLDEN_GAMMA);
     let distance = rng.random_range(0.5..1.5);
     let elevation = rng.random_range(35.0f64..75.0).to_radians();
     let azimuth = rng.random_range(0.0..std::f64::consts::TAU);

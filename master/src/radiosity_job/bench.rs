@@ -26,6 +26,7 @@ use showcase_light::radiosity::{
     self, FormFactorMethod, GatherOptions, MeshOptions, RadiosityMesh, RefineOptions, Shooter,
     SolveOptions, VertexGather, gather_adaptive,
 };
+use showcase_light::sampling::{hash64, unit};
 use showcase_light::{ObjectFilter, SceneGeometry, polygon_irradiance};
 use showcase_proto::{Light, Showcase};
 use std::path::Path;
@@ -209,7 +210,7 @@ fn analytic_direct_error(showcase: &Showcase, c: &Config) -> anyhow::Result<f64>
     let (mut sum, mut count, mut k) = (0.0, 0, 0u64);
     while count < 20 && k < 100_000 {
         k += 1;
-        let prim = receivers[(hash(k) % receivers.len() as u64) as usize];
+        let prim = receivers[(hash64(k) % receivers.len() as u64) as usize];
         let (a, b) = (unit(3 * k + 1), unit(3 * k + 2));
         let b = if a + b > 1.0 {
             DVec2::new(1.0 - a, 1.0 - b)
@@ -240,17 +241,6 @@ fn analytic_direct_error(showcase: &Showcase, c: &Config) -> anyhow::Result<f64>
     }
     anyhow::ensure!(count > 0, "no point sees the whole light");
     Ok(sum / count as f64)
-}
-
-fn hash(x: u64) -> u64 {
-    let mut x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    x ^ (x >> 31)
-}
-
-fn unit(x: u64) -> f64 {
-    (hash(x) >> 11) as f64 / (1u64 << 53) as f64
 }
 
 fn method_name(m: FormFactorMethod) -> &'static str {

@@ -146,20 +146,12 @@ impl SceneBuffers {
     }
 }
 
-/// World-space vertices (three per triangle, flat normals) of the objects
-/// of `kind` (`None`: all); degenerate triangles are left out.
-pub fn world_vertices(
-    showcase: &Showcase,
-    kind: Option<ObjectKind>,
-) -> Result<Vec<WorldVertex>, RenderError> {
-    Ok(world_vertices_by_object(showcase, kind)?.0)
-}
-
 /// An object index and its vertex range in a vertex buffer.
 pub type ObjectRange = (usize, std::ops::Range<u32>);
 
-/// [`world_vertices`] with the vertex range of each object drawn, as
-/// `(object index, range)` in object order.
+/// World-space vertices (three per triangle, flat normals) of the objects
+/// of `kind` (`None`: all), degenerate triangles left out, with the vertex
+/// range of each object drawn, as `(object index, range)` in object order.
 pub fn world_vertices_by_object(
     showcase: &Showcase,
     kind: Option<ObjectKind>,

@@ -7,13 +7,13 @@ use super::ray_cast::{normalise, ray_cast_entry};
 use super::{ComputedRow, FormFactorMethod, RayMask, Shooter, power};
 use crate::radiosity::hemicube::{HemiCubeShot, NO_ITEM};
 use crate::radiosity::mesh::Element;
-use crate::sampling::{hash64, stratified, unit};
+use crate::sampling::{GOLDEN_GAMMA, hash64, stratified, unit};
 use rayon::prelude::*;
 
 impl<'a> Shooter<'a> {
     /// Seed of patch `p`'s hemi-cube rotation and sample jitter.
     pub(super) fn row_seed(&self, p: usize) -> u64 {
-        hash64(self.options.seed ^ (p as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        hash64(self.options.seed ^ (p as u64 + 1).wrapping_mul(GOLDEN_GAMMA))
     }
 
     /// The hemi-cube of patch `p` (its centre, normal and seeded rotation).
