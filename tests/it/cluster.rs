@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 use showcase_master::certs::{self, ClusterCerts, MASTER_FILE, MASTER_SERVER_NAME};
-use showcase_master::cluster::{Server, ServerSettings, Show, Tracking};
+use showcase_master::cluster::{Roster, Server, ServerSettings, Show, Tracking};
 use showcase_master::tracking::Tracker;
 use showcase_proto::config::{BodyMapping, TrackingConfig, TrackingSource};
 use showcase_proto::session::MasterConfig;
@@ -138,6 +138,7 @@ async fn loopback_cluster_of_four_nodes() {
     let server = Server::bind(ServerSettings {
         listen: "127.0.0.1:0".parse().unwrap(),
         identity: identity(&c, MASTER_FILE),
+        roster: Roster::new(names[..4].iter().map(|n| (n.clone(), Role::Projector))),
         core: MasterConfig {
             target_hz: HZ,
             ..MasterConfig::default()
@@ -357,5 +358,238 @@ async fn replays_are_bit_identical() {
             "{}: every frame's state differs",
             x.name
         );
+    }
+}
+
+/// A node whose certificate the cluster CA signed, under a name the
+/// master's roster lacks, is refused at its Hello with a reason naming the
+/// claimed name, the certificate's names and the roster; it never takes
+/// part in a frame. A listed node with another node's certificate is
+/// refused too, and the listed nodes run on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn only_listed_names_with_their_own_certificates_join() {
+    let names: Vec<String> = ["node-0", "node-1", "intruder"].map(String::from).to_vec();
+    let c = certs::generate(&names).unwrap();
+    let frames = 120;
+    let server = Server::bind(ServerSettings {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        identity: identity(&c, MASTER_FILE),
+        roster: Roster::new(names[..2].iter().map(|n| (n.clone(), Role::Projector))),
+        core: MasterConfig {
+            target_hz: HZ,
+            ..MasterConfig::default()
+        },
+        frames: Some(frames),
+        wait_for_nodes: 2,
+        start_timeout: Duration::from_secs(10),
+        tracking: None,
+        metrics: None,
+    })
+    .unwrap();
+    let addr = server.local_addr();
+    let master = tokio::spawn(server.run(
+        scene(),
+        Show::new(Tracking::None, HZ as f64),
+        CancellationToken::new(),
+    ));
+    let nodes: Vec<Node> = (0..2).map(|i| start_node(&c, &names[i], addr)).collect();
+
+    // The intruder: a real node runtime, valid cluster-CA certificate.
+    let intruder = start_node(&c, "intruder", addr);
+    // node-1's name with the intruder's certificate.
+    let impostor = {
+        let rt = NodeRuntime {
+            name: "node-1".into(),
+            role: Role::Projector,
+            master: addr,
+            identity: identity(&c, "intruder"),
+            bind: "127.0.0.1:0".parse().unwrap(),
+            capabilities: Default::default(),
+            write_frames: None,
+        };
+        let stop = CancellationToken::new();
+        let s = stop.clone();
+        let mut r = StateHashRenderer::new("node-1", Role::Projector);
+        (
+            tokio::spawn(async move { run_node(rt, &mut r, s).await.unwrap() }),
+            stop,
+        )
+    };
+
+    let run = timeout(Duration::from_secs(30), master)
+        .await
+        .unwrap()
+        .unwrap()
+        .unwrap();
+    let mut logs = Vec::new();
+    for (h, s, _) in nodes.into_iter().chain([intruder]) {
+        s.cancel();
+        logs.push(timeout(Duration::from_secs(5), h).await.unwrap().unwrap());
+    }
+    impostor.1.cancel();
+    let impostor_log = timeout(Duration::from_secs(5), impostor.0)
+        .await
+        .unwrap()
+        .unwrap();
+
+    // The listed nodes ran every frame; the intruder and the impostor none.
+    for log in &logs[..2] {
+        assert_eq!(log.presented.len() as u64, frames, "{log:?}");
+    }
+    assert!(
+        logs[2].presented.is_empty() && logs[2].joins == 0,
+        "{:?}",
+        logs[2]
+    );
+    assert!(
+        impostor_log.presented.is_empty() && impostor_log.joins == 0,
+        "{impostor_log:?}"
+    );
+    let joined: Vec<&str> = run.joins.iter().map(|(n, _)| n.as_str()).collect();
+    assert!(!joined.contains(&"intruder"), "{joined:?}");
+    // Each refusal names all three: the claim, the certificate, the roster.
+    let intruder_refusal = run
+        .refusals
+        .iter()
+        .find(|r| r.starts_with("node \"intruder\""))
+        .unwrap_or_else(|| panic!("no refusal of the intruder: {:?}", run.refusals));
+    assert!(
+        intruder_refusal.contains("certificate is issued to [\"intruder\"]")
+            && intruder_refusal.contains("lists only [\"node-0\", \"node-1\"]"),
+        "{intruder_refusal}"
+    );
+    let impostor_refusal = run
+        .refusals
+        .iter()
+        .find(|r| r.starts_with("node \"node-1\""))
+        .unwrap_or_else(|| panic!("no refusal of the impostor: {:?}", run.refusals));
+    assert!(
+        impostor_refusal.contains("not issued to that name")
+            && impostor_refusal.contains("[\"intruder\"]"),
+        "{impostor_refusal}"
+    );
+    // The refused node was told why.
+    assert!(
+        logs[2]
+            .disconnects
+            .iter()
+            .any(|d| d.contains("configuration lists no node")),
+        "{:?}",
+        logs[2].disconnects
+    );
+}
+
+/// The master dies without a word (its runtime is dropped, as kill -9
+/// would) and a new one starts on the same address with the same
+/// identity. The nodes learn of it from the new master's stateless reset,
+/// not from the idle timeout, and both rejoin and run its frames.
+#[test]
+fn a_restarted_master_is_noticed_by_reset_and_the_nodes_rejoin() {
+    let names: Vec<String> = ["node-0", "node-1"].map(String::from).to_vec();
+    let c = certs::generate(&names).unwrap();
+    let settings = |listen: std::net::SocketAddr, frames: Option<u64>| ServerSettings {
+        listen,
+        identity: identity(&c, MASTER_FILE),
+        roster: Roster::new(names.iter().map(|n| (n.clone(), Role::Projector))),
+        core: MasterConfig {
+            target_hz: HZ,
+            ..MasterConfig::default()
+        },
+        frames,
+        wait_for_nodes: 2,
+        start_timeout: Duration::from_secs(10),
+        tracking: None,
+        metrics: None,
+    };
+    let rt = |threads| {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(threads)
+            .enable_all()
+            .build()
+            .unwrap()
+    };
+    // The nodes live in their own runtime for the whole test.
+    let nodes_rt = rt(2);
+    let old_rt = rt(1);
+    let old = old_rt
+        .block_on(async { Server::bind(settings("127.0.0.1:0".parse().unwrap(), None)) })
+        .unwrap();
+    let addr = old.local_addr();
+    old_rt.spawn(old.run(
+        scene(),
+        Show::new(Tracking::None, HZ as f64),
+        CancellationToken::new(),
+    ));
+    let nodes: Vec<Node> =
+        nodes_rt.block_on(async { names.iter().map(|n| start_node(&c, n, addr)).collect() });
+    let presented = |n: &Node| n.2.lock().unwrap().len();
+    let wait = |what: &str, done: &dyn Fn() -> bool| {
+        let t0 = std::time::Instant::now();
+        while !done() {
+            assert!(
+                t0.elapsed() < Duration::from_secs(20),
+                "timed out waiting for {what}"
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    wait("the first master's frames", &|| {
+        nodes.iter().all(|n| presented(n) >= 50)
+    });
+    // kill -9: no task of the old master runs again, nothing is closed.
+    old_rt.shutdown_background();
+
+    let new_rt = rt(1);
+    let new = new_rt.block_on(async {
+        let t0 = std::time::Instant::now();
+        loop {
+            match Server::bind(settings(addr, Some(60))) {
+                Ok(s) => break s,
+                Err(e) if t0.elapsed() < Duration::from_secs(5) => {
+                    let _ = e;
+                    tokio::time::sleep(Duration::from_millis(10)).await
+                }
+                Err(e) => panic!("rebinding {addr}: {e}"),
+            }
+        }
+    });
+    let run = new_rt
+        .block_on(async {
+            timeout(
+                Duration::from_secs(30),
+                new.run(
+                    scene(),
+                    Show::new(Tracking::None, HZ as f64),
+                    CancellationToken::new(),
+                ),
+            )
+            .await
+        })
+        .unwrap()
+        .unwrap();
+    let logs: Vec<NodeLog> = nodes_rt.block_on(async {
+        let mut logs = Vec::new();
+        for (h, s, _) in nodes {
+            s.cancel();
+            logs.push(timeout(Duration::from_secs(5), h).await.unwrap().unwrap());
+        }
+        logs
+    });
+    assert_eq!(run.submitted, 60);
+    for log in &logs {
+        assert_eq!(log.joins, 2, "{log:?}");
+        // The second master's 60 frames were all presented after the
+        // first master's (its numbering starts again at 0).
+        let frames: Vec<u64> = log.presented.iter().map(|p| p.0).collect();
+        let restart = frames
+            .windows(2)
+            .position(|w| w[1] < w[0])
+            .expect("two runs")
+            + 1;
+        assert!(restart >= 40, "{frames:?}");
+        assert_eq!(frames[restart..], (0..60).collect::<Vec<_>>());
+        // The first disconnect is the reset, not the idle timeout.
+        let first = log.disconnects.first().expect("a disconnect");
+        assert!(first.contains("reset"), "{:?}", log.disconnects);
     }
 }

@@ -299,6 +299,7 @@ pub async fn run_master(
     let server = Server::bind(ServerSettings {
         listen: cfg.master.listen,
         identity,
+        roster: super::Roster::from_config(&cfg),
         core: MasterConfig {
             target_hz: cfg.master.target_hz,
             deadline_ns: (cfg.master.deadline_ms as f64 * 1e6) as u64,

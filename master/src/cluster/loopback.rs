@@ -125,6 +125,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
     let server = Server::bind(ServerSettings {
         listen: "127.0.0.1:0".parse().expect("valid address"),
         identity: identity(&c, MASTER_FILE)?,
+        roster: super::Roster::new(plan.nodes.iter().cloned()),
         core: plan.core.clone(),
         frames: Some(plan.frames),
         wait_for_nodes: plan.nodes.len(),

@@ -2,11 +2,13 @@
 //! server around the sans-IO core, and per-frame metrics.
 
 pub mod commands;
+pub mod identity;
 pub mod loopback;
 pub mod metrics;
 pub mod server;
 pub mod show;
 
+pub use identity::{Refusal, Roster};
 pub use loopback::{LoopbackError, LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
 pub use metrics::{FrameMetrics, NodeMetric};
 pub use server::{ClusterRun, Server, ServerError, ServerSettings};

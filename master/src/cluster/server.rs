@@ -1,10 +1,11 @@
 //! The master's driver: a tokio loop around the sans-IO `MasterCore`. It
-//! accepts QUIC connections (mutual TLS), checks that each Hello comes from
-//! the certificate of the node it names, moves messages between the
+//! accepts QUIC connections (mutual TLS), admits a Hello only when its
+//! name, its certificate and the configuration's roster agree, moves messages between the
 //! connections and the core, runs the frame clock at the target rate,
 //! feeds DTrack datagrams to the show, and writes per-frame metrics.
 //! Every task it spawns lives in a `JoinSet` that ends with the run.
 
+use super::identity::Roster;
 use super::metrics::{FrameMetrics, frame_metrics};
 use super::show::Show;
 use showcase_proto::session::{
@@ -13,7 +14,7 @@ use showcase_proto::session::{
 use showcase_proto::{CodecError, FrameState, Message, Showcase};
 use showcase_render::net::{
     ClusterIdentity, MessageReader, MessageStream, MessageWriter, StreamError, TlsError, peer_is,
-    server_config,
+    peer_names, server_config, server_endpoint_config,
 };
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
@@ -32,6 +33,8 @@ pub struct ServerSettings {
     pub listen: SocketAddr,
     /// The master's certificate and the cluster CA.
     pub identity: ClusterIdentity,
+    /// The nodes it admits (the configuration's `[[node]]` entries).
+    pub roster: Roster,
     /// Frame rate, deadline and the rest of the core's settings.
     pub core: MasterConfig,
     /// Stop after this many frames (run forever if `None`).
@@ -85,6 +88,8 @@ pub struct ClusterRun {
     pub evictions: u64,
     /// `(node, master-clock ns)` of every join.
     pub joins: Vec<(String, u64)>,
+    /// Hellos refused because name, certificate and roster disagreed, with why.
+    pub refusals: Vec<String>,
     /// `(node, master-clock ns)` of every connection closed, with why.
     pub closes: Vec<(Option<String>, u64, String)>,
     /// Bytes of FrameState messages written to the nodes, in total.
@@ -102,6 +107,7 @@ enum Inbound {
     Message(ConnId, Message),
     DecodeError(ConnId, CodecError),
     Lost(ConnId, String),
+    Refused(ConnId, String),
 }
 
 enum Outbound {
@@ -122,12 +128,19 @@ impl Server {
     pub fn bind(settings: ServerSettings) -> Result<Self, ServerError> {
         settings.core.check()?;
         let cfg = server_config(&settings.identity)?;
-        let endpoint =
-            quinn::Endpoint::server(cfg, settings.listen).map_err(|source| ServerError::Bind {
-                addr: settings.listen,
-                what: "QUIC",
-                source,
-            })?;
+        let bind = |source| ServerError::Bind {
+            addr: settings.listen,
+            what: "QUIC",
+            source,
+        };
+        let socket = std::net::UdpSocket::bind(settings.listen).map_err(bind)?;
+        let endpoint = quinn::Endpoint::new(
+            server_endpoint_config(&settings.identity),
+            Some(cfg),
+            socket,
+            Arc::new(quinn::TokioRuntime),
+        )
+        .map_err(bind)?;
         let udp = match settings.tracking {
             Some(addr) => {
                 let bind = |source| ServerError::Bind {
@@ -190,6 +203,7 @@ impl Server {
         let mut last_swap_at: Option<Instant> = None;
         let mut udp_buf = vec![0u8; 64 * 1024];
         let traffic = Arc::new(FrameTraffic::default());
+        let roster = Arc::new(std::mem::take(&mut settings.roster));
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -275,7 +289,7 @@ impl Server {
                     next_conn += 1;
                     let tx = tx.clone();
                     let span = info_span!("connection", conn = %id, peer = %incoming.remote_address());
-                    tasks.spawn(connection(incoming, id, tx, traffic.clone()).instrument(span));
+                    tasks.spawn(connection(incoming, id, tx, traffic.clone(), roster.clone()).instrument(span));
                 }
                 Some(ev) = rx.recv() => match ev {
                     Inbound::Connected(id, out) => {
@@ -284,6 +298,12 @@ impl Server {
                     }
                     Inbound::Message(id, m) => if conns.contains_key(&id) { core.handle_message(now(), id, m) },
                     Inbound::DecodeError(id, e) => if conns.contains_key(&id) { core.handle_decode_error(now(), id, &e) },
+                    Inbound::Refused(id, why) => {
+                        run.refusals.push(why);
+                        if conns.remove(&id).is_some() {
+                            core.handle_disconnect(now(), id);
+                        }
+                    }
                     Inbound::Lost(id, why) => if conns.remove(&id).is_some() {
                         debug!(conn = %id, %why, "connection lost");
                         core.handle_disconnect(now(), id);
@@ -390,6 +410,7 @@ async fn connection(
     id: ConnId,
     tx: mpsc::UnboundedSender<Inbound>,
     traffic: Arc<FrameTraffic>,
+    roster: Arc<Roster>,
 ) {
     let conn = match incoming.await {
         Ok(c) => c,
@@ -443,14 +464,26 @@ async fn connection(
     let reader_task = async {
         loop {
             match reader.recv().await {
-                Ok(Message::Hello(h)) if !peer_is(&conn, &h.node) => {
-                    warn!(node = %h.node, "Hello names a node whose certificate this peer lacks");
-                    conn.close(3u32.into(), b"certificate does not match the node name");
-                    let _ = tx.send(Inbound::Lost(
-                        id,
-                        format!("{} presented another certificate", h.node),
-                    ));
-                    return false;
+                Ok(Message::Hello(h)) => {
+                    let names = peer_names(&conn);
+                    if let Err(refusal) =
+                        roster.admit(&h.node, h.role, &names, peer_is(&conn, &h.node))
+                    {
+                        warn!(
+                            hello = %h.node,
+                            certificate = ?names,
+                            config = ?refusal.entry,
+                            "{refusal}"
+                        );
+                        let mut why = refusal.to_string().into_bytes();
+                        why.truncate(1000);
+                        conn.close(3u32.into(), &why);
+                        let _ = tx.send(Inbound::Refused(id, refusal.to_string()));
+                        return false;
+                    }
+                    if tx.send(Inbound::Message(id, Message::Hello(h))).is_err() {
+                        return false;
+                    }
                 }
                 Ok(m) => {
                     if tx.send(Inbound::Message(id, m)).is_err() {

@@ -6,5 +6,6 @@ pub mod tls;
 
 pub use stream::{MessageReader, MessageStream, MessageWriter, StreamError};
 pub use tls::{
-    ALPN, ClusterIdentity, MASTER_SERVER_NAME, TlsError, client_config, peer_is, server_config,
+    ALPN, ClusterIdentity, IDLE_TIMEOUT, KEEP_ALIVE, MASTER_SERVER_NAME, TlsError, client_config,
+    peer_is, peer_names, server_config, server_endpoint_config,
 };

@@ -10,14 +10,23 @@ pub enum StreamError {
     #[error("bad message from peer: {0}")]
     Codec(#[from] CodecError),
     /// Reading failed.
-    #[error("read: {0}")]
+    #[error("read: {}", lost(.0, match .0 { quinn::ReadError::ConnectionLost(c) => Some(c), _ => None }))]
     Read(#[from] quinn::ReadError),
     /// Writing failed.
-    #[error("write: {0}")]
+    #[error("write: {}", lost(.0, match .0 { quinn::WriteError::ConnectionLost(c) => Some(c), _ => None }))]
     Write(#[from] quinn::WriteError),
     /// The peer finished its stream.
     #[error("peer closed the stream")]
     Closed,
+}
+
+/// The error, and for a lost connection why it was lost (reset by peer,
+/// closed by peer with its reason, timed out): the part a log reader needs.
+fn lost(e: &dyn std::fmt::Display, connection: Option<&quinn::ConnectionError>) -> String {
+    match connection {
+        Some(c) => format!("{e} ({c})"),
+        None => e.to_string(),
+    }
 }
 
 /// A framed message stream over a QUIC bidirectional stream.

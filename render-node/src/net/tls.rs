@@ -140,16 +140,70 @@ pub fn client_config(id: &ClusterIdentity) -> Result<quinn::ClientConfig, TlsErr
     Ok(cfg)
 }
 
+/// The master endpoint's settings: its stateless-reset key and the key of
+/// its connection-id generator are derived from the master's private key.
+/// A master restarted with the same identity so recognises the old
+/// connections' ids as its own and answers their packets with resets the
+/// nodes accept: they notice the restart at their next keep-alive instead
+/// of waiting out the idle timeout. (With quinn's random keys the new
+/// master drops those packets as invalid ids.)
+pub fn server_endpoint_config(id: &ClusterIdentity) -> quinn::EndpointConfig {
+    let derive = |label: &[u8]| {
+        let mut ctx = ring::digest::Context::new(&ring::digest::SHA256);
+        ctx.update(label);
+        ctx.update(id.key.secret_der());
+        ctx.finish()
+    };
+    let reset = derive(b"showcase stateless reset key\0");
+    let key = ring::hmac::Key::new(ring::hmac::HMAC_SHA256, reset.as_ref());
+    let mut cfg = quinn::EndpointConfig::new(Arc::new(key));
+    let cid = derive(b"showcase connection id key\0");
+    let cid_key = u64::from_le_bytes(cid.as_ref()[..8].try_into().expect("SHA-256 has 32 bytes"));
+    cfg.cid_generator(move || {
+        Box::new(quinn_proto::HashedConnectionIdGenerator::from_key(cid_key))
+    });
+    cfg
+}
+
+/// Keep-alive interval on every cluster connection: with the reset key
+/// above it bounds how long a node takes to notice a restarted master.
+pub const KEEP_ALIVE: std::time::Duration = std::time::Duration::from_millis(100);
+
+/// Idle timeout: a master or node that vanished without a restart is given
+/// up after this long.
+pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(3);
+
 fn transport() -> Arc<quinn::TransportConfig> {
     let mut t = quinn::TransportConfig::default();
     // Frame-lock traffic is tiny and latency-bound; detect dead peers fast.
-    t.keep_alive_interval(Some(std::time::Duration::from_millis(200)));
+    t.keep_alive_interval(Some(KEEP_ALIVE));
     t.max_idle_timeout(Some(
-        std::time::Duration::from_secs(3)
+        IDLE_TIMEOUT
             .try_into()
             .expect("3 s is a valid idle timeout"),
     ));
+    // The cluster is one LAN: start from a LAN round trip, so a dial that
+    // races a (re)starting master retries its Initial within tens of
+    // milliseconds instead of quinn's default second.
+    t.initial_rtt(std::time::Duration::from_millis(10));
     Arc::new(t)
+}
+
+/// The DNS names the peer of `conn` presented in its certificate (for log
+/// lines; use [`peer_is`] to decide).
+pub fn peer_names(conn: &quinn::Connection) -> Vec<String> {
+    let Some(identity) = conn.peer_identity() else {
+        return Vec::new();
+    };
+    let Ok(chain) = identity.downcast::<Vec<CertificateDer<'static>>>() else {
+        return Vec::new();
+    };
+    let Some(leaf) = chain.first() else {
+        return Vec::new();
+    };
+    webpki::EndEntityCert::try_from(leaf)
+        .map(|c| c.valid_dns_names().map(str::to_owned).collect())
+        .unwrap_or_default()
 }
 
 /// True when the peer of `conn` presented a certificate valid for `name`

@@ -40,6 +40,8 @@ pub struct NodeLog {
     pub presented: Vec<(u64, u64)>,
     /// Times the node (re)joined the master.
     pub joins: u32,
+    /// Why each connection to the master ended, in order.
+    pub disconnects: Vec<String>,
     /// Frame images written.
     pub written: Vec<PathBuf>,
     /// Rendered frames waiting for their swap.
@@ -249,6 +251,7 @@ fn handle_event<R: Renderer + ?Sized>(
             // Frames rendered but not presented are dropped by the core.
             log.pending.clear();
             info!(%reason, "left the master");
+            log.disconnects.push(reason);
         }
     }
     Ok(())
