@@ -19,6 +19,9 @@ pub enum BenchTarget {
     Render,
     /// The cluster runtime.
     Cluster,
+    /// The cluster under faults: hostile tracking datagrams, kill -9 and
+    /// SIGSTOP of a node, kill -9 and restart of the master (processes).
+    Faults,
 }
 
 /// Arguments of `bench`.
@@ -74,6 +77,12 @@ pub struct BenchArgs {
     /// (default 5).
     #[arg(long)]
     pub repeats: Option<usize>,
+    /// Faults only: the `showcase-node` binary (default: beside this one).
+    #[arg(long)]
+    pub node_bin: Option<PathBuf>,
+    /// Faults only: keep the work folder (config, logs, metrics).
+    #[arg(long)]
+    pub keep: bool,
 }
 
 /// Run the bench `args.target` names.
@@ -84,6 +93,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
         BenchTarget::Radiosity => radiosity(args),
         BenchTarget::Render => render(args),
         BenchTarget::Cluster => cluster(args),
+        BenchTarget::Faults => faults(args),
     }
 }
 
@@ -222,4 +232,13 @@ fn cluster(args: &BenchArgs) -> Result<()> {
         &hz,
     ))?;
     emit_bench(args, &records)
+}
+
+fn faults(args: &BenchArgs) -> Result<()> {
+    let record = crate::cluster::faults::bench_faults(&crate::cluster::faults::FaultOptions {
+        scene: crate::demo::default_scene(),
+        node_bin: args.node_bin.clone(),
+        keep: args.keep,
+    })?;
+    emit_bench(args, &[record])
 }

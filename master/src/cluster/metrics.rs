@@ -24,6 +24,9 @@ pub struct NodeMetric {
 pub struct FrameMetrics {
     /// Frame number.
     pub frame: u64,
+    /// Wall-clock time of the swap (ms since the Unix epoch, the master's
+    /// clock), to line frames up with logs and outside events.
+    pub swap_unix_ms: f64,
     /// Head positions.
     pub heads: Vec<[f32; 3]>,
     /// Light positions.
@@ -38,14 +41,17 @@ pub struct FrameMetrics {
     pub evicted: Vec<String>,
 }
 
-/// Build a frame's metrics from its state, swap and present reports.
+/// Build a frame's metrics from its state, swap and present reports;
+/// `origin_unix_ms` is the wall-clock time of master-clock zero.
 pub fn frame_metrics(
     state: &FrameState,
     swap: &SwapReport,
     present: &PresentReport,
+    origin_unix_ms: f64,
 ) -> FrameMetrics {
     FrameMetrics {
         frame: present.frame,
+        swap_unix_ms: origin_unix_ms + swap.swap_at_ns as f64 / 1e6,
         heads: state.heads.iter().map(|h| h.position.to_array()).collect(),
         lights: state
             .lights

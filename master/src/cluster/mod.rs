@@ -2,6 +2,7 @@
 //! server around the sans-IO core, and per-frame metrics.
 
 pub mod commands;
+pub mod faults;
 pub mod identity;
 pub mod loopback;
 pub mod metrics;

@@ -186,6 +186,9 @@ impl Server {
             mut settings,
         } = self;
         let start = Instant::now();
+        let origin_unix_ms = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64() * 1e3);
         let now = || start.elapsed().as_nanos() as u64;
         let hz = settings.core.target_hz as f64;
         let mut core = MasterCore::new(settings.core.clone(), scene)?;
@@ -248,11 +251,14 @@ impl Server {
                             else {
                                 continue;
                             };
-                            let m = frame_metrics(&state, &swap, &p);
+                            let m = frame_metrics(&state, &swap, &p, origin_unix_ms);
                             if let Some(w) = settings.metrics.as_mut() {
                                 serde_json::to_writer(&mut *w, &m)
                                     .map_err(|e| ServerError::Metrics(e.into()))?;
+                                // Whole lines, at once: the file is read live
+                                // (`tail -f`, the fault bench).
                                 w.write_all(b"\n").map_err(ServerError::Metrics)?;
+                                w.flush().map_err(ServerError::Metrics)?;
                             }
                             run.frames.push(m);
                         }
