@@ -9,5 +9,5 @@ pub mod scripted;
 pub mod tracker;
 
 pub use dtrack::{Body6d, DtrackError, DtrackFrame, parse_datagram};
-pub use filter::{FilterConfig, PoseFilter, Rejection};
+pub use filter::{FilterConfig, Offered, PoseFilter, Rejection};
 pub use tracker::{Target, Tracker, TrackerError, initial_frame};

@@ -7,4 +7,4 @@ pub mod dtrack;
 pub mod filter;
 
 pub use dtrack::{Body6d, DtrackError, DtrackFrame, parse_datagram};
-pub use filter::{FilterConfig, PoseFilter, Rejection};
+pub use filter::{ACQUIRE_SAMPLES, FilterConfig, Offered, PoseFilter, Rejection};
