@@ -5,6 +5,10 @@
 
 pub mod dtrack;
 pub mod filter;
+#[cfg(test)]
+mod properties;
+#[cfg(any(test, feature = "testing"))]
+pub mod strategies;
 
 pub use dtrack::{Body6d, DtrackError, DtrackFrame, parse_datagram};
 pub use filter::{ACQUIRE_SAMPLES, FilterConfig, Offered, PoseFilter, Rejection};
