@@ -476,6 +476,18 @@ mod tests {
         }
     }
 
+    /// Found by a property: a rotation whose length overflows normalised
+    /// to the zero quaternion and was held.
+    #[test]
+    fn an_overflowing_rotation_is_degenerate() {
+        let mut f = PoseFilter::new(FilterConfig::default());
+        let huge = DQuat::from_xyzw(0.0, 0.0, 0.0, 1e308);
+        for t in [0.0, 0.01, 0.02] {
+            assert_eq!(f.offer(t, DVec3::ZERO, huge), Err(Rejection::NonFinite));
+        }
+        assert_eq!(f.pose(0.02), None);
+    }
+
     /// Prediction never carries a pose out of the volume, and a huge
     /// velocity from nearly equal timestamps is capped at `max_speed`.
     #[test]
