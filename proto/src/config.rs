@@ -84,6 +84,103 @@ pub struct TrackingConfig {
     /// Body id to target mapping.
     #[serde(rename = "body", default)]
     pub bodies: Vec<BodyMapping>,
+    /// Where tracked bodies can be and how fast they can move
+    /// (`[tracking.limits]`; every key has a default).
+    #[serde(default)]
+    pub limits: TrackingLimits,
+}
+
+/// Which tracked poses are physically possible. The volume is in showcase
+/// world coordinates (metres, origin at the centre of the showcase floor,
+/// y up), after the room transform: it stays put when DTrack is
+/// recalibrated, and it bounds every pose that reaches a frame state, so
+/// nothing overflows when poses become f32.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackingLimits {
+    /// Lowest corner of the tracking volume (metres, world coordinates).
+    pub volume_min: [f64; 3],
+    /// Highest corner of the tracking volume (metres, world coordinates).
+    pub volume_max: [f64; 3],
+    /// Fastest plausible linear speed (m/s); faster jumps are rejected.
+    pub max_speed: f64,
+    /// Fastest plausible angular speed (degrees/s).
+    pub max_angular_speed_deg: f64,
+    /// A body with no accepted sample for this long (milliseconds) is
+    /// re-acquired from a short run of consistent samples instead of being
+    /// held to its old pose.
+    pub reacquire_ms: f64,
+}
+
+impl TrackingLimits {
+    /// Largest coordinate a volume corner may have (metres): a room, not a
+    /// country, and far inside f32's range.
+    pub const MAX_COORDINATE: f64 = 1000.0;
+
+    /// The first problem with these limits, as (field, problem), if any.
+    pub fn problem(&self) -> Option<(&'static str, String)> {
+        for (field, corner) in [
+            ("tracking.limits.volume_min", self.volume_min),
+            ("tracking.limits.volume_max", self.volume_max),
+        ] {
+            if let Some(v) = corner.iter().find(|v| !(v.abs() <= Self::MAX_COORDINATE)) {
+                return Some((
+                    field,
+                    format!(
+                        "{} is not a coordinate within {} m of the showcase",
+                        if v.abs() < 1e6 {
+                            v.to_string()
+                        } else {
+                            format!("{v:e}")
+                        },
+                        Self::MAX_COORDINATE
+                    ),
+                ));
+            }
+        }
+        for (axis, (lo, hi)) in ["x", "y", "z"]
+            .iter()
+            .zip(self.volume_min.iter().zip(&self.volume_max))
+        {
+            if lo >= hi {
+                return Some((
+                    "tracking.limits.volume_min",
+                    format!(
+                        "{axis} = {lo} is not below volume_max's {hi}; give the lowest corner in volume_min"
+                    ),
+                ));
+            }
+        }
+        for (field, v, hi) in [
+            ("tracking.limits.max_speed", self.max_speed, 1000.0),
+            (
+                "tracking.limits.max_angular_speed_deg",
+                self.max_angular_speed_deg,
+                100_000.0,
+            ),
+            ("tracking.limits.reacquire_ms", self.reacquire_ms, 60_000.0),
+        ] {
+            if !(v > 0.0 && v <= hi) {
+                return Some((field, format!("{v} is outside (0, {hi}]")));
+            }
+        }
+        None
+    }
+}
+
+impl Default for TrackingLimits {
+    fn default() -> Self {
+        Self {
+            // A few metres around the cabinet, from the room's floor (the
+            // cabinet stands on a table) to well above a standing head.
+            volume_min: [-4.0, -1.5, -4.0],
+            volume_max: [4.0, 2.5, 4.0],
+            // A walking head moves well under 3 m/s and turns under 720 deg/s.
+            max_speed: 5.0,
+            max_angular_speed_deg: 1000.0,
+            reacquire_ms: 500.0,
+        }
+    }
 }
 
 /// A tracked body drives an observer's head, a light or an object.
@@ -305,6 +402,9 @@ impl ClusterConfig {
                     ));
                 }
             }
+            if let Some((field, problem)) = t.limits.problem() {
+                return Err(invalid(field, problem));
+            }
             let mut ids = HashSet::new();
             for b in &t.bodies {
                 if !ids.insert(b.id) {
@@ -364,6 +464,8 @@ mod tests {
         assert_eq!(c.nodes.len(), 4);
         let c = ClusterConfig::parse(CABINET, "cluster.toml").unwrap();
         assert_eq!(c.nodes.len(), 5);
+        // The cabinet's file spells out the default limits.
+        assert_eq!(c.tracking.as_ref().unwrap().limits, TrackingLimits::default());
         let hosts: HashSet<_> = c.nodes.iter().map(|n| n.host.as_str()).collect();
         assert_eq!(hosts.len(), 3, "three PCs");
         assert_eq!(c.node("face-1", "cluster.toml").unwrap().role, Role::Face);
@@ -417,5 +519,57 @@ mod tests {
             |s| s.replace("observer:observer-0", "observer-0"),
             "is not observer:<name>",
         );
+    }
+
+    #[test]
+    fn tracking_limits_default_and_are_checked() {
+        let c = ClusterConfig::parse(LOOPBACK, "loopback.toml").unwrap();
+        assert_eq!(c.tracking.unwrap().limits, TrackingLimits::default());
+        let limits = |keys: &'static str| {
+            move |s: &str| {
+                s.replacen(
+                    "[[node]]",
+                    &format!("[tracking.limits]\n{keys}\n[[node]]"),
+                    1,
+                )
+            }
+        };
+        let c = ClusterConfig::parse(
+            &limits("volume_min = [-1, 0, -1]\nvolume_max = [1, 2, 1]\nmax_speed = 3\nreacquire_ms = 250")(LOOPBACK),
+            "loopback.toml",
+        )
+        .unwrap();
+        let l = c.tracking.unwrap().limits;
+        assert_eq!(
+            (l.volume_min, l.volume_max),
+            ([-1.0, 0.0, -1.0], [1.0, 2.0, 1.0])
+        );
+        assert_eq!((l.max_speed, l.reacquire_ms), (3.0, 250.0));
+        assert_eq!(l.max_angular_speed_deg, 1000.0);
+        check(
+            limits("volume_max = [1, -2, 1]"),
+            "tracking.limits.volume_min: y = -1.5 is not below volume_max's -2",
+        );
+        check(
+            limits("volume_min = [-1e43, 0, 0]"),
+            "tracking.limits.volume_min: -1e43 is not a coordinate within 1000 m of the showcase",
+        );
+        check(
+            limits("volume_max = [nan, 1, 1]"),
+            "tracking.limits.volume_max: NaN is not",
+        );
+        check(
+            limits("max_speed = 0"),
+            "tracking.limits.max_speed: 0 is outside (0, 1000]",
+        );
+        check(
+            limits("max_angular_speed_deg = inf"),
+            "max_angular_speed_deg: inf is outside",
+        );
+        check(
+            limits("reacquire_ms = -1"),
+            "tracking.limits.reacquire_ms: -1 is outside",
+        );
+        check(limits("volume = 3"), "unknown field `volume`");
     }
 }

@@ -115,6 +115,7 @@ async fn loopback_cluster_of_four_nodes() {
         room_translation: [0.0; 3],
         room_rotation_deg: [0.0; 3],
         predict_ms: 0.0,
+        limits: Default::default(),
         bodies: vec![BodyMapping {
             id: 0,
             target: "observer:alice".into(),

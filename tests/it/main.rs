@@ -16,4 +16,5 @@ mod render;
 mod scene_files;
 mod session;
 mod sim;
+mod tracking;
 mod transport;

@@ -46,6 +46,7 @@ pub fn walk_tracking(scene: &Showcase, source: TrackingSource) -> TrackingConfig
         room_translation: [0.0; 3],
         room_rotation_deg: [0.0; 3],
         predict_ms: 0.0,
+        limits: Default::default(),
         bodies,
     }
 }

@@ -1,11 +1,13 @@
 //! Maps tracked bodies onto the scene: each configured body drives an
 //! observer's head, a light or an object. Room coordinates are converted
 //! to showcase world coordinates, every sample goes through a
-//! [`PoseFilter`], and a frame's state is filled from the filtered poses.
-//! Time is an input (master-clock seconds), so this is deterministic.
+//! [`PoseFilter`] (which bounds it to the tracking volume), and a frame's
+//! state is filled from the filtered poses, so everything written into a
+//! frame is finite. Time is an input (master-clock seconds), so this is
+//! deterministic.
 
 use super::dtrack::{DtrackError, parse_datagram};
-use super::filter::{FilterConfig, PoseFilter};
+use super::filter::{FilterConfig, Offered, PoseFilter};
 use glam::{DMat3, DQuat, DVec3, EulerRot};
 use showcase_proto::config::TrackingConfig;
 use showcase_proto::{FrameState, Light, ObjectTransform, Pose, Showcase};
@@ -22,21 +24,34 @@ pub enum Target {
     Object(usize),
 }
 
-/// A mapping that names something the scene does not have.
+/// A tracking configuration the tracker cannot use.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("tracking body {id}: {problem}")]
-pub struct TrackerError {
-    /// The body id.
-    pub id: u32,
-    /// What is wrong.
-    pub problem: String,
+pub enum TrackerError {
+    /// A mapping that names something the scene does not have.
+    #[error("tracking body {id}: {problem}")]
+    Body {
+        /// The body id.
+        id: u32,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Limits that `ClusterConfig::parse` would have refused.
+    #[error("{field}: {problem}")]
+    Limits {
+        /// The field.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
 }
 
 /// What one datagram did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IngestReport {
-    /// Samples accepted.
+    /// Samples accepted (continuing a track or acquiring a body).
     pub accepted: usize,
+    /// Samples of bodies being (re-)acquired, not used yet.
+    pub acquiring: usize,
     /// Samples rejected by the filter, with the reason.
     pub rejected: Vec<(u32, String)>,
     /// Mapped bodies that were not tracked in this datagram.
@@ -55,13 +70,16 @@ pub struct Tracker {
 impl Tracker {
     /// Resolve the configured body mapping against the scene.
     pub fn new(config: &TrackingConfig, scene: &Showcase) -> Result<Self, TrackerError> {
-        let filter = FilterConfig {
-            predict_s: config.predict_ms / 1000.0,
-            ..FilterConfig::default()
-        };
+        if let Some((field, problem)) = config.limits.problem() {
+            return Err(TrackerError::Limits {
+                field: field.into(),
+                problem,
+            });
+        }
+        let filter = FilterConfig::new(&config.limits, config.predict_ms / 1000.0);
         let mut bodies = BTreeMap::new();
         for b in &config.bodies {
-            let err = |problem: String| TrackerError { id: b.id, problem };
+            let err = |problem: String| TrackerError::Body { id: b.id, problem };
             let (kind, name) = b
                 .target
                 .split_once(':')
@@ -107,10 +125,11 @@ impl Tracker {
             let position = self.room_rotation * body.position + self.room_translation;
             let rotation = DQuat::from_mat3(&(self.room_rotation * body.rotation));
             match filter.offer(now_s, position, rotation) {
-                Ok(()) => {
+                Ok(Offered::Accepted | Offered::Acquired) => {
                     report.accepted += 1;
                     self.last_sample_s = Some(now_s);
                 }
+                Ok(Offered::Candidate { .. }) => report.acquiring += 1,
                 Err(e) => report.rejected.push((body.id, e.to_string())),
             }
         }
@@ -228,6 +247,7 @@ mod tests {
             room_translation: [0.0; 3],
             room_rotation_deg: [0.0; 3],
             predict_ms: 0.0,
+            limits: Default::default(),
             bodies: bodies
                 .iter()
                 .map(|(id, t)| BodyMapping {
@@ -247,7 +267,13 @@ mod tests {
         for i in 0..120u64 {
             let t = i as f64 / 60.0;
             let r = tr.ingest(t, &walk_datagram(i, t)).unwrap();
-            assert_eq!(r.accepted, 3, "{r:?}");
+            // Each body is acquired from three consistent samples.
+            let acquiring = if i < 2 { 3 } else { 0 };
+            assert_eq!(
+                (r.accepted, r.acquiring),
+                (3 - acquiring, acquiring),
+                "{r:?}"
+            );
         }
         tr.apply(2.0, &s, &mut frame);
         let t: f64 = 119.0 / 60.0;
@@ -270,7 +296,9 @@ mod tests {
         let s = scene();
         let mut tr = Tracker::new(&config(&[(1, "observer:bob")]), &s).unwrap();
         // Bob is untracked between 9.5 s and 10 s of the walk.
-        tr.ingest(9.49, &walk_datagram(0, 9.49)).unwrap();
+        for t in [9.47, 9.48, 9.49] {
+            tr.ingest(t, &walk_datagram(0, t)).unwrap();
+        }
         let r = tr.ingest(9.6, &walk_datagram(1, 9.6)).unwrap();
         assert_eq!((r.accepted, r.untracked), (0, 1));
         let mut f = initial_frame(&s, 0, 0.0, 1);
@@ -293,6 +321,53 @@ mod tests {
         assert!(r.rejected[0].1.starts_with("jump of"), "{r:?}");
         tr.apply(9.61, &s, &mut f);
         assert_eq!(f.heads[1].position, held);
+    }
+
+    /// The red team's poison: a first sample 1e43 mm away used to be
+    /// accepted, became inf as an f32, and every good sample after it was
+    /// rejected as a jump. Now it never reaches a frame and the walk does.
+    #[test]
+    fn a_wild_first_sample_never_reaches_a_frame() {
+        let s = scene();
+        let mut tr = Tracker::new(&config(&[(0, "observer:alice")]), &s).unwrap();
+        let r = tr
+            .ingest(
+                0.0,
+                "fr 0\n6d 1 [0 1.000][1e43 0 0 0 0 0][1 0 0 0 1 0 0 0 1]\n",
+            )
+            .unwrap();
+        assert_eq!((r.accepted, r.rejected.len()), (0, 1), "{r:?}");
+        assert!(
+            r.rejected[0]
+                .1
+                .starts_with("position (1.000e40, 0.000, 0.000) m is outside"),
+            "{r:?}"
+        );
+        let mut f = initial_frame(&s, 0, 0.0, 1);
+        tr.apply(0.0, &s, &mut f);
+        assert_eq!(f.heads[0], Pose::default());
+        for i in 1..=10u64 {
+            let t = i as f64 / 60.0;
+            tr.ingest(t, &walk_datagram(i, t)).unwrap();
+        }
+        tr.apply(10.0 / 60.0, &s, &mut f);
+        let expect = walk_positions(10.0 / 60.0)[0].as_vec3();
+        assert!(
+            f.heads[0].position.distance(expect) < 1e-5,
+            "{:?}",
+            f.heads[0]
+        );
+    }
+
+    #[test]
+    fn limits_are_checked_when_not_parsed_from_a_file() {
+        let mut cfg = config(&[(0, "observer:alice")]);
+        cfg.limits.volume_max[0] = 1e43;
+        let e = Tracker::new(&cfg, &scene()).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "tracking.limits.volume_max: 1e43 is not a coordinate within 1000 m of the showcase"
+        );
     }
 
     #[test]

@@ -2,8 +2,28 @@
 //! frame, lines `fr`, `ts`, `6dcal` and `6d`; other lines are ignored.
 //! Positions are millimetres, rotation matrices are given column-wise, and
 //! quality -1 means the body is not tracked.
+//!
+//! Datagrams come off the network, so every input gives `Ok` or an `Err`
+//! naming the line and problem, never a panic: counts are bounded before
+//! any arithmetic, and messages quote at most [`QUOTE_CHARS`] of the input.
 
 use glam::{DMat3, DVec3};
+
+/// Most bodies a `6d` line may announce. DTrack numbers its calibrated
+/// bodies in the tens to hundreds, and a 64 KiB UDP datagram holds at most
+/// about 1800 body blocks, so a larger count is not a DTrack datagram.
+pub const MAX_BODIES: usize = 1000;
+
+/// Most characters of the input an error message quotes.
+pub const QUOTE_CHARS: usize = 24;
+
+/// `s` for an error message: at most [`QUOTE_CHARS`] characters, debug-quoted.
+fn quote(s: &str) -> String {
+    match s.char_indices().nth(QUOTE_CHARS) {
+        Some((end, _)) => format!("{:?}...", &s[..end]),
+        None => format!("{s:?}"),
+    }
+}
 
 /// One tracked rigid body of a `6d` line.
 #[derive(Clone, Debug, PartialEq)]
@@ -68,13 +88,13 @@ pub fn parse_datagram(text: &str) -> Result<DtrackFrame, DtrackError> {
             "fr" => {
                 out.frame = Some(
                     rest.parse()
-                        .map_err(|_| err(format!("bad frame counter {rest:?}")))?,
+                        .map_err(|_| err(format!("bad frame counter {}", quote(rest))))?,
                 )
             }
             "ts" => {
                 let ts: f64 = rest
                     .parse()
-                    .map_err(|_| err(format!("bad timestamp {rest:?}")))?;
+                    .map_err(|_| err(format!("bad timestamp {}", quote(rest))))?;
                 if !ts.is_finite() {
                     return Err(err(format!("timestamp {ts} is not finite")));
                 }
@@ -83,7 +103,7 @@ pub fn parse_datagram(text: &str) -> Result<DtrackFrame, DtrackError> {
             "6dcal" => {
                 out.calibrated = Some(
                     rest.parse()
-                        .map_err(|_| err(format!("bad body count {rest:?}")))?,
+                        .map_err(|_| err(format!("bad body count {}", quote(rest))))?,
                 )
             }
             "6d" => out.bodies = parse_6d(rest).map_err(err)?,
@@ -100,13 +120,22 @@ fn parse_6d(rest: &str) -> Result<Vec<Body6d>, String> {
     let count: usize = count
         .trim()
         .parse()
-        .map_err(|_| format!("bad body count {:?}", count.trim()))?;
+        .map_err(|_| format!("bad body count {}", quote(count.trim())))?;
+    // Bounded before any arithmetic: `3 * count` once wrapped around to the
+    // number of groups found and let a short line through to the indexing.
+    let expected = count
+        .checked_mul(3)
+        .filter(|_| count <= MAX_BODIES)
+        .ok_or_else(|| {
+            format!(
+                "body count {count} is above the {MAX_BODIES} bodies a DTrack datagram can hold"
+            )
+        })?;
     let groups = brackets(blocks)?;
-    if groups.len() != 3 * count {
+    if groups.len() != expected {
         return Err(format!(
-            "{count} bodies announced but {} bracket groups found (expected {})",
+            "{count} bodies announced but {} bracket groups found (expected {expected})",
             groups.len(),
-            3 * count
         ));
     }
     groups
@@ -127,11 +156,19 @@ fn parse_6d(rest: &str) -> Result<Vec<Body6d>, String> {
             let rotation = DMat3::from_cols_slice(&rot);
             let quality = head[1];
             if quality >= 0.0 {
+                // Huge entries overflow to inf (or inf - inf = NaN), which
+                // `f64::max` would skip: NaN counts as the worst error.
                 let err = (rotation.transpose() * rotation - DMat3::IDENTITY)
                     .to_cols_array()
                     .iter()
-                    .fold(0.0f64, |m, x| m.max(x.abs()));
-                if err > 1e-3 || rotation.determinant() < 0.0 {
+                    .fold(0.0f64, |m, x| {
+                        if x.is_nan() {
+                            f64::INFINITY
+                        } else {
+                            m.max(x.abs())
+                        }
+                    });
+                if !(err <= 1e-3 && rotation.determinant() > 0.0) {
                     return Err(format!(
                         "body {b}: rotation is not a rotation (error {err:.1e})"
                     ));
@@ -153,10 +190,7 @@ fn brackets(s: &str) -> Result<Vec<&str>, String> {
     let mut rest = s.trim();
     while !rest.is_empty() {
         let Some(after) = rest.strip_prefix('[') else {
-            return Err(format!(
-                "expected '[' at {:?}",
-                rest.chars().take(12).collect::<String>()
-            ));
+            return Err(format!("expected '[' at {}", quote(rest)));
         };
         let Some(end) = after.find(']') else {
             return Err("unterminated '['".into());
@@ -167,16 +201,22 @@ fn brackets(s: &str) -> Result<Vec<&str>, String> {
     Ok(out)
 }
 
+/// Exactly `n` finite numbers; reads at most `n + 1` tokens of the group.
 fn numbers(group: &str, n: usize) -> Result<Vec<f64>, String> {
-    let v: Vec<f64> = group
-        .split_whitespace()
+    let mut tokens = group.split_whitespace();
+    let v: Vec<f64> = tokens
+        .by_ref()
+        .take(n)
         .map(|t| {
             t.parse::<f64>()
-                .map_err(|_| format!("{t:?} is not a number"))
+                .map_err(|_| format!("{} is not a number", quote(t)))
         })
         .collect::<Result<_, _>>()?;
     if v.len() != n {
         return Err(format!("{} values, expected {n}", v.len()));
+    }
+    if tokens.next().is_some() {
+        return Err(format!("more than {n} values, expected {n}"));
     }
     if let Some(x) = v.iter().find(|x| !x.is_finite()) {
         return Err(format!("value {x} is not finite"));
@@ -258,6 +298,54 @@ mod tests {
             "6d 1 [-1 1][0 0 0 0 0 0][1 0 0 0 1 0 0 0 1]",
             "id -1 is not",
         );
+    }
+
+    /// A body count whose triple wraps around `usize` (to 1) must not pass
+    /// the bracket-group check and then index past the one group found.
+    #[test]
+    fn a_body_count_that_wraps_is_refused() {
+        const CRASH: &str = "6d 12297829382473034411 [0 1.000]";
+        assert_eq!(12297829382473034411usize.wrapping_mul(3), 1);
+        check_err(CRASH, "dtrack line 1 (6d): body count 12297829382473034411");
+        check_err(&format!("fr 1\r\nts 2.5\r\n{CRASH}\r\n"), "line 3 (6d)");
+        check_err("6d 18446744073709551615 [0 1.000]", "body count");
+    }
+
+    #[test]
+    fn hostile_numbers_and_sizes_give_short_errors() {
+        check_err("fr 18446744073709551616", "bad frame counter");
+        check_err("6dcal 4294967296", "bad body count");
+        check_err("6d 1001 ", "body count 1001 is above the 1000");
+        check_err(
+            "6d 1 [0 1][0 0 0 0 0 0 0][1 0 0 0 1 0 0 0 1]",
+            "more than 6 values, expected 6",
+        );
+        check_err(
+            "6d 1 [4294967296 1][0 0 0 0 0 0][1 0 0 0 1 0 0 0 1]",
+            "id 4294967296 is not",
+        );
+        // R^T R overflows to inf and inf - inf: still not a rotation.
+        check_err(
+            "6d 1 [0 1][0 0 0 0 0 0][1e200 1e200 0 -1e200 1e200 0 0 0 1]",
+            "rotation is not a rotation",
+        );
+        check_err(
+            "6d 1 [0 1][0 0 0 0 0 0][-1 0 0 0 -1 0 0 0 -1]",
+            "rotation is not a rotation",
+        );
+        // Untracked bodies may carry any finite numbers; positions stay finite.
+        let f =
+            parse_datagram("6d 1 [0 -1][1.7976931348623157e308 0 0 0 0 0][1e308 0 0 0 0 0 0 0 0]")
+                .unwrap();
+        assert!(f.bodies[0].position.is_finite() && !f.bodies[0].is_tracked());
+        // An error quotes a bounded excerpt of a huge input.
+        let huge = format!("fr {}", "9".repeat(100_000));
+        let e = parse_datagram(&huge).unwrap_err().to_string();
+        assert!(e.len() < 80, "{e}");
+        let e = parse_datagram(&format!("6d 1 [0 1][{} 0 0 0 0 0]", "x".repeat(70_000)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 100, "{e}");
     }
 
     proptest::proptest! {
