@@ -38,6 +38,9 @@ pub struct FaultRecord {
     pub node_stop: NodeStopFigures,
     /// kill -9 of the master, a new one started at once.
     pub master_restart: MasterRestartFigures,
+    /// The runtime timer's own lateness, the floor under every stall
+    /// figure: median overshoot of a 5 ms tokio sleep on this machine (ms).
+    pub timer_late_ms_p50: f64,
     /// Where the processes' logs and metrics were kept (removed unless
     /// `--keep`).
     pub work_dir: String,
@@ -221,6 +224,24 @@ fn hostile_datagrams() -> Vec<Vec<u8>> {
     .collect();
     out.push(vec![0xff, 0xfe, 0x00, 0x80, b'6', b'd']);
     out
+}
+
+/// Median overshoot of 50 tokio sleeps of 5 ms (ms): tokio's timer has
+/// whole-millisecond granularity, and every eviction waits on it.
+fn timer_lateness_ms() -> Result<f64> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()?;
+    let late: Vec<f64> = rt.block_on(async {
+        let mut late = Vec::new();
+        for _ in 0..50 {
+            let t0 = Instant::now();
+            tokio::time::sleep(Duration::from_millis(5)).await;
+            late.push(t0.elapsed().as_secs_f64() * 1e3 - 5.0);
+        }
+        late
+    });
+    Ok(showcase_light::metrics::percentile(&late, 50.0).unwrap_or(f64::NAN))
 }
 
 /// Run the bench.
@@ -453,6 +474,7 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
         node_kill,
         node_stop,
         master_restart,
+        timer_late_ms_p50: timer_lateness_ms()?,
         work_dir: dir.display().to_string(),
     })
 }

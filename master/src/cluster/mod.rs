@@ -8,6 +8,7 @@ pub mod loopback;
 pub mod metrics;
 pub mod server;
 pub mod show;
+pub mod timer;
 
 pub use identity::{Refusal, Roster};
 pub use loopback::{LoopbackError, LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};

@@ -8,6 +8,7 @@
 use super::identity::Roster;
 use super::metrics::{FrameMetrics, frame_metrics};
 use super::show::Show;
+use super::timer::DeadlineTimer;
 use showcase_proto::session::{
     ConnId, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, SwapReport,
 };
@@ -69,6 +70,9 @@ pub enum ServerError {
     /// The core refused its settings or the scene.
     #[error(transparent)]
     Core(#[from] MasterError),
+    /// The deadline timer's thread could not start.
+    #[error("cannot start the deadline timer thread: {0}")]
+    Timer(std::io::Error),
     /// Metrics could not be written.
     #[error("writing metrics: {0}")]
     Metrics(std::io::Error),
@@ -207,6 +211,7 @@ impl Server {
         let mut udp_buf = vec![0u8; 64 * 1024];
         let traffic = Arc::new(FrameTraffic::default());
         let roster = Arc::new(std::mem::take(&mut settings.roster));
+        let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -273,15 +278,7 @@ impl Server {
                     break 'run;
                 }
             }
-            let timeout = core.poll_timeout();
-            let sleep = async {
-                match timeout {
-                    Some(t) => {
-                        tokio::time::sleep(Duration::from_nanos(t.saturating_sub(now()))).await
-                    }
-                    None => tokio::time::sleep(Duration::from_millis(100)).await,
-                }
-            };
+            timer.set(core.poll_timeout().map(|t| start + Duration::from_nanos(t)));
             let datagram = async {
                 match udp.as_ref() {
                     Some(u) => u.recv_from(&mut udp_buf).await.map(|(n, _)| n),
@@ -322,7 +319,7 @@ impl Server {
                     },
                     Err(e) => warn!(error = %e, "tracking socket"),
                 },
-                _ = ticker.tick() => {
+                tick_at = ticker.tick() => {
                     if !started {
                         // A node that answered a clock probe (queued after its
                         // snapshot) has the scene; starting earlier would put
@@ -350,6 +347,10 @@ impl Server {
                         continue 'run;
                     }
                     let t = now();
+                    // The frame's deadline runs from its tick, not from when
+                    // tokio's whole-millisecond timer got round to it: else a
+                    // 17 ms tick gap adds to the stall behind a dead node.
+                    let tick_ns = (tick_at.into_std().saturating_duration_since(start).as_nanos() as u64).min(t);
                     let (mut state, sample) = show.frame_state(next_frame, t as f64 / 1e9, core.scene(), core.scene_version());
                     state.tracking_time_ns = sample.map(|s| (s * 1e9) as u64);
                     if show.is_live() || state.tracking_time_ns.is_none() {
@@ -360,7 +361,7 @@ impl Server {
                         state.tracking_time_ns = Some(t);
                     }
                     states.insert(next_frame, state.clone());
-                    match core.submit_frame(t, state) {
+                    match core.submit_frame(tick_ns, state) {
                         Ok(()) => {
                             run.submitted += 1;
                             next_frame += 1;
@@ -372,7 +373,7 @@ impl Server {
                         }
                     }
                 }
-                _ = sleep => core.handle_timeout(now()),
+                _ = timer.fired() => core.handle_timeout(now()),
             }
         }
         run.finished_ns = now();
