@@ -465,7 +465,10 @@ mod tests {
         let c = ClusterConfig::parse(CABINET, "cluster.toml").unwrap();
         assert_eq!(c.nodes.len(), 5);
         // The cabinet's file spells out the default limits.
-        assert_eq!(c.tracking.as_ref().unwrap().limits, TrackingLimits::default());
+        assert_eq!(
+            c.tracking.as_ref().unwrap().limits,
+            TrackingLimits::default()
+        );
         let hosts: HashSet<_> = c.nodes.iter().map(|n| n.host.as_str()).collect();
         assert_eq!(hosts.len(), 3, "three PCs");
         assert_eq!(c.node("face-1", "cluster.toml").unwrap().role, Role::Face);
