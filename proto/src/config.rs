@@ -123,7 +123,10 @@ impl TrackingLimits {
             ("tracking.limits.volume_min", self.volume_min),
             ("tracking.limits.volume_max", self.volume_max),
         ] {
-            if let Some(v) = corner.iter().find(|v| !(v.abs() <= Self::MAX_COORDINATE)) {
+            if let Some(v) = corner
+                .iter()
+                .find(|v| v.is_nan() || v.abs() > Self::MAX_COORDINATE)
+            {
                 return Some((
                     field,
                     format!(

@@ -287,7 +287,9 @@ impl PoseFilter {
         // tiny corrections.
         let dt_eff = dt.max(1e-3);
         let distance = b.position.distance(a.position);
-        if !(distance <= self.config.max_speed * dt_eff) {
+        // Written so that a NaN limit rejects rather than passes.
+        let within_speed = distance <= self.config.max_speed * dt_eff;
+        if !within_speed {
             return Err(Rejection::Jump {
                 distance,
                 dt,
@@ -295,7 +297,8 @@ impl PoseFilter {
             });
         }
         let degrees = a.rotation.angle_between(b.rotation).to_degrees();
-        if !(degrees <= self.config.max_angular_speed_deg * dt_eff) {
+        let within_turn = degrees <= self.config.max_angular_speed_deg * dt_eff;
+        if !within_turn {
             return Err(Rejection::Turn {
                 degrees,
                 dt,

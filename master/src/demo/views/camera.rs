@@ -97,6 +97,10 @@ mod tests {
             Tracking::Scripted(tracker),
             crate::demo::INTERACTIVE_HZ as f64,
         );
+        // Walk up to frame 60: a body is acquired from consistent samples.
+        for f in 0..60 {
+            show.frame_state(f, 0.0, &truth, 1);
+        }
         let (state, _) = show.frame_state(60, 0.0, &truth, 1);
         let frame = FrameScene::resolve(&truth, &state).unwrap();
         let occluders = Occluders::new(&frame).unwrap();
