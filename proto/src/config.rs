@@ -5,7 +5,7 @@
 //! file and checking that referenced files exist is the caller's job.
 
 use crate::message::Role;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -51,7 +51,7 @@ fn default_deadline() -> f32 {
 }
 
 /// Where tracking data comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TrackingSource {
     /// A.R.T. DTrack ASCII datagrams on `port`.
@@ -63,7 +63,7 @@ pub enum TrackingSource {
 }
 
 /// Tracking settings.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackingConfig {
     /// The source.
@@ -95,7 +95,7 @@ pub struct TrackingConfig {
 /// y up), after the room transform: it stays put when DTrack is
 /// recalibrated, and it bounds every pose that reaches a frame state, so
 /// nothing overflows when poses become f32.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrackingLimits {
     /// Lowest corner of the tracking volume (metres, world coordinates).
@@ -187,7 +187,7 @@ impl Default for TrackingLimits {
 }
 
 /// A tracked body drives an observer's head, a light or an object.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodyMapping {
     /// DTrack body id.

@@ -321,7 +321,7 @@ async fn replays_are_bit_identical() {
         showcase_master::scene_file::load_scene(&showcase_master::demo::default_scene()).unwrap();
     // Two seconds of the walk at 50 datagrams per second, with arrival
     // jitter, as a live recording would have.
-    let mut rec = Recorder::new(Vec::new(), "test walk").unwrap();
+    let mut rec = Recorder::new(Vec::new(), "test walk", None).unwrap();
     for i in 0..100u64 {
         let t = i as f64 * 0.02 + if i % 3 == 0 { 0.004 } else { 0.0 };
         rec.record(t, &walk_datagram(i, t)).unwrap();

@@ -53,7 +53,8 @@ fn hostile_session() -> Vec<(f64, String)> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn hostile_recordings_replay_bit_identically() {
     let scene = scene();
-    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Dtrack), scene).unwrap();
+    let config = walk_tracking(scene, TrackingSource::Dtrack);
+    let tracker = Tracker::new(&config, scene).unwrap();
     let mut live = Show::new(Tracking::Live(tracker), 50.0);
     let dir = std::env::temp_dir().join(format!("showcase-tracking-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -61,6 +62,7 @@ async fn hostile_recordings_replay_bit_identically() {
     live.record_to(
         Box::new(std::fs::File::create(&session).unwrap()),
         "hostile",
+        Some(&config),
     )
     .unwrap();
     for (t, d) in hostile_session() {

@@ -169,6 +169,19 @@ pub async fn bench_cluster(
     Ok(out)
 }
 
+/// The tracking settings a replay uses: the ones the recording kept (the
+/// live show's mapping, room transform and limits), else, for recordings
+/// that predate them, the built-in walk's mapping.
+pub fn replay_tracking(header: &recording::Header, scene: &Showcase) -> TrackingConfig {
+    match &header.tracking {
+        Some(t) => TrackingConfig {
+            source: TrackingSource::Recording,
+            ..t.clone()
+        },
+        None => walk_tracking(scene, TrackingSource::Recording),
+    }
+}
+
 /// What a replay produced: every node's per-frame output hashes.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ReplayOutcome {
@@ -197,12 +210,17 @@ pub async fn replay(
     hz: f32,
     frames: Option<u64>,
 ) -> Result<ReplayOutcome> {
-    let entries = recording::read(session)?;
+    let recorded = recording::read_recording(session)?;
+    if let Some(cut) = &recorded.cut {
+        tracing::warn!("{cut}");
+    }
+    let entries = recorded.entries;
     let Some(last) = entries.last() else {
         bail!("{}: the recording has no datagrams", session.display());
     };
     let frames = frames.unwrap_or(((last.t * hz as f64).floor() as u64 + 1).max(1));
-    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Recording), scene)?;
+    let tracker = Tracker::new(&replay_tracking(&recorded.header, scene), scene)
+        .with_context(|| format!("{}: the recorded tracking settings", session.display()))?;
     let show = Show::new(
         Tracking::Replay {
             tracker,
@@ -281,7 +299,11 @@ pub async fn run_master(
     if let Some(path) = record {
         let f = std::fs::File::create(path)
             .with_context(|| format!("cannot create recording {}", path.display()))?;
-        show.record_to(Box::new(std::io::BufWriter::new(f)), &label)?;
+        show.record_to(
+            Box::new(std::io::BufWriter::new(f)),
+            &label,
+            cfg.tracking.as_ref(),
+        )?;
     }
     let metrics_out: Option<Box<dyn std::io::Write + Send>> = match metrics {
         Some(p) => Some(Box::new(std::io::BufWriter::new(
@@ -357,4 +379,54 @@ fn check_outputs(cfg: &ClusterConfig, scene: &Showcase, base: &Path, label: &str
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracking::recording::{Recorder, parse_recording};
+
+    /// A recording keeps the live show's tracking settings, and its replay
+    /// maps and filters with them; one without falls back to the walk's.
+    #[test]
+    fn replays_use_the_recorded_tracking_settings() {
+        let scene = Showcase {
+            observers: vec![showcase_proto::Observer {
+                name: "alice".into(),
+                head: Default::default(),
+                ipd: showcase_proto::Observer::DEFAULT_IPD,
+            }],
+            ..Showcase::default()
+        };
+        let live = TrackingConfig {
+            room_translation: [0.5, 0.0, -0.25],
+            predict_ms: 8.0,
+            bodies: vec![BodyMapping {
+                id: 7,
+                target: "observer:alice".into(),
+            }],
+            ..walk_tracking(&scene, TrackingSource::Dtrack)
+        };
+        let rec = Recorder::new(Vec::new(), "live", Some(&live)).unwrap();
+        let bytes = rec.into_inner();
+        let read = parse_recording(&bytes[..], "s.jsonl").unwrap();
+        assert_eq!(read.header.tracking.as_ref(), Some(&live));
+        let used = replay_tracking(&read.header, &scene);
+        assert_eq!(
+            used,
+            TrackingConfig {
+                source: TrackingSource::Recording,
+                ..live
+            }
+        );
+        let old = parse_recording(
+            &b"{\"format\":\"showcase-tracking\",\"version\":1}\n"[..],
+            "old.jsonl",
+        )
+        .unwrap();
+        assert_eq!(
+            replay_tracking(&old.header, &scene),
+            walk_tracking(&scene, TrackingSource::Recording)
+        );
+    }
 }

@@ -9,6 +9,7 @@
 use crate::tracking::recording::{Entry, Recorder};
 use crate::tracking::scripted::walk_datagram;
 use crate::tracking::{Tracker, initial_frame};
+use showcase_proto::config::TrackingConfig;
 use showcase_proto::{FrameState, Showcase};
 use std::io::Write;
 use tracing::warn;
@@ -66,9 +67,15 @@ impl Show {
         }
     }
 
-    /// Record every datagram (live, scripted or replayed) to `out`.
-    pub fn record_to(&mut self, out: Box<dyn Write + Send>, note: &str) -> std::io::Result<()> {
-        self.recorder = Some(Recorder::new(out, note)?);
+    /// Record every datagram (live, scripted or replayed) to `out`, with
+    /// the tracking settings that map and filter them.
+    pub fn record_to(
+        &mut self,
+        out: Box<dyn Write + Send>,
+        note: &str,
+        tracking: Option<&TrackingConfig>,
+    ) -> std::io::Result<()> {
+        self.recorder = Some(Recorder::new(out, note, tracking)?);
         Ok(())
     }
 
@@ -312,7 +319,7 @@ mod tests {
         let frames = 2 * HZ as u64;
         let out = Arc::new(Mutex::new(Vec::new()));
         let mut live = Show::new(Tracking::Live(tracker(&s)), HZ);
-        live.record_to(Box::new(Sink(out.clone())), "hostile")
+        live.record_to(Box::new(Sink(out.clone())), "hostile", None)
             .unwrap();
         let mut next = 0;
         let mut live_states = Vec::new();

@@ -357,8 +357,8 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
     use showcase_proto::config::TrackingSource;
 
     const HZ: f32 = INTERACTIVE_HZ;
-    let tracker =
-        crate::tracking::Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
+    let tracking = walk_tracking(scene, TrackingSource::Scripted);
+    let tracker = crate::tracking::Tracker::new(&tracking, scene)?;
     let mut show = Show::new(Tracking::Scripted(tracker), HZ as f64);
     let session = opts.out.join("session.jsonl");
     let f = std::fs::File::create(&session)
@@ -366,6 +366,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
     show.record_to(
         Box::new(std::io::BufWriter::new(f)),
         "showcase-master demo: the built-in walk",
+        Some(&tracking),
     )?;
     let metrics_path = opts.out.join("metrics.jsonl");
     let metrics = std::fs::File::create(&metrics_path)

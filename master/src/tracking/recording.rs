@@ -11,6 +11,7 @@
 //! line and warns. A bad line anywhere else is corruption, an error.
 
 use serde::{Deserialize, Serialize};
+use showcase_proto::config::TrackingConfig;
 use std::io::{BufRead, Write};
 use std::path::Path;
 use tracing::warn;
@@ -35,6 +36,11 @@ pub struct Header {
     /// Free text: where and when it was recorded.
     #[serde(default)]
     pub note: String,
+    /// The tracking settings of the show that recorded it (body mapping,
+    /// room transform, limits), so a replay maps and filters the datagrams
+    /// as the live show did. Absent in version 1 files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracking: Option<TrackingConfig>,
 }
 
 /// One received datagram.
@@ -226,12 +232,14 @@ pub struct Recorder<W: Write> {
 }
 
 impl<W: Write> Recorder<W> {
-    /// Start a recording with a header line.
-    pub fn new(mut out: W, note: &str) -> std::io::Result<Self> {
+    /// Start a recording with a header line that keeps the show's
+    /// tracking settings.
+    pub fn new(mut out: W, note: &str, tracking: Option<&TrackingConfig>) -> std::io::Result<Self> {
         let h = Header {
             format: FORMAT.into(),
             version: VERSION,
             note: note.into(),
+            tracking: tracking.cloned(),
         };
         writeln!(out, "{}", serde_json::to_string(&h)?)?;
         out.flush()?;
@@ -277,7 +285,7 @@ mod tests {
 
     #[test]
     fn round_trips_and_names_bad_lines() {
-        let mut rec = Recorder::new(Vec::new(), "test").unwrap();
+        let mut rec = Recorder::new(Vec::new(), "test", None).unwrap();
         rec.record(0.0, "fr 1\n6d 0\n").unwrap();
         rec.record(0.5, "fr 2\n6d 1 [0 1][1 2 3 0 0 0][1 0 0 0 1 0 0 0 1]\n")
             .unwrap();
@@ -314,7 +322,7 @@ mod tests {
     /// the replay rejects them again the same way.
     #[test]
     fn datagrams_the_parser_refuses_are_read_back() {
-        let mut rec = Recorder::new(Vec::new(), "test").unwrap();
+        let mut rec = Recorder::new(Vec::new(), "test", None).unwrap();
         rec.record(0.0, "fr 1\n6d 0\n").unwrap();
         let bad = [
             "fr 2\n6d 1 [0 1][1 2 3 0 0 0] x[1 0 0 0 1 0 0 0 1]\n",
@@ -355,7 +363,7 @@ mod tests {
     }
 
     fn three_lines() -> Vec<u8> {
-        let mut rec = Recorder::new(Vec::new(), "test").unwrap();
+        let mut rec = Recorder::new(Vec::new(), "test", None).unwrap();
         for i in 0..3 {
             rec.record(f64::from(i) * 0.5, &format!("fr {i}\n6d 0\n"))
                 .unwrap();
