@@ -29,6 +29,30 @@ fn identity(c: &ClusterCerts, name: &str) -> ClusterIdentity {
     ClusterIdentity::from_pem(&c.ca_pem, &p.cert_pem, &p.key_pem).unwrap()
 }
 
+/// A master at `HZ` on `listen` that admits `listed` as projectors and
+/// starts once all of them joined; no tracking, no metrics.
+fn settings(
+    c: &ClusterCerts,
+    listed: &[String],
+    listen: std::net::SocketAddr,
+    frames: Option<u64>,
+) -> ServerSettings {
+    ServerSettings {
+        listen,
+        identity: identity(c, MASTER_FILE),
+        roster: Roster::new(listed.iter().map(|n| (n.clone(), Role::Projector))),
+        core: MasterConfig {
+            target_hz: HZ,
+            ..MasterConfig::default()
+        },
+        frames,
+        wait_for_nodes: listed.len(),
+        start_timeout: Duration::from_secs(10),
+        tracking: None,
+        metrics: None,
+    }
+}
+
 fn scene() -> Showcase {
     Showcase {
         name: "cluster-test".into(),
@@ -137,18 +161,14 @@ async fn loopback_cluster_of_four_nodes() {
         }
     }
     let server = Server::bind(ServerSettings {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        identity: identity(&c, MASTER_FILE),
-        roster: Roster::new(names[..4].iter().map(|n| (n.clone(), Role::Projector))),
-        core: MasterConfig {
-            target_hz: HZ,
-            ..MasterConfig::default()
-        },
-        frames: Some(FRAMES),
-        wait_for_nodes: 4,
-        start_timeout: Duration::from_secs(10),
         tracking: Some("127.0.0.1:0".parse().unwrap()),
         metrics: Some(Box::new(Sink(metrics.clone()))),
+        ..settings(
+            &c,
+            &names[..4],
+            "127.0.0.1:0".parse().unwrap(),
+            Some(FRAMES),
+        )
     })
     .unwrap();
     let addr = server.local_addr();
@@ -372,20 +392,12 @@ async fn only_listed_names_with_their_own_certificates_join() {
     let names: Vec<String> = ["node-0", "node-1", "intruder"].map(String::from).to_vec();
     let c = certs::generate(&names).unwrap();
     let frames = 120;
-    let server = Server::bind(ServerSettings {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        identity: identity(&c, MASTER_FILE),
-        roster: Roster::new(names[..2].iter().map(|n| (n.clone(), Role::Projector))),
-        core: MasterConfig {
-            target_hz: HZ,
-            ..MasterConfig::default()
-        },
-        frames: Some(frames),
-        wait_for_nodes: 2,
-        start_timeout: Duration::from_secs(10),
-        tracking: None,
-        metrics: None,
-    })
+    let server = Server::bind(settings(
+        &c,
+        &names[..2],
+        "127.0.0.1:0".parse().unwrap(),
+        Some(frames),
+    ))
     .unwrap();
     let addr = server.local_addr();
     let master = tokio::spawn(server.run(
@@ -488,20 +500,7 @@ async fn only_listed_names_with_their_own_certificates_join() {
 fn a_restarted_master_is_noticed_by_reset_and_the_nodes_rejoin() {
     let names: Vec<String> = ["node-0", "node-1"].map(String::from).to_vec();
     let c = certs::generate(&names).unwrap();
-    let settings = |listen: std::net::SocketAddr, frames: Option<u64>| ServerSettings {
-        listen,
-        identity: identity(&c, MASTER_FILE),
-        roster: Roster::new(names.iter().map(|n| (n.clone(), Role::Projector))),
-        core: MasterConfig {
-            target_hz: HZ,
-            ..MasterConfig::default()
-        },
-        frames,
-        wait_for_nodes: 2,
-        start_timeout: Duration::from_secs(10),
-        tracking: None,
-        metrics: None,
-    };
+    let settings = |listen, frames| settings(&c, &names, listen, frames);
     let rt = |threads| {
         tokio::runtime::Builder::new_multi_thread()
             .worker_threads(threads)

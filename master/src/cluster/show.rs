@@ -206,31 +206,13 @@ mod tests {
     use crate::tracking::recording;
     use crate::tracking::scripted::walk_positions;
     use showcase_proto::config::{BodyMapping, TrackingConfig, TrackingSource};
-    use showcase_proto::{
-        Light, LightSource, MAX_FRAME_LEN, Message, Observer, Pose, Validate, encode_frame,
-    };
+    use showcase_proto::{MAX_FRAME_LEN, Message, Pose, Validate, encode_frame};
     use std::sync::{Arc, Mutex};
 
     const HZ: f64 = 60.0;
 
     fn scene() -> Showcase {
-        Showcase {
-            observers: ["alice", "bob"]
-                .map(|n| Observer {
-                    name: n.into(),
-                    head: Pose::default(),
-                    ipd: Observer::DEFAULT_IPD,
-                })
-                .to_vec(),
-            lights: vec![LightSource {
-                name: "key".into(),
-                light: Light::Point {
-                    position: glam::Vec3::Y,
-                    intensity: glam::Vec3::ONE,
-                },
-            }],
-            ..Showcase::default()
-        }
+        crate::tracking::tracker::two_observers_and_a_light()
     }
 
     fn tracker(scene: &Showcase) -> Tracker {

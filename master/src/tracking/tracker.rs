@@ -211,32 +211,39 @@ pub fn initial_frame(scene: &Showcase, frame: u64, time_s: f64, version: u64) ->
     }
 }
 
+/// The unit tests' scene: observers "alice" and "bob" and a point light
+/// "key" at (0, 1, 0).
+#[cfg(test)]
+pub(crate) fn two_observers_and_a_light() -> Showcase {
+    use showcase_proto::{LightSource, Observer};
+    Showcase {
+        observers: ["alice", "bob"]
+            .map(|n| Observer {
+                name: n.into(),
+                head: Pose::default(),
+                ipd: Observer::DEFAULT_IPD,
+            })
+            .to_vec(),
+        lights: vec![LightSource {
+            name: "key".into(),
+            light: Light::Point {
+                position: glam::Vec3::Y,
+                intensity: glam::Vec3::ONE,
+            },
+        }],
+        ..Showcase::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::tracking::scripted::{look_rotation, walk_datagram, walk_positions};
     use glam::Vec3;
     use showcase_proto::config::{BodyMapping, TrackingSource};
-    use showcase_proto::{LightSource, Observer};
 
     fn scene() -> Showcase {
-        Showcase {
-            observers: ["alice", "bob"]
-                .map(|n| Observer {
-                    name: n.into(),
-                    head: Pose::default(),
-                    ipd: Observer::DEFAULT_IPD,
-                })
-                .to_vec(),
-            lights: vec![LightSource {
-                name: "key".into(),
-                light: Light::Point {
-                    position: Vec3::Y,
-                    intensity: Vec3::ONE,
-                },
-            }],
-            ..Showcase::default()
-        }
+        two_observers_and_a_light()
     }
 
     fn config(bodies: &[(u32, &str)]) -> TrackingConfig {
