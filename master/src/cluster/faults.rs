@@ -38,6 +38,9 @@ pub struct FaultRecord {
     pub node_stop: NodeStopFigures,
     /// kill -9 of the master, a new one started at once.
     pub master_restart: MasterRestartFigures,
+    /// The first master's `--record` session, hostile datagrams and the
+    /// kill -9 included, replayed twice.
+    pub recording: RecordingFigures,
     /// The runtime timer's own lateness, the floor under every stall
     /// figure: median overshoot of a 5 ms tokio sleep on this machine (ms).
     pub timer_late_ms_p50: f64,
@@ -94,6 +97,21 @@ pub struct MasterRestartFigures {
     /// Nodes whose log shows the old connection ended by a stateless reset
     /// (rather than the idle timeout).
     pub noticed_by_reset: usize,
+}
+
+/// What the recording of the faulted show did on replay.
+#[derive(Clone, Debug, Serialize)]
+pub struct RecordingFigures {
+    /// Datagram lines it kept.
+    pub datagrams: usize,
+    /// Lines that say the live show rejected something.
+    pub with_rejections: usize,
+    /// The kill -9 left a partial last line (dropped on replay).
+    pub cut_by_kill: bool,
+    /// Frames each replay ran.
+    pub frames: u64,
+    /// Every node's per-frame output hashes were identical in both replays.
+    pub replays_identical: bool,
 }
 
 /// Settings of the bench.
@@ -226,6 +244,28 @@ fn hostile_datagrams() -> Vec<Vec<u8>> {
     out
 }
 
+/// Replay the session twice through loopback clusters and compare.
+fn replay_twice(session: &Path, scene_file: &Path) -> Result<RecordingFigures> {
+    let recorded = crate::tracking::recording::read_recording(session)?;
+    let scene = crate::scene_file::load_any(scene_file)?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    let replay = || rt.block_on(super::commands::replay(&scene, session, HZ as f32, None));
+    let (a, b) = (replay()?, replay()?);
+    Ok(RecordingFigures {
+        datagrams: recorded.entries.len(),
+        with_rejections: recorded
+            .entries
+            .iter()
+            .filter(|e| e.rejected.as_ref().is_some_and(|r| !r.is_empty()))
+            .count(),
+        cut_by_kill: recorded.cut.is_some(),
+        frames: a.frames,
+        replays_identical: a == b && a.nodes.iter().all(|n| !n.hashes.is_empty()),
+    })
+}
+
 /// Median overshoot of 50 tokio sleeps of 5 ms (ms): tokio's timer has
 /// whole-millisecond granularity, and every eviction waits on it.
 fn timer_lateness_ms() -> Result<f64> {
@@ -292,6 +332,8 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
             .arg(&config)
             .arg("--metrics")
             .arg(dir.join(format!("metrics-{run}.jsonl")))
+            .arg("--record")
+            .arg(dir.join(format!("session-{run}.jsonl")))
             .stdout(Stdio::null())
             .stderr(log(&format!("master-{run}"))?)
             .spawn()
@@ -463,6 +505,8 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
     };
     eprintln!("bench faults: master restart {master_restart:?}");
     drop(procs);
+    let recording = replay_twice(&dir.join("session-1.jsonl"), &scene)?;
+    eprintln!("bench faults: recording {recording:?}");
     if !opts.keep {
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -474,6 +518,7 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
         node_kill,
         node_stop,
         master_restart,
+        recording,
         timer_late_ms_p50: timer_lateness_ms()?,
         work_dir: dir.display().to_string(),
     })

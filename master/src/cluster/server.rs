@@ -313,10 +313,10 @@ impl Server {
                     },
                 },
                 n = datagram => match n {
-                    Ok(n) => match std::str::from_utf8(&udp_buf[..n]) {
-                        Ok(text) => show.ingest_live(now() as f64 / 1e9, text),
-                        Err(_) => warn!("tracking datagram is not text"),
-                    },
+                    // DTrack sends ASCII. Other bytes become U+FFFD and reach
+                    // the parser (which refuses them) and the recording as
+                    // text, so a replay sees exactly what the show saw.
+                    Ok(n) => show.ingest_live(now() as f64 / 1e9, &String::from_utf8_lossy(&udp_buf[..n])),
                     Err(e) => warn!(error = %e, "tracking socket"),
                 },
                 tick_at = ticker.tick() => {
