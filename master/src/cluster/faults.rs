@@ -41,6 +41,9 @@ pub struct FaultRecord {
     /// The first master's `--record` session, hostile datagrams and the
     /// kill -9 included, replayed twice.
     pub recording: RecordingFigures,
+    /// Evictions, over both masters' runs, of nodes that were neither
+    /// killed nor stopped (false evictions; 0 expected).
+    pub false_evictions: usize,
     /// The runtime timer's own lateness, the floor under every stall
     /// figure: median overshoot of a 5 ms tokio sleep on this machine (ms).
     pub timer_late_ms_p50: f64,
@@ -499,6 +502,15 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
                 .is_ok_and(|t| t.contains("reset by peer"))
         })
         .count();
+    let faulted = |l: &Line, e: &String| {
+        (e == "face-1" && l.swap_unix_ms >= t_kill && l.swap_unix_ms < t_restart + 1000.0)
+            || (e == "projector-0" && l.swap_unix_ms >= t_stop && l.swap_unix_ms < t_cont + 1000.0)
+    };
+    let false_evictions = [&metrics1, &metrics2]
+        .iter()
+        .flat_map(|m| read_metrics(m))
+        .map(|l| l.evicted.iter().filter(|e| !faulted(&l, e)).count())
+        .sum();
     let master_restart = MasterRestartFigures {
         recovery_ms,
         noticed_by_reset,
@@ -519,6 +531,7 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
         node_stop,
         master_restart,
         recording,
+        false_evictions,
         timer_late_ms_p50: timer_lateness_ms()?,
         work_dir: dir.display().to_string(),
     })
