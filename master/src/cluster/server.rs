@@ -14,8 +14,8 @@ use showcase_proto::session::{
 };
 use showcase_proto::{CodecError, FrameState, Message, Showcase};
 use showcase_render::net::{
-    ClusterIdentity, MessageReader, MessageStream, MessageWriter, StreamError, TlsError, peer_is,
-    peer_names, server_config, server_endpoint_config,
+    ClusterIdentity, MessageReader, MessageStream, MessageWriter, REFUSED, StreamError, TlsError,
+    peer_is, peer_names, server_config, server_endpoint_config,
 };
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
@@ -484,7 +484,7 @@ async fn connection(
                         );
                         let mut why = refusal.to_string().into_bytes();
                         why.truncate(1000);
-                        conn.close(3u32.into(), &why);
+                        conn.close(REFUSED.into(), &why);
                         let _ = tx.send(Inbound::Refused(id, refusal.to_string()));
                         return false;
                     }

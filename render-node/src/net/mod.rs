@@ -4,7 +4,7 @@
 pub mod stream;
 pub mod tls;
 
-pub use stream::{MessageReader, MessageStream, MessageWriter, StreamError};
+pub use stream::{MessageReader, MessageStream, MessageWriter, REFUSED, StreamError};
 pub use tls::{
     ALPN, ClusterIdentity, IDLE_TIMEOUT, KEEP_ALIVE, MASTER_SERVER_NAME, TlsError, client_config,
     peer_is, peer_names, server_config, server_endpoint_config,

@@ -20,6 +20,29 @@ pub enum StreamError {
     Closed,
 }
 
+/// QUIC application close code of a master that refuses a node's Hello
+/// (name, certificate and roster disagree): retrying cannot help.
+pub const REFUSED: u32 = 3;
+
+impl StreamError {
+    /// The master's reason when it closed the connection as [`REFUSED`].
+    pub fn refusal(&self) -> Option<String> {
+        let lost = match self {
+            StreamError::Read(quinn::ReadError::ConnectionLost(c))
+            | StreamError::Write(quinn::WriteError::ConnectionLost(c)) => c,
+            _ => return None,
+        };
+        match lost {
+            quinn::ConnectionError::ApplicationClosed(c)
+                if c.error_code == quinn::VarInt::from_u32(REFUSED) =>
+            {
+                Some(String::from_utf8_lossy(&c.reason).into_owned())
+            }
+            _ => None,
+        }
+    }
+}
+
 /// The error, and for a lost connection why it was lost (reset by peer,
 /// closed by peer with its reason, timed out): the part a log reader needs.
 fn lost(e: &dyn std::fmt::Display, connection: Option<&quinn::ConnectionError>) -> String {

@@ -65,6 +65,16 @@ pub enum NodeRunError {
     /// The renderer failed.
     #[error("renderer: {0}")]
     Render(#[from] RenderError),
+    /// The master refused this node's Hello: its name, certificate and the
+    /// master's configuration disagree, which no retry can change.
+    #[error(
+        "the master refused this node: {reason}. Fix the master's [[node]] entries, or this node's --name or certificate, and start it again"
+    )]
+    Refused {
+        /// The master's reason: the claimed name, the certificate's names
+        /// and the configuration's entry.
+        reason: String,
+    },
     /// A frame image could not be written.
     #[error("writing frame image {path}: {problem}")]
     WriteFrame {
@@ -133,6 +143,7 @@ async fn run_inner<R: Renderer + ?Sized>(
     let mut core = NodeCore::new(config);
     let mut link: Option<Link> = None;
     let mut log = NodeLog::default();
+    let mut refused = None;
 
     'run: loop {
         while let Some(out) = core.poll() {
@@ -157,6 +168,10 @@ async fn run_inner<R: Renderer + ?Sized>(
                     if let Some(l) = link.as_mut()
                         && let Err(e) = l.stream.send(&msg).await
                     {
+                        if let Some(reason) = e.refusal() {
+                            refused = Some(reason);
+                            break 'run;
+                        }
                         link = None;
                         core.handle_disconnect(now(), &e.to_string());
                     }
@@ -188,6 +203,10 @@ async fn run_inner<R: Renderer + ?Sized>(
             } => match got {
                 Ok(msg) => core.handle_message(now(), msg),
                 Err(e) => {
+                    if let Some(reason) = e.refusal() {
+                        refused = Some(reason);
+                        break 'run;
+                    }
                     link = None;
                     core.handle_disconnect(now(), &e.to_string());
                 }
@@ -199,7 +218,10 @@ async fn run_inner<R: Renderer + ?Sized>(
         l.conn.close(0u32.into(), b"node shutting down");
     }
     let _ = tokio::time::timeout(Duration::from_secs(1), ep.wait_idle()).await;
-    Ok(log)
+    match refused {
+        Some(reason) => Err(NodeRunError::Refused { reason }),
+        None => Ok(log),
+    }
 }
 
 fn handle_event<R: Renderer + ?Sized>(
