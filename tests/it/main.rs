@@ -15,6 +15,7 @@ mod radiosity;
 mod render;
 mod scene_files;
 mod session;
+mod shutdown;
 mod sim;
 mod tracking;
 mod transport;

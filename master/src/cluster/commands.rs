@@ -263,7 +263,9 @@ pub async fn replay(
     Ok(ReplayOutcome { frames, nodes })
 }
 
-/// `run --config FILE`: the live master of a cluster, until Ctrl-C.
+/// `run --config FILE`: the live master of a cluster, until SIGINT or
+/// SIGTERM, which stop it cleanly (Bye to the nodes, whole files, a
+/// summary, exit 0).
 pub async fn run_master(
     config: &Path,
     metrics: Option<&Path>,
@@ -335,16 +337,12 @@ pub async fn run_master(
         metrics: metrics_out,
     })?;
     eprintln!(
-        "master listening on {} for {} nodes; Ctrl-C stops",
+        "master listening on {} for {} nodes; Ctrl-C or SIGTERM stops",
         server.local_addr(),
         cfg.nodes.len()
     );
     let stop = CancellationToken::new();
-    let s = stop.clone();
-    tokio::spawn(async move {
-        let _ = tokio::signal::ctrl_c().await;
-        s.cancel();
-    });
+    showcase_render::node::cancel_on_stop_signal(stop.clone());
     let run = server.run(scene, show, stop).await?;
     eprintln!(
         "master stopped after {} frames ({} ticks dropped, {} evictions)",

@@ -1,6 +1,6 @@
 //! `showcase-node`: a render node of the Showcase cluster. It drives one
 //! CRT face or one projector (or a camera) for the master named in the
-//! cluster configuration, headless, until Ctrl-C.
+//! cluster configuration, headless, until SIGINT or SIGTERM.
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -159,7 +159,7 @@ fn run(cli: NodeCli) -> Result<()> {
     drive(rt, renderer.as_mut(), stop)
 }
 
-/// Run the node until Ctrl-C, `stop`, or a fatal error.
+/// Run the node until SIGINT or SIGTERM, `stop`, or a fatal error.
 fn drive<R: Renderer + ?Sized>(
     rt: NodeRuntime,
     renderer: &mut R,
@@ -170,11 +170,7 @@ fn drive<R: Renderer + ?Sized>(
         .build()
         .context("cannot start the async runtime")?;
     runtime.block_on(async {
-        let s = stop.clone();
-        tokio::spawn(async move {
-            let _ = tokio::signal::ctrl_c().await;
-            s.cancel();
-        });
+        showcase_render::node::cancel_on_stop_signal(stop.clone());
         let log = run_node(rt, renderer, stop).await?;
         eprintln!(
             "node stopped after presenting {} frames ({} joins)",

@@ -8,7 +8,9 @@ pub mod output;
 pub mod png_out;
 pub mod present;
 pub mod renderer;
+pub mod signal;
 
 pub use driver::{NodeLog, NodeRunError, NodeRuntime, run_node};
 pub use output::{OutputRenderer, observer_in_front};
 pub use renderer::{OutputImage, RenderError, RenderOutput, Renderer, StateHashRenderer};
+pub use signal::cancel_on_stop_signal;
