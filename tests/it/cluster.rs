@@ -583,3 +583,55 @@ fn a_restarted_master_is_noticed_by_reset_and_the_nodes_rejoin() {
         assert!(first.contains("reset"), "{:?}", log.disconnects);
     }
 }
+
+/// A node that will write frame images makes their folder before it
+/// joins; a folder it cannot make stops it at once, naming the path,
+/// instead of taking it down at the first frame to write.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_node_makes_its_frames_folder_before_it_joins() {
+    let c = certs::generate(&["node-0".to_owned()]).unwrap();
+    let dir = std::env::temp_dir().join(format!("showcase-frames-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let blocker = dir.join("a-file");
+    std::fs::write(&blocker, b"not a folder").unwrap();
+    let rt = |frames: std::path::PathBuf| NodeRuntime {
+        name: "node-0".into(),
+        role: Role::Face,
+        // Nothing listens here: only the folder check can end the run.
+        master: "127.0.0.1:9".parse().unwrap(),
+        identity: identity(&c, "node-0"),
+        bind: "127.0.0.1:0".parse().unwrap(),
+        capabilities: Default::default(),
+        write_frames: Some((frames, vec![20, 40])),
+    };
+    let mut r = StateHashRenderer::new("node-0", Role::Face);
+    let bad = blocker.join("frames");
+    let e = timeout(
+        Duration::from_secs(5),
+        run_node(rt(bad.clone()), &mut r, CancellationToken::new()),
+    )
+    .await
+    .expect("a node with an impossible frames folder stops at once")
+    .unwrap_err();
+    assert!(
+        matches!(&e, NodeRunError::WriteFrame { path, .. } if *path == bad),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("cannot create the frames folder"),
+        "{e}"
+    );
+
+    let nested = dir.join("show").join("frames");
+    let stop = CancellationToken::new();
+    stop.cancel();
+    timeout(
+        Duration::from_secs(5),
+        run_node(rt(nested.clone()), &mut r, stop),
+    )
+    .await
+    .unwrap()
+    .unwrap();
+    assert!(nested.is_dir());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

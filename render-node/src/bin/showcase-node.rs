@@ -24,9 +24,9 @@ struct NodeCli {
     /// This node's name in the configuration.
     #[arg(long)]
     name: String,
-    /// Master address, overriding the configuration.
+    /// Master address (HOST:PORT or IP:PORT), overriding the configuration.
     #[arg(long)]
-    master: Option<SocketAddr>,
+    master: Option<String>,
     /// Write the images of these frames (comma-separated) as PNG.
     #[arg(long, value_delimiter = ',')]
     write_frames: Vec<u64>,
@@ -70,6 +70,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
+        // Colours only for a person at a terminal, not in files or the journal.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     match run(NodeCli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
@@ -78,6 +80,16 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `HOST:PORT` or `IP:PORT` to the first address it resolves to.
+fn resolve(master: &str) -> Result<SocketAddr> {
+    use std::net::ToSocketAddrs;
+    master
+        .to_socket_addrs()
+        .with_context(|| format!("--master {master}: give HOST:PORT or IP:PORT"))?
+        .next()
+        .with_context(|| format!("--master {master}: the name resolves to no address"))
 }
 
 fn run(cli: NodeCli) -> Result<()> {
@@ -91,7 +103,10 @@ fn run(cli: NodeCli) -> Result<()> {
     let rt = NodeRuntime {
         name: node.name.clone(),
         role: node.role,
-        master: cli.master.unwrap_or(cfg.master.listen),
+        master: match &cli.master {
+            Some(m) => resolve(m)?,
+            None => cfg.master.listen,
+        },
         identity,
         bind: node
             .bind

@@ -120,6 +120,14 @@ async fn run_inner<R: Renderer + ?Sized>(
     renderer: &mut R,
     shutdown: CancellationToken,
 ) -> Result<NodeLog, NodeRunError> {
+    // A folder the node will write into is made now, so a bad path stops
+    // the node before it joins, not the whole show at the first frame.
+    if let Some((dir, _)) = &rt.write_frames {
+        std::fs::create_dir_all(dir).map_err(|e| NodeRunError::WriteFrame {
+            path: dir.clone(),
+            problem: format!("cannot create the frames folder: {e}"),
+        })?;
+    }
     let socket = std::net::UdpSocket::bind(rt.bind).map_err(|error| NodeRunError::Bind {
         addr: rt.bind,
         error,
