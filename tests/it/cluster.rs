@@ -51,6 +51,7 @@ fn settings(
         start_timeout: Duration::from_secs(10),
         tracking: None,
         metrics: None,
+        keep_frames: true,
     }
 }
 

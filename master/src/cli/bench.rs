@@ -22,6 +22,8 @@ pub enum BenchTarget {
     /// The cluster under faults: hostile tracking datagrams, kill -9 and
     /// SIGSTOP of a node, kill -9 and restart of the master (processes).
     Faults,
+    /// Memory over a long run: 4 nodes at 120 Hz, RSS against frames.
+    Soak,
 }
 
 /// Arguments of `bench`.
@@ -36,7 +38,8 @@ pub struct BenchArgs {
     /// Report folder (without --json).
     #[arg(long, default_value = "showcase-bench")]
     pub out: PathBuf,
-    /// Frames per configuration (default: 600 for cluster, 30 for render).
+    /// Frames per configuration (default: 600 for cluster, 30 for render,
+    /// 12000 for soak).
     #[arg(long)]
     pub frames: Option<u64>,
     /// Cluster only: node counts to run (default: 2,4,8).
@@ -94,6 +97,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
         BenchTarget::Render => render(args),
         BenchTarget::Cluster => cluster(args),
         BenchTarget::Faults => faults(args),
+        BenchTarget::Soak => soak(args),
     }
 }
 
@@ -240,5 +244,16 @@ fn faults(args: &BenchArgs) -> Result<()> {
         node_bin: args.node_bin.clone(),
         keep: args.keep,
     })?;
+    emit_bench(args, &[record])
+}
+
+fn soak(args: &BenchArgs) -> Result<()> {
+    let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
+    let frames = args.frames.unwrap_or(12_000);
+    anyhow::ensure!(
+        frames >= 100,
+        "--frames {frames}: a soak needs at least 100 frames"
+    );
+    let record = runtime()?.block_on(crate::cluster::soak::bench_soak(&scene, frames))?;
     emit_bench(args, &[record])
 }

@@ -160,6 +160,7 @@ pub async fn bench_cluster(
                 restart: Some((0, frames / 3)),
                 metrics: None,
                 write_frames: None,
+                keep_frames: true,
             };
             let r = run_loopback(plan).await?;
             eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
@@ -242,6 +243,7 @@ pub async fn replay(
         restart: None,
         metrics: None,
         write_frames: None,
+        keep_frames: false,
     })
     .await?;
     let nodes = r
@@ -335,6 +337,7 @@ pub async fn run_master(
         start_timeout: Duration::from_secs(30),
         tracking: tracking_addr,
         metrics: metrics_out,
+        keep_frames: false,
     })?;
     eprintln!(
         "master listening on {} for {} nodes; Ctrl-C or SIGTERM stops",

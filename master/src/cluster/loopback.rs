@@ -41,6 +41,8 @@ pub struct LoopbackPlan {
     pub metrics: Option<Box<dyn std::io::Write + Send>>,
     /// Write node images of these frames into this folder.
     pub write_frames: Option<(PathBuf, Vec<u64>)>,
+    /// Keep every frame's metrics in the result (see `ServerSettings`).
+    pub keep_frames: bool,
 }
 
 /// What happened.
@@ -132,6 +134,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
         start_timeout: Duration::from_secs(10),
         tracking: None,
         metrics: plan.metrics,
+        keep_frames: plan.keep_frames,
     })?;
     let addr = server.local_addr();
     let stop = CancellationToken::new();

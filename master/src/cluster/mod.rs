@@ -8,6 +8,7 @@ pub mod loopback;
 pub mod metrics;
 pub mod server;
 pub mod show;
+pub mod soak;
 pub mod timer;
 
 pub use identity::{Refusal, Roster};

@@ -49,6 +49,10 @@ pub struct ServerSettings {
     pub tracking: Option<SocketAddr>,
     /// Where to write one JSON line per frame.
     pub metrics: Option<Box<dyn Write + Send>>,
+    /// Keep every frame's metrics in the returned [`ClusterRun`] (benches,
+    /// the demo, tests). A live show leaves it off, so its memory does not
+    /// grow with the length of the day.
+    pub keep_frames: bool,
 }
 
 /// Why the master could not run.
@@ -81,8 +85,10 @@ pub enum ServerError {
 /// What a run did.
 #[derive(Debug, Default)]
 pub struct ClusterRun {
-    /// One entry per presented frame.
+    /// One entry per presented frame, when `keep_frames` was set.
     pub frames: Vec<FrameMetrics>,
+    /// Frames presented.
+    pub presented: u64,
     /// Frames submitted.
     pub submitted: u64,
     /// Frame-clock ticks at which no frame could be submitted (pipeline
@@ -265,7 +271,10 @@ impl Server {
                                 w.write_all(b"\n").map_err(ServerError::Metrics)?;
                                 w.flush().map_err(ServerError::Metrics)?;
                             }
-                            run.frames.push(m);
+                            run.presented += 1;
+                            if settings.keep_frames {
+                                run.frames.push(m);
+                            }
                         }
                     },
                 }

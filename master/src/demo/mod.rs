@@ -395,6 +395,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         restart: None,
         metrics: Some(Box::new(std::io::BufWriter::new(metrics))),
         write_frames: None,
+        keep_frames: true,
     }))?;
     let seconds = started.elapsed().as_secs_f64();
     let rec = bench_record(node_count, HZ, opts.frames, &result);

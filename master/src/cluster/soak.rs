@@ -1,0 +1,159 @@
+//! `bench soak`: a loopback cluster of 4 state-hash nodes at 120 Hz for
+//! many frames, run as a live show runs (no per-frame metrics kept in
+//! memory), sampling this process's resident memory as it goes. The
+//! growth per 1000 frames says what an exhibition day would cost.
+
+use super::commands::{state_hash_renderers, walk_tracking};
+use super::loopback::{LoopbackPlan, run_loopback};
+use super::show::{Show, Tracking};
+use crate::tracking::Tracker;
+use anyhow::Result;
+use serde::Serialize;
+use showcase_proto::config::TrackingSource;
+use showcase_proto::session::MasterConfig;
+use showcase_proto::{Role, Showcase};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+const NODES: usize = 4;
+const HZ: f32 = 120.0;
+
+/// One sample of the run.
+#[derive(Clone, Debug, Serialize)]
+pub struct SoakSample {
+    /// Frames presented so far.
+    pub frames: u64,
+    /// Resident memory of the process (MB), where the OS reports it.
+    pub rss_mb: Option<f64>,
+}
+
+/// The record `bench soak --json` prints.
+#[derive(Clone, Debug, Serialize)]
+pub struct SoakRecord {
+    /// Render nodes (tasks of this process, as the master's).
+    pub nodes: usize,
+    /// Frame rate.
+    pub hz: f32,
+    /// Frames run.
+    pub frames: u64,
+    /// Samples every half second.
+    pub samples: Vec<SoakSample>,
+    /// Least-squares slope of RSS over the second half of the run, in KB
+    /// per 1000 frames (the first half includes start-up).
+    pub rss_growth_kb_per_1000_frames: Option<f64>,
+    /// The same, as MB over a 10-hour day at 60 Hz.
+    pub rss_growth_mb_per_day_at_60hz: Option<f64>,
+}
+
+/// Resident memory of this process (MB): `VmRSS` of `/proc/self/status`.
+pub fn rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Counts the metrics lines the master writes: one per presented frame.
+struct LineCounter(Arc<AtomicU64>);
+
+impl std::io::Write for LineCounter {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        let lines = b.iter().filter(|&&c| c == b'\n').count() as u64;
+        self.0.fetch_add(lines, Ordering::Relaxed);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Least-squares slope of `y` against `x`.
+fn slope(points: &[(f64, f64)]) -> Option<f64> {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return None;
+    }
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// Run the soak for `frames` frames on `scene`.
+pub async fn bench_soak(scene: &Showcase, frames: u64) -> Result<SoakRecord> {
+    let presented = Arc::new(AtomicU64::new(0));
+    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
+    let plan = LoopbackPlan {
+        scene: scene.clone(),
+        show: Show::new(Tracking::Scripted(tracker), HZ as f64),
+        nodes: (0..NODES)
+            .map(|i| {
+                let role = if i % 2 == 0 {
+                    Role::Face
+                } else {
+                    Role::Projector
+                };
+                (format!("node-{i}"), role)
+            })
+            .collect(),
+        frames,
+        core: MasterConfig {
+            target_hz: HZ,
+            ..super::cluster_core_defaults()
+        },
+        renderers: state_hash_renderers(),
+        restart: None,
+        metrics: Some(Box::new(LineCounter(presented.clone()))),
+        write_frames: None,
+        keep_frames: false,
+    };
+    let run = tokio::spawn(run_loopback(plan));
+    let mut samples = Vec::new();
+    let mut last_print = 0;
+    while !run.is_finished() {
+        let done = presented.load(Ordering::Relaxed);
+        samples.push(SoakSample {
+            frames: done,
+            rss_mb: rss_mb(),
+        });
+        if done >= last_print + frames / 10 {
+            last_print = done;
+            eprintln!(
+                "bench soak: {done} of {frames} frames, RSS {}",
+                rss_mb().map_or("unknown".into(), |m| format!("{m:.1} MB"))
+            );
+        }
+        tokio::time::sleep(Duration::from_millis(500)).await;
+    }
+    run.await??;
+    let late: Vec<(f64, f64)> = samples
+        .iter()
+        .filter(|s| s.frames >= frames / 2)
+        .filter_map(|s| Some((s.frames as f64, s.rss_mb?)))
+        .collect();
+    let per_frame_mb = slope(&late);
+    Ok(SoakRecord {
+        nodes: NODES,
+        hz: HZ,
+        frames,
+        samples,
+        rss_growth_kb_per_1000_frames: per_frame_mb.map(|s| s * 1024.0 * 1000.0),
+        rss_growth_mb_per_day_at_60hz: per_frame_mb.map(|s| s * 60.0 * 3600.0 * 10.0),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_of_a_line_and_of_too_few_points() {
+        let pts: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, 3.0 + 0.5 * i as f64)).collect();
+        assert!((slope(&pts).unwrap() - 0.5).abs() < 1e-12);
+        assert_eq!(slope(&pts[..1]), None);
+        assert_eq!(slope(&[(1.0, 2.0), (1.0, 3.0)]), None);
+    }
+}
