@@ -5,6 +5,7 @@
 
 use showcase_master::certs;
 use showcase_master::cli::{Cli, run};
+use showcase_master::cluster::faults::loopback_config;
 use showcase_proto::Role;
 use showcase_render::net::ClusterIdentity;
 use showcase_render::node::{NodeRuntime, StateHashRenderer, run_node};
@@ -47,16 +48,8 @@ async fn sigterm_stops_a_master_cleanly() {
         .unwrap()
         .port();
     let scene = std::fs::canonicalize(showcase_master::demo::default_scene()).unwrap();
-    let mut cfg = format!(
-        "[master]\nhost = \"localhost\"\nlisten = \"127.0.0.1:{port}\"\nscene = {scene:?}\n\
-         certs = \"certs\"\ntarget_hz = 60\n\n[tracking]\nsource = \"scripted\"\n\
-         body = [{{ id = 0, target = \"observer:observer-0\" }}]\n"
-    );
-    for n in &names {
-        cfg += &format!(
-            "\n[[node]]\nname = \"{n}\"\nrole = \"face\"\nhost = \"localhost\"\noutput = \"{n}\"\n"
-        );
-    }
+    let nodes: Vec<(&str, Role)> = names.iter().map(|n| (n.as_str(), Role::Face)).collect();
+    let cfg = loopback_config(port, &scene, "source = \"scripted\"", &nodes);
     let config = dir.join("cluster.toml");
     std::fs::write(&config, cfg).unwrap();
     let (metrics, session, stderr) = (

@@ -122,6 +122,37 @@ pub fn bench_record(nodes: usize, hz: f32, frames: u64, r: &LoopbackResult) -> C
     }
 }
 
+/// A loopback cluster of `nodes` state-hash nodes (faces and projectors
+/// in turn) showing the scripted walk on `scene` at `hz` for `frames`; no
+/// restart, no metrics, no frames kept.
+pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result<LoopbackPlan> {
+    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
+    Ok(LoopbackPlan {
+        scene: scene.clone(),
+        show: Show::new(Tracking::Scripted(tracker), hz as f64),
+        nodes: (0..nodes)
+            .map(|i| {
+                let role = if i % 2 == 0 {
+                    Role::Face
+                } else {
+                    Role::Projector
+                };
+                (format!("node-{i}"), role)
+            })
+            .collect(),
+        frames,
+        core: MasterConfig {
+            target_hz: hz,
+            ..cluster_core_defaults()
+        },
+        renderers: state_hash_renderers(),
+        restart: None,
+        metrics: None,
+        write_frames: None,
+        keep_frames: false,
+    })
+}
+
 /// `bench cluster`: a loopback cluster of each of `node_counts` at each of
 /// `rates` Hz (the command's defaults: 2, 4 and 8 nodes at 60 and 120 Hz)
 /// on the demo scene with the scripted walk; one node is killed and
@@ -135,32 +166,10 @@ pub async fn bench_cluster(
     let mut out = Vec::new();
     for &nodes in node_counts {
         for &hz in rates {
-            let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
             let plan = LoopbackPlan {
-                scene: scene.clone(),
-                show: Show::new(Tracking::Scripted(tracker), hz as f64),
-                nodes: (0..nodes)
-                    .map(|i| {
-                        (
-                            format!("node-{i}"),
-                            if i % 2 == 0 {
-                                Role::Face
-                            } else {
-                                Role::Projector
-                            },
-                        )
-                    })
-                    .collect(),
-                frames,
-                core: MasterConfig {
-                    target_hz: hz,
-                    ..cluster_core_defaults()
-                },
-                renderers: state_hash_renderers(),
                 restart: Some((0, frames / 3)),
-                metrics: None,
-                write_frames: None,
                 keep_frames: true,
+                ..walk_plan(scene, nodes, hz, frames)?
             };
             let r = run_loopback(plan).await?;
             eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
@@ -212,9 +221,7 @@ pub async fn replay(
     frames: Option<u64>,
 ) -> Result<ReplayOutcome> {
     let recorded = recording::read_recording(session)?;
-    if let Some(cut) = &recorded.cut {
-        tracing::warn!("{cut}");
-    }
+    recorded.warn_if_cut();
     let entries = recorded.entries;
     let Some(last) = entries.last() else {
         bail!("{}: the recording has no datagrams", session.display());

@@ -6,17 +6,19 @@
 //! per-frame metrics (`swap_unix_ms`) against the wall-clock instants of
 //! each fault. Every wait is bounded; the processes are killed on return.
 
+use super::metrics::unix_ms;
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
+use showcase_proto::Role;
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const NODES: [(&str, &str); 3] = [
-    ("face-0", "face"),
-    ("face-1", "face"),
-    ("projector-0", "projector"),
+const NODES: [(&str, Role); 3] = [
+    ("face-0", Role::Face),
+    ("face-1", Role::Face),
+    ("projector-0", Role::Projector),
 ];
 const HZ: f64 = 60.0;
 const DEADLINE_MS: f64 = 50.0;
@@ -140,12 +142,6 @@ struct Line {
 #[derive(Debug, Deserialize)]
 struct NamedNode {
     name: String,
-}
-
-fn unix_ms() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
 }
 
 /// Whole lines of a metrics file written so far (a partial last line is
@@ -287,6 +283,31 @@ fn timer_lateness_ms() -> Result<f64> {
     Ok(showcase_light::metrics::percentile(&late, 50.0).unwrap_or(f64::NAN))
 }
 
+/// A cluster configuration for processes on this machine: the master on
+/// 127.0.0.1:`port` showing `scene` at 60 Hz with a 50 ms deadline and the
+/// certificates in `certs/`; `tracking` holds the `[tracking]` source lines,
+/// to which body 0 on observer-0 is added; one node per `(name, role)`
+/// drives the scene output of its name (a projector with the scene's
+/// calibration).
+pub fn loopback_config(port: u16, scene: &Path, tracking: &str, nodes: &[(&str, Role)]) -> String {
+    let mut cfg = format!(
+        "[master]\nhost = \"localhost\"\nlisten = \"127.0.0.1:{port}\"\nscene = {scene:?}\n\
+         certs = \"certs\"\ntarget_hz = {HZ}\ndeadline_ms = {DEADLINE_MS}\n\n\
+         [tracking]\n{tracking}\nbody = [{{ id = 0, target = \"observer:observer-0\" }}]\n"
+    );
+    for (name, role) in nodes {
+        cfg += &format!(
+            "\n[[node]]\nname = \"{name}\"\nrole = \"{role}\"\nhost = \"localhost\"\noutput = \"{name}\"\n{}",
+            if *role == Role::Projector {
+                "calibration = \"scene\"\n"
+            } else {
+                ""
+            }
+        );
+    }
+    cfg
+}
+
 /// Run the bench.
 pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
     let exe = std::env::current_exe().context("cannot find this binary")?;
@@ -308,21 +329,12 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
     let names: Vec<String> = NODES.iter().map(|(n, _)| (*n).to_owned()).collect();
     crate::certs::write(&dir.join("certs"), &crate::certs::generate(&names)?)?;
     let (quic, dtrack) = (free_port()?, free_port()?);
-    let mut cfg = format!(
-        "[master]\nhost = \"localhost\"\nlisten = \"127.0.0.1:{quic}\"\nscene = {scene:?}\n\
-         certs = \"certs\"\ntarget_hz = {HZ}\ndeadline_ms = {DEADLINE_MS}\n\n\
-         [tracking]\nsource = \"dtrack\"\nport = {dtrack}\nbody = [{{ id = 0, target = \"observer:observer-0\" }}]\n"
+    let cfg = loopback_config(
+        quic,
+        &scene,
+        &format!("source = \"dtrack\"\nport = {dtrack}"),
+        &NODES,
     );
-    for (name, role) in NODES {
-        cfg += &format!(
-            "\n[[node]]\nname = \"{name}\"\nrole = \"{role}\"\nhost = \"localhost\"\noutput = \"{name}\"\n{}",
-            if role == "projector" {
-                "calibration = \"scene\"\n"
-            } else {
-                ""
-            }
-        );
-    }
     let config = dir.join("cluster.toml");
     std::fs::write(&config, cfg)?;
     let log = |name: &str| -> Result<Stdio> {
@@ -414,7 +426,7 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
     });
     let hostile = HostileFigures {
         sent,
-        kinds: hostile_datagrams().len(),
+        kinds: hostile.len(),
         master_survived,
         frames_after,
         heads_finite,

@@ -53,16 +53,6 @@ impl Roster {
         Self::new(cfg.nodes.iter().map(|n| (n.name.clone(), n.role)))
     }
 
-    /// Number of nodes listed.
-    pub fn len(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// True when no node is listed (nobody can join).
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-
     /// Admit a Hello claiming `claimed` in `role` from a peer whose
     /// certificate is issued to `cert_names`; `cert_valid` says whether the
     /// certificate is valid for `claimed` (checked by webpki, which knows

@@ -41,6 +41,14 @@ pub struct FrameMetrics {
     pub evicted: Vec<String>,
 }
 
+/// The wall clock now, in ms since the Unix epoch (0 if the clock is set
+/// before it): the time base of `swap_unix_ms`.
+pub fn unix_ms() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
+}
+
 /// Build a frame's metrics from its state, swap and present reports;
 /// `origin_unix_ms` is the wall-clock time of master-clock zero.
 pub fn frame_metrics(

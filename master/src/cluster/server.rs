@@ -196,9 +196,7 @@ impl Server {
             mut settings,
         } = self;
         let start = Instant::now();
-        let origin_unix_ms = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+        let origin_unix_ms = super::metrics::unix_ms();
         let now = || start.elapsed().as_nanos() as u64;
         let hz = settings.core.target_hz as f64;
         let mut core = MasterCore::new(settings.core.clone(), scene)?;

@@ -3,15 +3,11 @@
 //! memory), sampling this process's resident memory as it goes. The
 //! growth per 1000 frames says what an exhibition day would cost.
 
-use super::commands::{state_hash_renderers, walk_tracking};
+use super::commands::walk_plan;
 use super::loopback::{LoopbackPlan, run_loopback};
-use super::show::{Show, Tracking};
-use crate::tracking::Tracker;
 use anyhow::Result;
 use serde::Serialize;
-use showcase_proto::config::TrackingSource;
-use showcase_proto::session::MasterConfig;
-use showcase_proto::{Role, Showcase};
+use showcase_proto::Showcase;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -85,30 +81,9 @@ fn slope(points: &[(f64, f64)]) -> Option<f64> {
 /// Run the soak for `frames` frames on `scene`.
 pub async fn bench_soak(scene: &Showcase, frames: u64) -> Result<SoakRecord> {
     let presented = Arc::new(AtomicU64::new(0));
-    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
     let plan = LoopbackPlan {
-        scene: scene.clone(),
-        show: Show::new(Tracking::Scripted(tracker), HZ as f64),
-        nodes: (0..NODES)
-            .map(|i| {
-                let role = if i % 2 == 0 {
-                    Role::Face
-                } else {
-                    Role::Projector
-                };
-                (format!("node-{i}"), role)
-            })
-            .collect(),
-        frames,
-        core: MasterConfig {
-            target_hz: HZ,
-            ..super::cluster_core_defaults()
-        },
-        renderers: state_hash_renderers(),
-        restart: None,
         metrics: Some(Box::new(LineCounter(presented.clone()))),
-        write_frames: None,
-        keep_frames: false,
+        ..walk_plan(scene, NODES, HZ, frames)?
     };
     let run = tokio::spawn(run_loopback(plan));
     let mut samples = Vec::new();

@@ -114,20 +114,18 @@ pub struct Recording {
 /// and never decrease; warns when the last line was cut short. Datagrams
 /// are not parsed here: bad ones are data, rejected again by the replay.
 pub fn read(path: &Path) -> Result<Vec<Entry>, RecordingError> {
-    Ok(warn_if_cut(read_recording(path)?))
+    let r = read_recording(path)?;
+    r.warn_if_cut();
+    Ok(r.entries)
 }
 
-/// Parse a recording from any reader; `file` names it in errors. As
-/// [`read`].
-pub fn parse(reader: impl BufRead, file: &str) -> Result<Vec<Entry>, RecordingError> {
-    Ok(warn_if_cut(parse_recording(reader, file)?))
-}
-
-fn warn_if_cut(r: Recording) -> Vec<Entry> {
-    if let Some(cut) = &r.cut {
-        warn!(file = %cut.file, line = cut.line, "{cut}");
+impl Recording {
+    /// Log the cut last line, if any.
+    pub fn warn_if_cut(&self) {
+        if let Some(cut) = &self.cut {
+            warn!(file = %cut.file, line = cut.line, "{cut}");
+        }
     }
-    r.entries
 }
 
 /// [`read`], reporting a cut instead of logging it.
@@ -271,6 +269,11 @@ impl<W: Write> Recorder<W> {
 mod tests {
     use super::*;
 
+    /// The entries of a recording read from bytes.
+    fn parse(reader: impl BufRead, file: &str) -> Result<Vec<Entry>, RecordingError> {
+        parse_recording(reader, file).map(|r| r.entries)
+    }
+
     /// A file that cannot be read is named with the reason once: the
     /// message holds the IO error, and the error does not chain it again
     /// (`{:#}` printed it twice).
@@ -399,7 +402,12 @@ mod tests {
                     .starts_with(&format!("cut.jsonl:{line}: the last line is incomplete")),
                 "{cut}"
             );
-            assert_eq!(parse(bytes, "cut.jsonl").unwrap(), r.entries, "{name}");
+            // `read`, which replays use, keeps the same whole lines.
+            let path = std::env::temp_dir()
+                .join(format!("showcase-cut-{}-{name}.jsonl", std::process::id()));
+            std::fs::write(&path, bytes).unwrap();
+            assert_eq!(read(&path).unwrap(), r.entries, "{name}");
+            std::fs::remove_file(&path).unwrap();
         }
         // A whole file has no cut, with or without its final newline.
         assert_eq!(parse_recording(&whole[..], "w.jsonl").unwrap().cut, None);

@@ -10,10 +10,10 @@ pub enum StreamError {
     #[error("bad message from peer: {0}")]
     Codec(#[from] CodecError),
     /// Reading failed.
-    #[error("read: {}", lost(.0, match .0 { quinn::ReadError::ConnectionLost(c) => Some(c), _ => None }))]
+    #[error("read: {}{}", .0, why_lost(self))]
     Read(#[from] quinn::ReadError),
     /// Writing failed.
-    #[error("write: {}", lost(.0, match .0 { quinn::WriteError::ConnectionLost(c) => Some(c), _ => None }))]
+    #[error("write: {}{}", .0, why_lost(self))]
     Write(#[from] quinn::WriteError),
     /// The peer finished its stream.
     #[error("peer closed the stream")]
@@ -25,14 +25,18 @@ pub enum StreamError {
 pub const REFUSED: u32 = 3;
 
 impl StreamError {
+    /// Why the connection was lost, when that is what failed the stream.
+    pub fn connection_lost(&self) -> Option<&quinn::ConnectionError> {
+        match self {
+            StreamError::Read(quinn::ReadError::ConnectionLost(c))
+            | StreamError::Write(quinn::WriteError::ConnectionLost(c)) => Some(c),
+            _ => None,
+        }
+    }
+
     /// The master's reason when it closed the connection as [`REFUSED`].
     pub fn refusal(&self) -> Option<String> {
-        let lost = match self {
-            StreamError::Read(quinn::ReadError::ConnectionLost(c))
-            | StreamError::Write(quinn::WriteError::ConnectionLost(c)) => c,
-            _ => return None,
-        };
-        match lost {
+        match self.connection_lost()? {
             quinn::ConnectionError::ApplicationClosed(c)
                 if c.error_code == quinn::VarInt::from_u32(REFUSED) =>
             {
@@ -43,13 +47,11 @@ impl StreamError {
     }
 }
 
-/// The error, and for a lost connection why it was lost (reset by peer,
-/// closed by peer with its reason, timed out): the part a log reader needs.
-fn lost(e: &dyn std::fmt::Display, connection: Option<&quinn::ConnectionError>) -> String {
-    match connection {
-        Some(c) => format!("{e} ({c})"),
-        None => e.to_string(),
-    }
+/// For a lost connection, why it was lost (reset by peer, closed by peer
+/// with its reason, timed out): the part a log reader needs.
+fn why_lost(e: &StreamError) -> String {
+    e.connection_lost()
+        .map_or(String::new(), |c| format!(" ({c})"))
 }
 
 /// A framed message stream over a QUIC bidirectional stream.
