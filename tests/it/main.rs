@@ -2,6 +2,7 @@
 //! of a wgpu + quinn workspace is slow). One module per area.
 
 mod alloc_track;
+mod browser;
 mod calibration;
 mod capture;
 mod cluster;
