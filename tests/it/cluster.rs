@@ -110,6 +110,7 @@ fn start_node(c: &ClusterCerts, name: &str, master: std::net::SocketAddr) -> Nod
         bind: "127.0.0.1:0".parse().unwrap(),
         capabilities: Default::default(),
         write_frames: None,
+        keep_presented: true,
     };
     let states = Arc::new(Mutex::new(Vec::new()));
     let mut r = Recording {
@@ -421,6 +422,7 @@ async fn only_listed_names_with_their_own_certificates_join() {
             bind: "127.0.0.1:0".parse().unwrap(),
             capabilities: Default::default(),
             write_frames: None,
+            keep_presented: false,
         };
         let mut r = StateHashRenderer::new(name, Role::Projector);
         tokio::spawn(async move { run_node(rt, &mut r, CancellationToken::new()).await })
@@ -602,6 +604,7 @@ async fn a_node_makes_its_frames_folder_before_it_joins() {
         bind: "127.0.0.1:0".parse().unwrap(),
         capabilities: Default::default(),
         write_frames: Some((frames, vec![20, 40])),
+        keep_presented: false,
     };
     let mut r = StateHashRenderer::new("node-0", Role::Face);
     let bad = blocker.join("frames");
@@ -633,4 +636,42 @@ async fn a_node_makes_its_frames_folder_before_it_joins() {
     .unwrap();
     assert!(nested.is_dir());
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A live node keeps the count and the last presented frame, not a record
+/// per frame (its memory stays flat over a day); asked to keep them (replay
+/// checks), it keeps every one, the same last one included.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_live_node_keeps_a_count_not_every_frame() {
+    use showcase_master::cluster::commands::walk_plan;
+    use showcase_master::cluster::{LoopbackPlan, run_loopback};
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
+    let scene = showcase_master::scene_file::load_any(&path).unwrap();
+    const N: u64 = 40;
+    for keep in [false, true] {
+        let plan = LoopbackPlan {
+            keep_presented: keep,
+            ..walk_plan(&scene, 2, 120.0, N).unwrap()
+        };
+        let r = timeout(Duration::from_secs(60), run_loopback(plan))
+            .await
+            .expect("the loopback run ends")
+            .unwrap();
+        assert_eq!(r.logs.len(), 2);
+        for (name, log) in &r.logs {
+            assert_eq!(log.presented_count, N, "{name}");
+            assert_eq!(log.last_presented.map(|p| p.0), Some(N - 1), "{name}");
+            if keep {
+                assert_eq!(log.presented.len() as u64, N, "{name}");
+                assert_eq!(log.presented.last().copied(), log.last_presented, "{name}");
+            } else {
+                assert!(
+                    log.presented.is_empty(),
+                    "{name} kept {} frames",
+                    log.presented.len()
+                );
+            }
+        }
+    }
 }

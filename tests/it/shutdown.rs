@@ -92,6 +92,7 @@ async fn sigterm_stops_a_master_cleanly() {
                 bind: "127.0.0.1:0".parse().unwrap(),
                 capabilities: Default::default(),
                 write_frames: None,
+                keep_presented: false,
             };
             let stop = CancellationToken::new();
             let s = stop.clone();

@@ -150,6 +150,7 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
         metrics: None,
         write_frames: None,
         keep_frames: false,
+        keep_presented: false,
     })
 }
 
@@ -251,6 +252,8 @@ pub async fn replay(
         metrics: None,
         write_frames: None,
         keep_frames: false,
+        // The replay's result is every node's per-frame hashes.
+        keep_presented: true,
     })
     .await?;
     let nodes = r

@@ -43,6 +43,9 @@ pub struct LoopbackPlan {
     pub write_frames: Option<(PathBuf, Vec<u64>)>,
     /// Keep every frame's metrics in the result (see `ServerSettings`).
     pub keep_frames: bool,
+    /// Keep every node's per-frame `(frame, hash)` in its log (see
+    /// `NodeRuntime::keep_presented`).
+    pub keep_presented: bool,
 }
 
 /// What happened.
@@ -150,6 +153,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
             bind: "127.0.0.1:0".parse().expect("valid address"),
             capabilities: Default::default(),
             write_frames: plan.write_frames.clone(),
+            keep_presented: plan.keep_presented,
         };
         let rendered = Arc::new(AtomicU64::new(0));
         let mut r = Counting {

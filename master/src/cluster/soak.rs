@@ -40,6 +40,16 @@ pub struct SoakRecord {
     pub rss_growth_kb_per_1000_frames: Option<f64>,
     /// The same, as MB over a 10-hour day at 60 Hz.
     pub rss_growth_mb_per_day_at_60hz: Option<f64>,
+    /// The frame count RSS is compared from: 10,000, or a tenth of a
+    /// shorter run (start-up is over by then).
+    pub reference_frames: u64,
+    /// RSS at the first sample past `reference_frames` (MB).
+    pub rss_mb_at_reference: Option<f64>,
+    /// RSS at the last sample (MB).
+    pub rss_mb_at_end: Option<f64>,
+    /// `rss_mb_at_end - rss_mb_at_reference`: the target is at
+    /// most 5 MB from 10,000 to 100,000 frames.
+    pub rss_growth_mb_from_reference: Option<f64>,
 }
 
 /// Resident memory of this process (MB): `VmRSS` of `/proc/self/status`.
@@ -110,6 +120,12 @@ pub async fn bench_soak(scene: &Showcase, frames: u64) -> Result<SoakRecord> {
         .filter_map(|s| Some((s.frames as f64, s.rss_mb?)))
         .collect();
     let per_frame_mb = slope(&late);
+    let reference_frames = (frames / 10).min(10_000);
+    let rss_mb_at_reference = samples
+        .iter()
+        .find(|s| s.frames >= reference_frames)
+        .and_then(|s| s.rss_mb);
+    let rss_mb_at_end = samples.last().and_then(|s| s.rss_mb);
     Ok(SoakRecord {
         nodes: NODES,
         hz: HZ,
@@ -117,6 +133,10 @@ pub async fn bench_soak(scene: &Showcase, frames: u64) -> Result<SoakRecord> {
         samples,
         rss_growth_kb_per_1000_frames: per_frame_mb.map(|s| s * 1024.0 * 1000.0),
         rss_growth_mb_per_day_at_60hz: per_frame_mb.map(|s| s * 60.0 * 3600.0 * 10.0),
+        reference_frames,
+        rss_mb_at_reference,
+        rss_mb_at_end,
+        rss_growth_mb_from_reference: rss_mb_at_end.zip(rss_mb_at_reference).map(|(e, r)| e - r),
     })
 }
 

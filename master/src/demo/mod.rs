@@ -396,11 +396,12 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         metrics: Some(Box::new(std::io::BufWriter::new(metrics))),
         write_frames: None,
         keep_frames: true,
+        keep_presented: false,
     }))?;
     let seconds = started.elapsed().as_secs_f64();
     let rec = bench_record(node_count, HZ, opts.frames, &result);
-    let presented: Vec<usize> = result.logs.iter().map(|(_, l)| l.presented.len()).collect();
-    if presented.iter().any(|&n| n as u64 != opts.frames) {
+    let presented: Vec<u64> = result.logs.iter().map(|(_, l)| l.presented_count).collect();
+    if presented.iter().any(|&n| n != opts.frames) {
         anyhow::bail!(
             "interactive stage: nodes presented {presented:?} frames, expected {} each",
             opts.frames

@@ -114,6 +114,7 @@ fn run(cli: NodeCli) -> Result<()> {
         capabilities: Default::default(),
         write_frames: (!cli.write_frames.is_empty())
             .then(|| (cli.frames_dir.clone(), cli.write_frames.clone())),
+        keep_presented: false,
     };
     anyhow::ensure!(
         (16..=8192).contains(&cli.shadow_res),
@@ -189,8 +190,7 @@ fn drive<R: Renderer + ?Sized>(
         let log = run_node(rt, renderer, stop).await?;
         eprintln!(
             "node stopped after presenting {} frames ({} joins)",
-            log.presented.len(),
-            log.joins
+            log.presented_count, log.joins
         );
         anyhow::Ok(())
     })

@@ -31,13 +31,23 @@ pub struct NodeRuntime {
     pub capabilities: Capabilities,
     /// Write the images of these frames as PNG into this folder.
     pub write_frames: Option<(PathBuf, Vec<u64>)>,
+    /// Keep every presented frame's `(frame, hash)` in
+    /// [`NodeLog::presented`], for replay checks and tests. A live node
+    /// keeps only the count and the last one, so that its memory stays
+    /// flat over an exhibition day.
+    pub keep_presented: bool,
 }
 
 /// What a node did, returned when it stops.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct NodeLog {
-    /// `(frame, output hash)` of every presented frame, in order.
+    /// `(frame, output hash)` of every presented frame, in order, when
+    /// [`NodeRuntime::keep_presented`] was set; else empty.
     pub presented: Vec<(u64, u64)>,
+    /// Frames presented, kept or not.
+    pub presented_count: u64,
+    /// `(frame, output hash)` of the last presented frame.
+    pub last_presented: Option<(u64, u64)>,
     /// Times the node (re)joined the master.
     pub joins: u32,
     /// Why each connection to the master ended, in order.
@@ -271,8 +281,15 @@ fn handle_event<R: Renderer + ?Sized>(
             renderer.present(frame)?;
             if let Some(i) = log.pending.iter().position(|(f, _)| *f == frame) {
                 let done = log.pending.remove(i);
-                log.presented.push(done);
+                log.presented_count += 1;
+                log.last_presented = Some(done);
+                if rt.keep_presented {
+                    log.presented.push(done);
+                }
             }
+            // Frames present in order: one rendered before this one and
+            // not presented never will be (its swap was skipped).
+            log.pending.retain(|(f, _)| *f > frame);
             if let Err(e) = core.presented(now(), frame) {
                 warn!(error = %e, "core refused a presented frame");
             }

@@ -20,7 +20,6 @@ pub struct StateHashRenderer {
     output: String,
     role: Role,
     scene_version: Option<u64>,
-    presented: Vec<u64>,
 }
 
 impl StateHashRenderer {
@@ -30,13 +29,7 @@ impl StateHashRenderer {
             output: output.into(),
             role,
             scene_version: None,
-            presented: Vec::new(),
         }
-    }
-
-    /// Frames presented so far, in order.
-    pub fn presented(&self) -> &[u64] {
-        &self.presented
     }
 }
 
@@ -87,8 +80,8 @@ impl Renderer for StateHashRenderer {
         })
     }
 
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        self.presented.push(frame);
+    fn present(&mut self, _frame: u64) -> Result<(), RenderError> {
+        // Nothing to show: the hash is the output.
         Ok(())
     }
 }

@@ -26,7 +26,6 @@ pub struct FaceRenderer {
     scene_version: Option<u64>,
     last_passes: Vec<Pass>,
     last: Option<(FrameKey, RenderOutput)>,
-    presented: Vec<u64>,
 }
 
 impl FaceRenderer {
@@ -41,7 +40,6 @@ impl FaceRenderer {
             scene_version: None,
             last_passes: Vec::new(),
             last: None,
-            presented: Vec::new(),
         }
     }
 
@@ -118,8 +116,9 @@ impl Renderer for FaceRenderer {
         self.render_frame(frame, scene)
     }
 
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        self.presented.push(frame);
+    fn present(&mut self, _frame: u64) -> Result<(), RenderError> {
+        // Headless: the frame's image is already in its render output; a
+        // window shows it (`window.rs`).
         Ok(())
     }
 }

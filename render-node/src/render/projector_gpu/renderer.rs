@@ -38,7 +38,6 @@ pub struct ProjectorRenderer {
     pub force_all_passes: bool,
     last: Option<(FrameKey, RenderOutput, f64)>,
     report: FrameReport,
-    presented: Vec<u64>,
 }
 
 impl ProjectorRenderer {
@@ -53,18 +52,12 @@ impl ProjectorRenderer {
             force_all_passes: false,
             last: None,
             report: FrameReport::default(),
-            presented: Vec::new(),
         }
     }
 
     /// What the last render did.
     pub fn report(&self) -> &FrameReport {
         &self.report
-    }
-
-    /// Frames presented so far.
-    pub fn presented(&self) -> &[u64] {
-        &self.presented
     }
 
     /// The GPU context.
@@ -148,8 +141,9 @@ impl Renderer for ProjectorRenderer {
             })
     }
 
-    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
-        self.presented.push(frame);
+    fn present(&mut self, _frame: u64) -> Result<(), RenderError> {
+        // Headless: the frame's image is already in its render output; a
+        // window shows it (`window.rs`).
         Ok(())
     }
 }
