@@ -1,8 +1,11 @@
 //! Cluster transport shared by the master and the nodes: QUIC (quinn) with
 //! mutual TLS against the cluster CA, and message framing over a stream.
 
+pub mod addr;
 pub mod stream;
 pub mod tls;
+
+pub use addr::{ResolveError, resolve};
 
 pub use stream::{MessageReader, MessageStream, MessageWriter, REFUSED, StreamError};
 pub use tls::{
