@@ -32,6 +32,16 @@ pub enum TlsError {
     Config(String),
 }
 
+/// Why a peer's certificate will not be accepted, and what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{problem}; {fix}")]
+pub struct CertProblem {
+    /// What is wrong.
+    pub problem: String,
+    /// What to do.
+    pub fix: String,
+}
+
 /// A peer's certificate chain and key plus the cluster CA that it trusts.
 #[derive(Debug)]
 pub struct ClusterIdentity {
@@ -101,20 +111,27 @@ impl ClusterIdentity {
     /// Check that the leaf certificate is signed by the cluster CA, valid at
     /// `now` and issued to `name`, for a server (the master) or a client (a
     /// node): what the peers' TLS handshakes and the master's roster will
-    /// require. The error says what is wrong and what to do.
-    pub fn verify(&self, name: &str, server: bool, now: UnixTime) -> Result<(), String> {
-        let leaf = self.chain.first().ok_or("no certificate in file")?;
+    /// require.
+    pub fn verify(&self, name: &str, server: bool, now: UnixTime) -> Result<(), CertProblem> {
+        const REISSUE: &str = "re-issue the cluster's certificates with `showcase-master certs` \
+                               and copy ca.pem and each peer's files to its PC";
+        let bad = |problem: String, fix: &str| CertProblem {
+            problem,
+            fix: fix.to_owned(),
+        };
+        let leaf = self
+            .chain
+            .first()
+            .ok_or_else(|| bad("no certificate in the file".into(), REISSUE))?;
         let cert = webpki::EndEntityCert::try_from(leaf)
-            .map_err(|e| format!("not a certificate this cluster can use: {e}"))?;
+            .map_err(|e| bad(format!("not a certificate this cluster can use ({e})"), REISSUE))?;
         let anchor = webpki::anchor_from_trusted_cert(&self.ca)
-            .map_err(|e| format!("ca.pem is not a CA certificate: {e}"))?;
+            .map_err(|e| bad(format!("ca.pem is not a CA certificate ({e})"), REISSUE))?;
         let usage = if server {
             webpki::KeyUsage::server_auth()
         } else {
             webpki::KeyUsage::client_auth()
         };
-        let reissue = "re-issue the cluster's certificates with `showcase-master certs` \
-                       (ca.pem and every peer's together)";
         cert.verify_for_usage(
             webpki::ALL_VERIFICATION_ALGS,
             &[anchor],
@@ -125,27 +142,40 @@ impl ClusterIdentity {
             None,
         )
         .map_err(|e| match e {
-            webpki::Error::UnknownIssuer | webpki::Error::InvalidSignatureForPublicKey => {
-                format!("not signed by the cluster CA in ca.pem (another CA issued it); {reissue}")
-            }
-            webpki::Error::CertExpired { time, not_after } => format!(
-                "expired {} days ago; {reissue}",
-                time.as_secs().saturating_sub(not_after.as_secs()) / 86_400
+            webpki::Error::UnknownIssuer | webpki::Error::InvalidSignatureForPublicKey => bad(
+                "not signed by the cluster CA in ca.pem (another CA issued it)".into(),
+                REISSUE,
             ),
-            webpki::Error::CertNotValidYet { time, not_before } => format!(
-                "not valid for another {} s; check this PC's clock",
-                not_before.as_secs().saturating_sub(time.as_secs())
+            webpki::Error::CertExpired { time, not_after } => bad(
+                format!(
+                    "expired {} days ago",
+                    time.as_secs().saturating_sub(not_after.as_secs()) / 86_400
+                ),
+                REISSUE,
             ),
-            other => format!("rejected by the cluster CA in ca.pem ({other}); {reissue}"),
+            webpki::Error::CertNotValidYet { time, not_before } => bad(
+                format!(
+                    "not valid for another {} s",
+                    not_before.as_secs().saturating_sub(time.as_secs())
+                ),
+                "check this PC's clock",
+            ),
+            other => bad(format!("rejected against ca.pem ({other})"), REISSUE),
         })?;
-        let server_name = ServerName::try_from(name.to_owned())
-            .map_err(|_| format!("{name:?} is not a DNS-style certificate name"))?;
+        let server_name = ServerName::try_from(name.to_owned()).map_err(|_| {
+            bad(
+                format!("{name:?} is not a DNS-style certificate name"),
+                "rename the node: letters, digits, '-' and '.'",
+            )
+        })?;
         cert.verify_is_valid_for_subject_name(&server_name)
             .map_err(|_| {
-                format!(
-                    "issued to {:?}, not to {name:?}; give each peer the certificate issued to \
-                     its name, or {reissue}",
-                    cert.valid_dns_names().collect::<Vec<_>>()
+                bad(
+                    format!(
+                        "issued to {:?}, not to {name:?}",
+                        cert.valid_dns_names().collect::<Vec<_>>()
+                    ),
+                    &format!("put the certificate issued to {name:?} here, or {REISSUE}"),
                 )
             })
     }
