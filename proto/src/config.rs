@@ -243,7 +243,9 @@ impl std::str::FromStr for HostPort {
     /// Parse `HOST:PORT`; the error says what is wrong and shows the form.
     fn from_str(s: &str) -> Result<Self, String> {
         let bad = |why: &str| {
-            format!("{s:?} is not HOST:PORT ({why}); write e.g. \"pc-0:4433\", \"192.168.10.10:4433\" or \"[::1]:4433\"")
+            format!(
+                "{s:?} is not HOST:PORT ({why}); write e.g. \"pc-0:4433\", \"192.168.10.10:4433\" or \"[::1]:4433\""
+            )
         };
         let (host, port) = s.rsplit_once(':').ok_or_else(|| bad("no :PORT"))?;
         let port: u16 = port
@@ -660,7 +662,10 @@ mod tests {
             ("a..b:4433", "is neither"),
         ] {
             let err = hp(bad).unwrap_err();
-            assert!(err.starts_with(&format!("{bad:?} is not HOST:PORT")), "{err}");
+            assert!(
+                err.starts_with(&format!("{bad:?} is not HOST:PORT")),
+                "{err}"
+            );
             assert!(err.contains(why), "{bad}: {err:?} lacks {why:?}");
             assert!(err.contains("\"pc-0:4433\""), "shows the form: {err}");
         }
@@ -669,10 +674,12 @@ mod tests {
     #[test]
     fn listen_and_bind_accept_host_names() {
         let c = ClusterConfig::parse(
-            &LOOPBACK.replace("\"127.0.0.1:4433\"", "\"localhost:4433\"").replace(
-                "output = \"face-1\"",
-                "output = \"face-1\"\nbind = \"pc-2:4500\"",
-            ),
+            &LOOPBACK
+                .replace("\"127.0.0.1:4433\"", "\"localhost:4433\"")
+                .replace(
+                    "output = \"face-1\"",
+                    "output = \"face-1\"\nbind = \"pc-2:4500\"",
+                ),
             "loopback.toml",
         )
         .unwrap();

@@ -4,6 +4,7 @@
 mod alloc_track;
 mod calibration;
 mod capture;
+mod check;
 mod cluster;
 mod codec;
 mod demo;

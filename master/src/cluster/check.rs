@@ -127,7 +127,9 @@ fn dedup(problems: &mut Vec<Problem>) {
 /// A config problem with what to do about it.
 fn config_problem(label: &str, e: ConfigError) -> Problem {
     let fix = match &e {
-        ConfigError::Parse { .. } => "correct the TOML (deploy/cluster.toml shows every key)".into(),
+        ConfigError::Parse { .. } => {
+            "correct the TOML (deploy/cluster.toml shows every key)".into()
+        }
         ConfigError::UnknownNode { .. } => "use a name of a [[node]]".into(),
         ConfigError::DuplicateName { .. } => {
             "give every [[node]] its own name (it is also its certificate's name)".into()
@@ -303,15 +305,13 @@ fn check_certs(r: &mut CheckReport, cfg: &ClusterConfig, dir: &Path) {
         r.problems.push(Problem::new(
             ca.display().to_string(),
             problem,
-            format!(
-                "make the cluster's certificates with {certs_cmd} and copy them to every PC"
-            ),
+            format!("make the cluster's certificates with {certs_cmd} and copy them to every PC"),
         ));
         return;
     }
     let now = rustls::pki_types::UnixTime::now();
     let reissue = format!(
-        "issue it with {certs_cmd} (that makes a new CA: copy every file to every PC)"
+        "issue the certificates again with {certs_cmd} (that makes a new CA: copy every file to every PC)"
     );
     let peers = std::iter::once((
         crate::certs::MASTER_FILE,
@@ -345,8 +345,9 @@ fn check_certs(r: &mut CheckReport, cfg: &ClusterConfig, dir: &Path) {
             }
         };
         if let Err(p) = id.verify(name, server, now) {
+            let fix = if p.reissue { reissue.clone() } else { p.fix };
             r.problems
-                .push(Problem::new(cert.display().to_string(), p.problem, p.fix));
+                .push(Problem::new(cert.display().to_string(), p.problem, fix));
             continue;
         }
         let tls = if server {

@@ -287,8 +287,8 @@ pub async fn run_master(
     let base = config.parent().unwrap_or(Path::new("."));
     let scene = crate::scene_file::load_any(&base.join(&cfg.master.scene))?;
     let names = crate::scene_file::SceneNames::of(&scene);
-    if let Some(p) = super::check::node_problems(&cfg, Some(&names), Some(&scene), base, &label)
-        .first()
+    if let Some(p) =
+        super::check::node_problems(&cfg, Some(&names), Some(&scene), base, &label).first()
     {
         bail!("{p}");
     }

@@ -100,10 +100,5 @@ pub fn read_calibration(
     let ctx = Ctx {
         file: file.to_owned(),
     };
-    super::device::calibrated(
-        &ctx,
-        field,
-        (size.map(|s| s.0), size.map(|s| s.1)),
-        path,
-    )
+    super::device::calibrated(&ctx, field, (size.map(|s| s.0), size.map(|s| s.1)), path)
 }

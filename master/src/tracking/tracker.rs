@@ -8,8 +8,8 @@
 
 use super::dtrack::{DtrackError, parse_datagram};
 use super::filter::{FilterConfig, Offered, PoseFilter};
-use glam::{DMat3, DQuat, DVec3, EulerRot};
 use crate::scene_file::SceneNames;
+use glam::{DMat3, DQuat, DVec3, EulerRot};
 use showcase_proto::config::TrackingConfig;
 use showcase_proto::{FrameState, Light, ObjectTransform, Pose, Showcase};
 use std::collections::BTreeMap;

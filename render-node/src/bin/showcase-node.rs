@@ -194,3 +194,32 @@ fn drive<R: Renderer + ?Sized>(
         anyhow::Ok(())
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn master_flag_takes_host_names_and_ips() {
+        assert_eq!(
+            resolve_master("localhost:4433").unwrap(),
+            "127.0.0.1:4433".parse::<SocketAddr>().unwrap()
+        );
+        assert_eq!(
+            resolve_master("192.168.10.10:4433").unwrap(),
+            "192.168.10.10:4433".parse::<SocketAddr>().unwrap()
+        );
+        let err = resolve_master("pc-0").unwrap_err().to_string();
+        assert!(
+            err.starts_with("--master \"pc-0\" is not HOST:PORT"),
+            "{err}"
+        );
+        let err = resolve_master("no-such-pc.invalid:4433")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("--master = \"no-such-pc.invalid:4433\": cannot resolve host"),
+            "{err}"
+        );
+    }
+}

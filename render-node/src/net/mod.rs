@@ -9,6 +9,6 @@ pub use addr::{ResolveError, resolve};
 
 pub use stream::{MessageReader, MessageStream, MessageWriter, REFUSED, StreamError};
 pub use tls::{
-    ALPN, CertProblem, ClusterIdentity, IDLE_TIMEOUT, KEEP_ALIVE, MASTER_SERVER_NAME, TlsError, client_config,
-    peer_is, peer_names, server_config, server_endpoint_config,
+    ALPN, CertProblem, ClusterIdentity, IDLE_TIMEOUT, KEEP_ALIVE, MASTER_SERVER_NAME, TlsError,
+    client_config, peer_is, peer_names, server_config, server_endpoint_config,
 };

@@ -40,6 +40,9 @@ pub struct CertProblem {
     pub problem: String,
     /// What to do.
     pub fix: String,
+    /// The fix is to re-issue the certificates (a caller that knows the
+    /// nodes can give the exact `showcase-master certs` command).
+    pub reissue: bool,
 }
 
 /// A peer's certificate chain and key plus the cluster CA that it trusts.
@@ -118,13 +121,18 @@ impl ClusterIdentity {
         let bad = |problem: String, fix: &str| CertProblem {
             problem,
             fix: fix.to_owned(),
+            reissue: fix == REISSUE,
         };
         let leaf = self
             .chain
             .first()
             .ok_or_else(|| bad("no certificate in the file".into(), REISSUE))?;
-        let cert = webpki::EndEntityCert::try_from(leaf)
-            .map_err(|e| bad(format!("not a certificate this cluster can use ({e})"), REISSUE))?;
+        let cert = webpki::EndEntityCert::try_from(leaf).map_err(|e| {
+            bad(
+                format!("not a certificate this cluster can use ({e})"),
+                REISSUE,
+            )
+        })?;
         let anchor = webpki::anchor_from_trusted_cert(&self.ca)
             .map_err(|e| bad(format!("ca.pem is not a CA certificate ({e})"), REISSUE))?;
         let usage = if server {
@@ -336,9 +344,14 @@ mod tests {
     #[test]
     fn a_missing_ca_names_the_file_and_the_certs_command() {
         let dir = std::env::temp_dir().join(format!("showcase-no-certs-{}", std::process::id()));
-        let err = ClusterIdentity::load(&dir, "face-0").unwrap_err().to_string();
+        let err = ClusterIdentity::load(&dir, "face-0")
+            .unwrap_err()
+            .to_string();
         let ca = dir.join("ca.pem");
-        assert!(err.starts_with(&format!("{}: missing;", ca.display())), "{err}");
+        assert!(
+            err.starts_with(&format!("{}: missing;", ca.display())),
+            "{err}"
+        );
         assert!(
             err.contains(&format!("`showcase-master certs --out {}", dir.display())),
             "{err}"
