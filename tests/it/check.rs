@@ -210,7 +210,7 @@ fn six_seeded_mistakes_are_reported_in_one_run() {
 }
 
 #[test]
-fn missing_certs_meshes_and_calibrations_each_say_what_to_do() {
+fn missing_certs_meshes_calibrations_and_recordings_each_say_what_to_do() {
     let dir = cluster(
         "missing",
         // Each missing mesh is its own problem.
@@ -223,6 +223,10 @@ fn missing_certs_meshes_and_calibrations_each_say_what_to_do() {
         },
         |c| {
             c.replace("certs = \"certs\"", "certs = \"no-certs\"")
+                .replace(
+                    "source = \"scripted\"",
+                    "source = \"recording\"\nfile = \"no-such-session.jsonl\"",
+                )
                 .replacen(
                     "calibration = \"scene\"",
                     "calibration = \"calib/projector-0.json\"",
@@ -232,7 +236,13 @@ fn missing_certs_meshes_and_calibrations_each_say_what_to_do() {
         },
     );
     let problems = check_cluster(&dir.join("cluster.toml")).problems;
-    assert_eq!(problems.len(), 5, "{problems:#?}");
+    assert_eq!(problems.len(), 6, "{problems:#?}");
+    let session = find(
+        &problems,
+        &dir.join("no-such-session.jsonl"),
+        "No such file",
+    );
+    assert!(session.fix.contains("run --record"), "{session:?}");
     let scene = dir.join("scene.toml");
     find(&problems, &scene, "gone-1.obj");
     find(&problems, &scene, "gone-2.obj");
