@@ -162,8 +162,10 @@ fn address_problems(cfg: &ClusterConfig, label: &str) -> Vec<Problem> {
             Problem::new(
                 label,
                 format!(
-                    "{} = \"{}\": cannot resolve host {:?} ({})",
-                    e.key, e.addr, e.host, e.problem
+                    "{}: cannot resolve host {:?} ({})",
+                    e.source_text(),
+                    e.host,
+                    e.problem
                 ),
                 "check the name and this PC's DNS or /etc/hosts, or give an IP address",
             )

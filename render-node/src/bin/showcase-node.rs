@@ -218,7 +218,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            err.starts_with("--master = \"no-such-pc.invalid:4433\": cannot resolve host"),
+            err.starts_with("--master no-such-pc.invalid:4433: cannot resolve host"),
             "{err}"
         );
     }

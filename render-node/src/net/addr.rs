@@ -8,8 +8,8 @@ use std::net::{SocketAddr, ToSocketAddrs};
 /// An address whose host name does not resolve.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "{key} = \"{addr}\": cannot resolve host {host:?} ({problem}); check the name and the PC's \
-     DNS or /etc/hosts, or give an IP address"
+    "{}: cannot resolve host {host:?} ({problem}); check the name and the PC's DNS or \
+     /etc/hosts, or give an IP address", self.source_text()
 )]
 pub struct ResolveError {
     /// The key or flag that gave the address, e.g. `master.listen`.
@@ -20,6 +20,18 @@ pub struct ResolveError {
     pub host: String,
     /// What the resolver said.
     pub problem: String,
+}
+
+impl ResolveError {
+    /// Where the address came from, as written: `--master pc-0:4433` for a
+    /// flag, `master.listen = "pc-0:4433"` for a config key.
+    pub fn source_text(&self) -> String {
+        if self.key.starts_with("--") {
+            format!("{} {}", self.key, self.addr)
+        } else {
+            format!("{} = \"{}\"", self.key, self.addr)
+        }
+    }
 }
 
 /// The socket address of `addr`: an IP as given, a host name by the
