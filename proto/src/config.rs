@@ -7,7 +7,7 @@
 use crate::message::Role;
 use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
-use std::net::SocketAddr;
+use std::net::{IpAddr, Ipv6Addr};
 use std::path::PathBuf;
 
 /// A cluster configuration file (TOML). See `deploy/cluster.toml`.
@@ -29,8 +29,9 @@ pub struct ClusterConfig {
 pub struct MasterConfig {
     /// Name of the PC the master runs on.
     pub host: String,
-    /// QUIC listen address (UDP). Nodes connect here.
-    pub listen: SocketAddr,
+    /// QUIC listen address (UDP), `HOST:PORT` or `IP:PORT`. Nodes connect
+    /// here.
+    pub listen: HostPort,
     /// Scene file, relative to the configuration file.
     pub scene: PathBuf,
     /// Folder with `ca.pem` and the peers' certificates and keys.
@@ -211,8 +212,100 @@ pub struct NodeConfig {
     /// Calibration JSON for projectors and cameras, relative to the
     /// configuration file, or `"scene"` to use the scene's own device.
     pub calibration: Option<String>,
-    /// Local UDP address to bind (default: any port).
-    pub bind: Option<SocketAddr>,
+    /// Local UDP address to bind, `HOST:PORT` or `IP:PORT` (default: any
+    /// port).
+    pub bind: Option<HostPort>,
+}
+
+/// An address as the configuration writes it: `HOST:PORT`, where HOST is
+/// a DNS-style host name (`pc-0`, `localhost`), an IPv4 address or a
+/// bracketed IPv6 address (`[::1]:4433`). Only the syntax is checked here;
+/// the master and the nodes resolve the name where they use it.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct HostPort {
+    /// The host name or IP address, without brackets.
+    pub host: String,
+    /// The UDP port.
+    pub port: u16,
+}
+
+impl HostPort {
+    /// The host as an IP address, when it is one (no lookup needed).
+    pub fn ip(&self) -> Option<IpAddr> {
+        self.host.parse().ok()
+    }
+}
+
+impl std::str::FromStr for HostPort {
+    type Err = String;
+
+    /// Parse `HOST:PORT`; the error says what is wrong and shows the form.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = |why: &str| {
+            format!(
+                "{s:?} is not HOST:PORT ({why}); write e.g. \"pc-0:4433\", \"192.168.10.10:4433\" or \"[::1]:4433\""
+            )
+        };
+        let (host, port) = s.rsplit_once(':').ok_or_else(|| bad("no :PORT"))?;
+        let port: u16 = port
+            .parse()
+            .map_err(|_| bad(&format!("port {port:?} is not a number in 0..=65535")))?;
+        let host = if let Some(v6) = host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+            v6.parse::<Ipv6Addr>()
+                .map_err(|_| bad(&format!("{v6:?} is not an IPv6 address")))?;
+            v6
+        } else if host.contains(':') {
+            return Err(bad("an IPv6 address needs brackets"));
+        } else if host.parse::<std::net::Ipv4Addr>().is_ok() || is_host_name(host) {
+            host
+        } else {
+            return Err(bad(&format!(
+                "{host:?} is neither an IPv4 address nor a host name (letters, digits, '-' and '.')"
+            )));
+        };
+        Ok(Self {
+            host: host.to_owned(),
+            port,
+        })
+    }
+}
+
+/// A DNS-style host name: dot-separated labels of 1 to 63 letters, digits
+/// and hyphens, not starting or ending with a hyphen; 253 characters at most.
+fn is_host_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 253
+        && s.split('.').all(|l| {
+            !l.is_empty()
+                && l.len() <= 63
+                && l.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+                && !l.starts_with('-')
+                && !l.ends_with('-')
+        })
+}
+
+impl TryFrom<String> for HostPort {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        s.parse()
+    }
+}
+
+impl From<HostPort> for String {
+    fn from(a: HostPort) -> String {
+        a.to_string()
+    }
+}
+
+impl std::fmt::Display for HostPort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.host.contains(':') {
+            write!(f, "[{}]:{}", self.host, self.port)
+        } else {
+            write!(f, "{}:{}", self.host, self.port)
+        }
+    }
 }
 
 /// A configuration that cannot work; names the node or field.
@@ -297,14 +390,23 @@ pub enum ConfigError {
 }
 
 impl ClusterConfig {
-    /// Parse and check a configuration; `file` names it in errors.
+    /// Parse and check a configuration; `file` names it in errors. Fails
+    /// with the first problem; [`ClusterConfig::problems`] lists them all.
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
-        let cfg: ClusterConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+        let cfg = Self::from_toml(text, file)?;
+        match cfg.problems(file).into_iter().next() {
+            Some(first) => Err(first),
+            None => Ok(cfg),
+        }
+    }
+
+    /// Parse a configuration without checking it (TOML syntax, keys and
+    /// types only); `file` names it in errors.
+    pub fn from_toml(text: &str, file: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse {
             file: file.to_owned(),
             message: e.to_string().trim_end().to_owned(),
-        })?;
-        cfg.check(file)?;
-        Ok(cfg)
+        })
     }
 
     /// The node called `name`.
@@ -319,7 +421,10 @@ impl ClusterConfig {
             })
     }
 
-    fn check(&self, file: &str) -> Result<(), ConfigError> {
+    /// Every problem of a parsed configuration, in file order (empty: it
+    /// can work); `file` names it in the errors.
+    pub fn problems(&self, file: &str) -> Vec<ConfigError> {
+        let mut out = Vec::new();
         let invalid = |field: &str, problem: String| ConfigError::Invalid {
             file: file.to_owned(),
             field: field.to_owned(),
@@ -327,13 +432,13 @@ impl ClusterConfig {
         };
         let m = &self.master;
         if !(m.target_hz.is_finite() && m.target_hz > 0.0 && m.target_hz <= 1000.0) {
-            return Err(invalid(
+            out.push(invalid(
                 "master.target_hz",
                 format!("{} is outside (0, 1000]", m.target_hz),
             ));
         }
         if !(m.deadline_ms.is_finite() && m.deadline_ms > 0.0) {
-            return Err(invalid(
+            out.push(invalid(
                 "master.deadline_ms",
                 format!("{} must be positive", m.deadline_ms),
             ));
@@ -341,16 +446,16 @@ impl ClusterConfig {
         let mut names = HashSet::new();
         let mut outputs: HashMap<(Role, &str), &str> = HashMap::new();
         let mut ports: HashMap<(&str, u16), String> = HashMap::new();
-        ports.insert((m.host.as_str(), m.listen.port()), "the master".into());
+        ports.insert((m.host.as_str(), m.listen.port), "the master".into());
         for n in &self.nodes {
             if !names.insert(n.name.as_str()) {
-                return Err(ConfigError::DuplicateName {
+                out.push(ConfigError::DuplicateName {
                     file: file.to_owned(),
                     name: n.name.clone(),
                 });
             }
             if let Some(first) = outputs.insert((n.role, n.output.as_str()), n.name.as_str()) {
-                return Err(ConfigError::DuplicateRole {
+                out.push(ConfigError::DuplicateRole {
                     file: file.to_owned(),
                     first: first.to_owned(),
                     second: n.name.clone(),
@@ -359,32 +464,35 @@ impl ClusterConfig {
                 });
             }
             if matches!(n.role, Role::Projector | Role::Camera) && n.calibration.is_none() {
-                return Err(ConfigError::MissingCalibration {
+                out.push(ConfigError::MissingCalibration {
                     file: file.to_owned(),
                     node: n.name.clone(),
                     role: n.role,
                 });
             }
-            if let Some(bind) = n.bind.filter(|b| b.port() != 0) {
-                claim(
-                    &mut ports,
-                    file,
-                    &n.host,
-                    bind.port(),
-                    format!("node {:?}", n.name),
-                )?;
+            if let Some(bind) = n.bind.as_ref().filter(|b| b.port != 0) {
+                out.extend(
+                    claim(
+                        &mut ports,
+                        file,
+                        &n.host,
+                        bind.port,
+                        format!("node {:?}", n.name),
+                    )
+                    .err(),
+                );
             }
         }
         if let Some(t) = &self.tracking {
             match t.source {
-                TrackingSource::Dtrack => {
-                    let port = t.port.ok_or_else(|| {
-                        invalid("tracking.port", "dtrack needs a UDP port".into())
-                    })?;
-                    claim(&mut ports, file, &m.host, port, "DTrack tracking".into())?;
-                }
+                TrackingSource::Dtrack => match t.port {
+                    None => out.push(invalid("tracking.port", "dtrack needs a UDP port".into())),
+                    Some(port) => out.extend(
+                        claim(&mut ports, file, &m.host, port, "DTrack tracking".into()).err(),
+                    ),
+                },
                 TrackingSource::Recording if t.file.is_none() => {
-                    return Err(invalid(
+                    out.push(invalid(
                         "tracking.file",
                         "a recording source needs a file".into(),
                     ));
@@ -392,26 +500,29 @@ impl ClusterConfig {
                 _ => {}
             }
             if !t.predict_ms.is_finite() || !(0.0..=200.0).contains(&t.predict_ms) {
-                return Err(invalid(
+                out.push(invalid(
                     "tracking.predict_ms",
                     format!("{} is outside 0..=200", t.predict_ms),
                 ));
             }
-            for v in t.room_translation.iter().chain(&t.room_rotation_deg) {
-                if !v.is_finite() {
-                    return Err(invalid(
-                        "tracking.room_*",
-                        format!("value {v} is not finite"),
-                    ));
-                }
+            if let Some(v) = t
+                .room_translation
+                .iter()
+                .chain(&t.room_rotation_deg)
+                .find(|v| !v.is_finite())
+            {
+                out.push(invalid(
+                    "tracking.room_*",
+                    format!("value {v} is not finite"),
+                ));
             }
             if let Some((field, problem)) = t.limits.problem() {
-                return Err(invalid(field, problem));
+                out.push(invalid(field, problem));
             }
             let mut ids = HashSet::new();
             for b in &t.bodies {
                 if !ids.insert(b.id) {
-                    return Err(invalid(
+                    out.push(invalid(
                         "tracking.body",
                         format!("body id {} is mapped twice", b.id),
                     ));
@@ -420,7 +531,7 @@ impl ClusterConfig {
                     .iter()
                     .any(|p| b.target.strip_prefix(p).is_some_and(|s| !s.is_empty()));
                 if !ok {
-                    return Err(invalid(
+                    out.push(invalid(
                         "tracking.body.target",
                         format!(
                             "{:?} is not observer:<name>, light:<name> or object:<name>",
@@ -430,7 +541,7 @@ impl ClusterConfig {
                 }
             }
         }
-        Ok(())
+        out
     }
 }
 
@@ -525,6 +636,98 @@ mod tests {
             |s| s.replace("observer:observer-0", "observer-0"),
             "is not observer:<name>",
         );
+    }
+
+    #[test]
+    fn addresses_take_host_names_ips_and_bracketed_ipv6() {
+        let hp = |s: &str| s.parse::<HostPort>();
+        let a = hp("localhost:4433").unwrap();
+        assert_eq!((a.host.as_str(), a.port, a.ip()), ("localhost", 4433, None));
+        let a = hp("192.168.10.10:4433").unwrap();
+        assert_eq!(a.ip(), Some("192.168.10.10".parse().unwrap()));
+        assert_eq!(a.to_string(), "192.168.10.10:4433");
+        let a = hp("[::1]:0").unwrap();
+        assert_eq!((a.host.as_str(), a.port), ("::1", 0));
+        assert_eq!(a.to_string(), "[::1]:0");
+        assert_eq!(hp("pc-0.cabinet.lan:1").unwrap().host, "pc-0.cabinet.lan");
+        for (bad, why) in [
+            ("pc-0", "no :PORT"),
+            ("pc-0:70000", "port \"70000\" is not a number"),
+            ("pc-0:", "port \"\" is not a number"),
+            (":4433", "\"\" is neither an IPv4 address nor a host name"),
+            ("::1:4433", "an IPv6 address needs brackets"),
+            ("[pc-0]:4433", "\"pc-0\" is not an IPv6 address"),
+            ("pc_0:4433", "is neither"),
+            ("-pc:4433", "is neither"),
+            ("a..b:4433", "is neither"),
+        ] {
+            let err = hp(bad).unwrap_err();
+            assert!(
+                err.starts_with(&format!("{bad:?} is not HOST:PORT")),
+                "{err}"
+            );
+            assert!(err.contains(why), "{bad}: {err:?} lacks {why:?}");
+            assert!(err.contains("\"pc-0:4433\""), "shows the form: {err}");
+        }
+    }
+
+    #[test]
+    fn listen_and_bind_accept_host_names() {
+        let c = ClusterConfig::parse(
+            &LOOPBACK
+                .replace("\"127.0.0.1:4433\"", "\"localhost:4433\"")
+                .replace(
+                    "output = \"face-1\"",
+                    "output = \"face-1\"\nbind = \"pc-2:4500\"",
+                ),
+            "loopback.toml",
+        )
+        .unwrap();
+        assert_eq!(c.master.listen.to_string(), "localhost:4433");
+        let bind = c.node("face-1", "loopback.toml").unwrap().bind.as_ref();
+        assert_eq!(bind.unwrap().to_string(), "pc-2:4500");
+        check(
+            |s| s.replace("\"127.0.0.1:4433\"", "\"local host:4433\""),
+            "\"local host:4433\" is not HOST:PORT",
+        );
+        // The master's port still claims its port on its host.
+        check(
+            |s| s.replace("\"127.0.0.1:4433\"", "\"localhost:5000\""),
+            "port 5000 on host \"localhost\" is used by both the master and DTrack tracking",
+        );
+    }
+
+    #[test]
+    fn problems_lists_every_problem_in_file_order() {
+        let text = LOOPBACK
+            .replace("target_hz = 60", "target_hz = 0")
+            .replace("name = \"face-1\"", "name = \"face-0\"")
+            .replacen("calibration = \"scene\"\n", "", 1)
+            .replace("{ id = 1, target", "{ id = 0, target");
+        let c = ClusterConfig::from_toml(&text, "loopback.toml").unwrap();
+        let problems: Vec<String> = c
+            .problems("loopback.toml")
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        assert_eq!(
+            problems,
+            [
+                "loopback.toml: master.target_hz: 0 is outside (0, 1000]",
+                "loopback.toml: node name \"face-0\" is used twice",
+                "loopback.toml: node \"projector-0\" (projector) has no calibration; give a calibration file or \"scene\"",
+                "loopback.toml: tracking.body: body id 0 is mapped twice",
+            ]
+        );
+        // parse fails with the first of them.
+        assert_eq!(
+            ClusterConfig::parse(&text, "loopback.toml")
+                .unwrap_err()
+                .to_string(),
+            problems[0]
+        );
+        let ok = ClusterConfig::from_toml(LOOPBACK, "loopback.toml").unwrap();
+        assert!(ok.problems("loopback.toml").is_empty());
     }
 
     #[test]

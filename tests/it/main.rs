@@ -5,6 +5,7 @@ mod alloc_track;
 mod browser;
 mod calibration;
 mod capture;
+mod check;
 mod cluster;
 mod codec;
 mod demo;

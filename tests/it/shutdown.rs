@@ -29,6 +29,28 @@ fn child_master() {
     run(<Cli as clap::Parser>::try_parse_from(args).unwrap()).unwrap();
 }
 
+/// A `showcase-master` process running `args` (after the program name):
+/// this test binary again, running only [`child_master`]. It exits 0 when
+/// the command succeeds and non-zero when it fails; with
+/// `--nocapture`, the command's stdout and stderr are the child's.
+pub(crate) fn master_process(args: &[&str]) -> Command {
+    let args = serde_json::to_string(
+        &std::iter::once("showcase-master")
+            .chain(args.iter().copied())
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let mut cmd = Command::new(std::env::current_exe().unwrap());
+    cmd.args([
+        "--ignored",
+        "--exact",
+        "shutdown::child_master",
+        "--nocapture",
+    ])
+    .env(CHILD_ARGS, args);
+    cmd
+}
+
 fn lines_of(path: &std::path::Path) -> Vec<serde_json::Value> {
     let text = std::fs::read_to_string(path).unwrap_or_default();
     text.lines()
@@ -49,7 +71,14 @@ async fn sigterm_stops_a_master_cleanly() {
         .port();
     let scene = std::fs::canonicalize(showcase_master::demo::default_scene()).unwrap();
     let nodes: Vec<(&str, Role)> = names.iter().map(|n| (n.as_str(), Role::Face)).collect();
-    let cfg = loopback_config(port, &scene, "source = \"scripted\"", &nodes);
+    // The master listens on a host name, which `run` resolves (to
+    // 127.0.0.1, where the nodes dial).
+    let cfg = loopback_config(port, &scene, "source = \"scripted\"", &nodes)
+        .replace("\"127.0.0.1:", "\"localhost:");
+    assert!(
+        cfg.contains(&format!("listen = \"localhost:{port}\"")),
+        "{cfg}"
+    );
     let config = dir.join("cluster.toml");
     std::fs::write(&config, cfg).unwrap();
     let (metrics, session, stderr) = (
@@ -57,8 +86,7 @@ async fn sigterm_stops_a_master_cleanly() {
         dir.join("session.jsonl"),
         dir.join("master.log"),
     );
-    let args = serde_json::to_string(&[
-        "showcase-master",
+    let mut master = master_process(&[
         "run",
         "--config",
         config.to_str().unwrap(),
@@ -67,19 +95,10 @@ async fn sigterm_stops_a_master_cleanly() {
         "--record",
         session.to_str().unwrap(),
     ])
+    .stdout(Stdio::null())
+    .stderr(std::fs::File::create(&stderr).unwrap())
+    .spawn()
     .unwrap();
-    let mut master = Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--ignored",
-            "--exact",
-            "shutdown::child_master",
-            "--nocapture",
-        ])
-        .env(CHILD_ARGS, args)
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&stderr).unwrap())
-        .spawn()
-        .unwrap();
 
     let nodes: Vec<_> = names
         .iter()

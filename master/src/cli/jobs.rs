@@ -1,4 +1,4 @@
-//! The job subcommands' arguments (`demo`, `run`, `calibrate`, `capture`,
+//! The job subcommands' arguments (`demo`, `run`, `check`, `calibrate`, `capture`,
 //! `radiosity`, `replay`, `certs`) and how each becomes a library call.
 
 use super::runtime;
@@ -51,6 +51,38 @@ pub(super) fn run_master(args: &RunArgs) -> Result<()> {
         args.metrics.as_deref(),
         args.record.as_deref(),
     ))
+}
+
+/// Arguments of `check`.
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    /// Cluster configuration (see deploy/).
+    #[arg(long)]
+    pub config: PathBuf,
+}
+
+/// `check`: print every problem of a cluster config and what it names
+/// (exit 1), or a short summary of what was checked (exit 0).
+pub(super) fn check(args: &CheckArgs) -> Result<()> {
+    let report = crate::cluster::check::check_cluster(&args.config);
+    for p in &report.problems {
+        println!("{p}");
+    }
+    if !report.problems.is_empty() {
+        anyhow::bail!(
+            "{} problem{} in {}: fix {} and run check again",
+            report.problems.len(),
+            if report.problems.len() == 1 { "" } else { "s" },
+            args.config.display(),
+            if report.problems.len() == 1 {
+                "it"
+            } else {
+                "them"
+            }
+        );
+    }
+    println!("ok: {}", report.checked.join("; "));
+    Ok(())
 }
 
 /// Calibration method.

@@ -9,8 +9,8 @@ mod sim;
 
 pub use bench::{BenchArgs, BenchTarget};
 pub use jobs::{
-    CalibrateArgs, CalibrationMethod, CaptureArgs, CertsArgs, DemoArgs, RadiosityArgs, ReplayArgs,
-    RunArgs,
+    CalibrateArgs, CalibrationMethod, CaptureArgs, CertsArgs, CheckArgs, DemoArgs, RadiosityArgs,
+    ReplayArgs, RunArgs,
 };
 pub use sim::{SimCommand, SimRenderArgs};
 
@@ -33,6 +33,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Run the master of a render cluster.
     Run(RunArgs),
+    /// Check a cluster config and everything it names before a show.
+    Check(CheckArgs),
     /// Calibrate a projector or camera from fiducial correspondences.
     Calibrate(CalibrateArgs),
     /// Capture reflectance maps of the real objects.
@@ -55,6 +57,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Demo(args) => crate::demo::run(&args.into()),
         Command::Run(args) => jobs::run_master(&args),
+        Command::Check(args) => jobs::check(&args),
         Command::Calibrate(args) => jobs::calibrate(&args),
         Command::Capture(args) => jobs::capture(&args),
         Command::Radiosity(args) => jobs::radiosity(&args),
@@ -106,6 +109,7 @@ mod tests {
         for sub in [
             "demo",
             "run",
+            "check",
             "calibrate",
             "capture",
             "radiosity",

@@ -289,7 +289,13 @@ pub async fn run_master(
     let cfg = ClusterConfig::parse(&text, &label)?;
     let base = config.parent().unwrap_or(Path::new("."));
     let scene = crate::scene_file::load_any(&base.join(&cfg.master.scene))?;
-    check_outputs(&cfg, &scene, base, &label)?;
+    let names = crate::scene_file::SceneNames::of(&scene);
+    if let Some(p) =
+        super::check::node_problems(&cfg, Some(&names), Some(&scene), base, &label).first()
+    {
+        bail!("{p}");
+    }
+    let listen = showcase_render::net::resolve(&cfg.master.listen, "master.listen")?;
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
     let tracking = match &cfg.tracking {
         None => Tracking::None,
@@ -328,13 +334,13 @@ pub async fn run_master(
     };
     let tracking_addr = match &cfg.tracking {
         Some(t) if t.source == TrackingSource::Dtrack => Some(std::net::SocketAddr::new(
-            cfg.master.listen.ip(),
+            listen.ip(),
             t.port.unwrap_or(5000),
         )),
         _ => None,
     };
     let server = Server::bind(ServerSettings {
-        listen: cfg.master.listen,
+        listen,
         identity,
         roster: super::Roster::from_config(&cfg),
         core: MasterConfig {
@@ -361,34 +367,6 @@ pub async fn run_master(
         "master stopped after {} frames ({} ticks dropped, {} evictions)",
         run.submitted, run.dropped_ticks, run.evictions
     );
-    Ok(())
-}
-
-/// Every node's output exists in the scene, and calibration files exist.
-fn check_outputs(cfg: &ClusterConfig, scene: &Showcase, base: &Path, label: &str) -> Result<()> {
-    for n in &cfg.nodes {
-        let found = match n.role {
-            Role::Face => scene.faces.iter().any(|f| f.name == n.output),
-            Role::Projector => scene.projectors.iter().any(|p| p.name == n.output),
-            Role::Camera => scene.cameras.iter().any(|c| c.name == n.output),
-        };
-        if !found {
-            bail!(
-                "{label}: node {:?} drives {} {:?}, which the scene does not have",
-                n.name,
-                n.role,
-                n.output
-            );
-        }
-        if let Some(c) = n.calibration.as_deref().filter(|c| *c != "scene")
-            && !base.join(c).is_file()
-        {
-            bail!(
-                "{label}: node {:?}: calibration file {c} is missing",
-                n.name
-            );
-        }
-    }
     Ok(())
 }
 

@@ -1,6 +1,7 @@
 //! The cluster master: the show (frame states from tracking), the QUIC
 //! server around the sans-IO core, and per-frame metrics.
 
+pub mod check;
 pub mod commands;
 pub mod faults;
 pub mod identity;

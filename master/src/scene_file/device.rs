@@ -275,7 +275,7 @@ pub(crate) fn pinhole(
         }
     } else {
         let file = d.calibration.as_deref().unwrap_or_default();
-        calibrated(ctx, label, d, &base_dir.join(file))?
+        calibrated(ctx, label, (d.width, d.height), &base_dir.join(file))?
     };
     if let (Some(c), false) = (d.dist_coeffs, inline) {
         dev.dist_coeffs = c.map(|x| x.0);
@@ -312,11 +312,12 @@ fn size(
     Ok((pick("width", w, fw)?, pick("height", h, fh)?))
 }
 
-/// A device from the JSON written by `showcase-master calibrate`.
-fn calibrated(
+/// A device from the JSON written by `showcase-master calibrate`; `size`
+/// is the table's `width` and `height`, which the file must agree with.
+pub(crate) fn calibrated(
     ctx: &Ctx,
     label: &str,
-    d: &DeviceDef,
+    size_given: (Option<u32>, Option<u32>),
     path: &Path,
 ) -> Result<PinholeDevice, SceneError> {
     let field = format!("{label}.calibration");
@@ -351,7 +352,13 @@ fn calibrated(
         }
         dist[..dc.len()].copy_from_slice(dc);
     }
-    let (w, h) = size(ctx, label, d.width, d.height, Some((c.width, c.height)))?;
+    let (w, h) = size(
+        ctx,
+        label,
+        size_given.0,
+        size_given.1,
+        Some((c.width, c.height)),
+    )?;
     let dev = PinholeDevice {
         width: w,
         height: h,

@@ -125,9 +125,11 @@ mod error;
 mod mesh_scene;
 mod mesh_source;
 mod object;
+mod outline;
 mod schema;
 
 pub use error::SceneError;
+pub use outline::{SceneNames, SceneOutline, outline, read_calibration};
 
 use error::Ctx;
 use schema::SceneDef;
@@ -158,6 +160,14 @@ pub fn load_any(path: &Path) -> Result<Showcase, SceneError> {
 /// Load and validate the scene file at `path`. Relative paths inside it are
 /// resolved against its folder; errors name it as `path` is written.
 pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
+    let (text, file) = read_scene_text(path)?;
+    let base_dir = path.parent().unwrap_or(Path::new(""));
+    load_scene_str(&text, base_dir, &file)
+}
+
+/// The text of the TOML scene file at `path` (at most
+/// [`MAX_SCENE_FILE_BYTES`]) and its label for errors.
+fn read_scene_text(path: &Path) -> Result<(String, String), SceneError> {
     let file = path.display().to_string();
     let read_err = |error| SceneError::Read {
         file: file.clone(),
@@ -175,8 +185,7 @@ pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
         });
     }
     let text = std::fs::read_to_string(path).map_err(read_err)?;
-    let base_dir = path.parent().unwrap_or(Path::new(""));
-    load_scene_str(&text, base_dir, &file)
+    Ok((text, file))
 }
 
 /// Load and validate a scene from `text`, resolving relative paths against
@@ -263,7 +272,7 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
 }
 
 /// How the scene file's `i`-th table of `kind` is named in errors.
-fn label(kind: &str, i: usize, name: &str) -> String {
+pub(crate) fn label(kind: &str, i: usize, name: &str) -> String {
     format!("{kind}[{i}] '{}'", name.escape_debug())
 }
 

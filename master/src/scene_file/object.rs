@@ -97,7 +97,7 @@ fn texture(t: &TextureDef) -> AlbedoTexture {
 }
 
 /// The parts of the object's mesh: a file's parts, or one built-in part.
-fn parts_of(
+pub(crate) fn parts_of(
     ctx: &Ctx,
     label: &str,
     d: &ObjectDef,

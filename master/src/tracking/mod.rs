@@ -10,4 +10,4 @@ pub mod tracker;
 
 pub use dtrack::{Body6d, DtrackError, DtrackFrame, parse_datagram};
 pub use filter::{FilterConfig, Offered, PoseFilter, Rejection};
-pub use tracker::{Target, Tracker, TrackerError, initial_frame};
+pub use tracker::{Target, Tracker, TrackerError, initial_frame, resolve_target};

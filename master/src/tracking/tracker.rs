@@ -8,6 +8,7 @@
 
 use super::dtrack::{DtrackError, parse_datagram};
 use super::filter::{FilterConfig, Offered, PoseFilter};
+use crate::scene_file::SceneNames;
 use glam::{DMat3, DQuat, DVec3, EulerRot};
 use showcase_proto::config::TrackingConfig;
 use showcase_proto::{FrameState, Light, ObjectTransform, Pose, Showcase};
@@ -22,6 +23,24 @@ pub enum Target {
     Light(usize),
     /// The pose of `Showcase::objects[i]`.
     Object(usize),
+}
+
+/// What the body target `kind:name` (`observer:`, `light:` or `object:`)
+/// drives in a scene with these names; the error says what is wrong.
+pub fn resolve_target(target: &str, names: &SceneNames) -> Result<Target, String> {
+    let (kind, name) = target
+        .split_once(':')
+        .ok_or_else(|| format!("target {target:?} has no kind"))?;
+    let (list, make): (&[String], fn(usize) -> Target) = match kind {
+        "observer" => (&names.observers, Target::Observer),
+        "light" => (&names.lights, Target::Light),
+        "object" => (&names.objects, Target::Object),
+        _ => return Err(format!("unknown target kind {kind:?}")),
+    };
+    list.iter()
+        .position(|n| n == name)
+        .map(make)
+        .ok_or_else(|| format!("the scene has no {kind} named {name:?}"))
 }
 
 /// A tracking configuration the tracker cannot use.
@@ -78,27 +97,10 @@ impl Tracker {
         }
         let filter = FilterConfig::new(&config.limits, config.predict_ms / 1000.0);
         let mut bodies = BTreeMap::new();
+        let names = SceneNames::of(scene);
         for b in &config.bodies {
-            let err = |problem: String| TrackerError::Body { id: b.id, problem };
-            let (kind, name) = b
-                .target
-                .split_once(':')
-                .ok_or_else(|| err(format!("target {:?} has no kind", b.target)))?;
-            let target = match kind {
-                "observer" => scene
-                    .observers
-                    .iter()
-                    .position(|o| o.name == name)
-                    .map(Target::Observer),
-                "light" => scene
-                    .lights
-                    .iter()
-                    .position(|l| l.name == name)
-                    .map(Target::Light),
-                "object" => scene.object_index(name).map(Target::Object),
-                _ => return Err(err(format!("unknown target kind {kind:?}"))),
-            }
-            .ok_or_else(|| err(format!("the scene has no {kind} named {name:?}")))?;
+            let target = resolve_target(&b.target, &names)
+                .map_err(|problem| TrackerError::Body { id: b.id, problem })?;
             bodies.insert(b.id, (target, PoseFilter::new(filter.clone())));
         }
         let [rx, ry, rz] = config.room_rotation_deg.map(f64::to_radians);

@@ -4,9 +4,9 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use showcase_proto::config::ClusterConfig;
+use showcase_proto::config::{ClusterConfig, HostPort};
 use showcase_render::gpu::GpuContext;
-use showcase_render::net::ClusterIdentity;
+use showcase_render::net::{ClusterIdentity, resolve};
 use showcase_render::node::{NodeRuntime, OutputRenderer, Renderer, StateHashRenderer, run_node};
 use showcase_render::render::gpu_frame::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
@@ -82,14 +82,12 @@ fn main() -> ExitCode {
     }
 }
 
-/// `HOST:PORT` or `IP:PORT` to the first address it resolves to.
-fn resolve(master: &str) -> Result<SocketAddr> {
-    use std::net::ToSocketAddrs;
-    master
-        .to_socket_addrs()
-        .with_context(|| format!("--master {master}: give HOST:PORT or IP:PORT"))?
-        .next()
-        .with_context(|| format!("--master {master}: the name resolves to no address"))
+/// `--master HOST:PORT` or `IP:PORT` to the address it resolves to.
+fn resolve_master(master: &str) -> Result<SocketAddr> {
+    let addr: HostPort = master
+        .parse()
+        .map_err(|e| anyhow::anyhow!("--master {e}"))?;
+    Ok(resolve(&addr, "--master")?)
 }
 
 fn run(cli: NodeCli) -> Result<()> {
@@ -104,13 +102,14 @@ fn run(cli: NodeCli) -> Result<()> {
         name: node.name.clone(),
         role: node.role,
         master: match &cli.master {
-            Some(m) => resolve(m)?,
-            None => cfg.master.listen,
+            Some(m) => resolve_master(m)?,
+            None => resolve(&cfg.master.listen, "master.listen")?,
         },
         identity,
-        bind: node
-            .bind
-            .unwrap_or_else(|| "0.0.0.0:0".parse().expect("valid address")),
+        bind: match &node.bind {
+            Some(b) => resolve(b, &format!("node {:?}.bind", node.name))?,
+            None => "0.0.0.0:0".parse().expect("valid address"),
+        },
         capabilities: Default::default(),
         write_frames: (!cli.write_frames.is_empty())
             .then(|| (cli.frames_dir.clone(), cli.write_frames.clone())),
@@ -194,4 +193,33 @@ fn drive<R: Renderer + ?Sized>(
         );
         anyhow::Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn master_flag_takes_host_names_and_ips() {
+        assert_eq!(
+            resolve_master("localhost:4433").unwrap(),
+            "127.0.0.1:4433".parse::<SocketAddr>().unwrap()
+        );
+        assert_eq!(
+            resolve_master("192.168.10.10:4433").unwrap(),
+            "192.168.10.10:4433".parse::<SocketAddr>().unwrap()
+        );
+        let err = resolve_master("pc-0").unwrap_err().to_string();
+        assert!(
+            err.starts_with("--master \"pc-0\" is not HOST:PORT"),
+            "{err}"
+        );
+        let err = resolve_master("no-such-pc.invalid:4433")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("--master no-such-pc.invalid:4433: cannot resolve host"),
+            "{err}"
+        );
+    }
 }

@@ -6,7 +6,7 @@
 
 use quinn::crypto::rustls::{QuicClientConfig, QuicServerConfig};
 use rustls::pki_types::pem::PemObject;
-use rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
+use rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName, UnixTime};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -32,6 +32,19 @@ pub enum TlsError {
     Config(String),
 }
 
+/// Why a peer's certificate will not be accepted, and what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{problem}; {fix}")]
+pub struct CertProblem {
+    /// What is wrong.
+    pub problem: String,
+    /// What to do.
+    pub fix: String,
+    /// The fix is to re-issue the certificates (a caller that knows the
+    /// nodes can give the exact `showcase-master certs` command).
+    pub reissue: bool,
+}
+
 /// A peer's certificate chain and key plus the cluster CA that it trusts.
 #[derive(Debug)]
 pub struct ClusterIdentity {
@@ -53,6 +66,24 @@ impl Clone for ClusterIdentity {
     }
 }
 
+/// A PEM file that could not be read: a missing one says how to make it.
+fn read_err(path: &Path, e: rustls::pki_types::pem::Error) -> TlsError {
+    match e {
+        rustls::pki_types::pem::Error::Io(io) if io.kind() == std::io::ErrorKind::NotFound => {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            pem_err(
+                path,
+                format!(
+                    "missing; make the cluster's certificates with `showcase-master certs --out {} \
+                     --node NAME ...` (one --node per [[node]] of the cluster config)",
+                    dir.display()
+                ),
+            )
+        }
+        other => pem_err(path, other),
+    }
+}
+
 fn pem_err(path: &Path, e: impl std::fmt::Display) -> TlsError {
     TlsError::Pem {
         path: path.to_owned(),
@@ -62,21 +93,99 @@ fn pem_err(path: &Path, e: impl std::fmt::Display) -> TlsError {
 
 impl ClusterIdentity {
     /// Load `ca.pem`, `<name>.pem` and `<name>.key` from `dir`, as written
-    /// by `showcase-master certs`.
+    /// by `showcase-master certs`. A missing file is named with the command
+    /// that makes it.
     pub fn load(dir: &Path, name: &str) -> Result<Self, TlsError> {
         let ca_path = dir.join("ca.pem");
-        let ca = CertificateDer::from_pem_file(&ca_path).map_err(|e| pem_err(&ca_path, e))?;
+        let ca = CertificateDer::from_pem_file(&ca_path).map_err(|e| read_err(&ca_path, e))?;
         let cert_path = dir.join(format!("{name}.pem"));
         let chain = CertificateDer::pem_file_iter(&cert_path)
-            .map_err(|e| pem_err(&cert_path, e))?
+            .map_err(|e| read_err(&cert_path, e))?
             .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| pem_err(&cert_path, e))?;
+            .map_err(|e| read_err(&cert_path, e))?;
         if chain.is_empty() {
             return Err(pem_err(&cert_path, "no certificate in file"));
         }
         let key_path = dir.join(format!("{name}.key"));
-        let key = PrivateKeyDer::from_pem_file(&key_path).map_err(|e| pem_err(&key_path, e))?;
+        let key = PrivateKeyDer::from_pem_file(&key_path).map_err(|e| read_err(&key_path, e))?;
         Ok(Self { ca, chain, key })
+    }
+
+    /// Check that the leaf certificate is signed by the cluster CA, valid at
+    /// `now` and issued to `name`, for a server (the master) or a client (a
+    /// node): what the peers' TLS handshakes and the master's roster will
+    /// require.
+    pub fn verify(&self, name: &str, server: bool, now: UnixTime) -> Result<(), CertProblem> {
+        const REISSUE: &str = "re-issue the cluster's certificates with `showcase-master certs` \
+                               and copy ca.pem and each peer's files to its PC";
+        let bad = |problem: String, fix: &str| CertProblem {
+            problem,
+            fix: fix.to_owned(),
+            reissue: fix == REISSUE,
+        };
+        let leaf = self
+            .chain
+            .first()
+            .ok_or_else(|| bad("no certificate in the file".into(), REISSUE))?;
+        let cert = webpki::EndEntityCert::try_from(leaf).map_err(|e| {
+            bad(
+                format!("not a certificate this cluster can use ({e})"),
+                REISSUE,
+            )
+        })?;
+        let anchor = webpki::anchor_from_trusted_cert(&self.ca)
+            .map_err(|e| bad(format!("ca.pem is not a CA certificate ({e})"), REISSUE))?;
+        let usage = if server {
+            webpki::KeyUsage::server_auth()
+        } else {
+            webpki::KeyUsage::client_auth()
+        };
+        cert.verify_for_usage(
+            webpki::ALL_VERIFICATION_ALGS,
+            &[anchor],
+            &self.chain[1..],
+            now,
+            usage,
+            None,
+            None,
+        )
+        .map_err(|e| match e {
+            webpki::Error::UnknownIssuer | webpki::Error::InvalidSignatureForPublicKey => bad(
+                "not signed by the cluster CA in ca.pem (another CA issued it)".into(),
+                REISSUE,
+            ),
+            webpki::Error::CertExpired { time, not_after } => bad(
+                format!(
+                    "expired {} days ago",
+                    time.as_secs().saturating_sub(not_after.as_secs()) / 86_400
+                ),
+                REISSUE,
+            ),
+            webpki::Error::CertNotValidYet { time, not_before } => bad(
+                format!(
+                    "not valid for another {} s",
+                    not_before.as_secs().saturating_sub(time.as_secs())
+                ),
+                "check this PC's clock",
+            ),
+            other => bad(format!("rejected against ca.pem ({other})"), REISSUE),
+        })?;
+        let server_name = ServerName::try_from(name.to_owned()).map_err(|_| {
+            bad(
+                format!("{name:?} is not a DNS-style certificate name"),
+                "rename the node: letters, digits, '-' and '.'",
+            )
+        })?;
+        cert.verify_is_valid_for_subject_name(&server_name)
+            .map_err(|_| {
+                bad(
+                    format!(
+                        "issued to {:?}, not to {name:?}",
+                        cert.valid_dns_names().collect::<Vec<_>>()
+                    ),
+                    &format!("put the certificate issued to {name:?} here, or {REISSUE}"),
+                )
+            })
     }
 
     /// Build from PEM text (certificates generated in memory, e.g. tests).
@@ -224,4 +333,29 @@ pub fn peer_is(conn: &quinn::Connection, name: &str) -> bool {
     webpki::EndEntityCert::try_from(leaf)
         .and_then(|c| c.verify_is_valid_for_subject_name(&server_name))
         .is_ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The error `run` and `showcase-node` stop with when the certificates
+    /// were never made names the file and the command that makes it.
+    #[test]
+    fn a_missing_ca_names_the_file_and_the_certs_command() {
+        let dir = std::env::temp_dir().join(format!("showcase-no-certs-{}", std::process::id()));
+        let err = ClusterIdentity::load(&dir, "face-0")
+            .unwrap_err()
+            .to_string();
+        let ca = dir.join("ca.pem");
+        assert!(
+            err.starts_with(&format!("{}: missing;", ca.display())),
+            "{err}"
+        );
+        assert!(
+            err.contains(&format!("`showcase-master certs --out {}", dir.display())),
+            "{err}"
+        );
+        assert!(!err.contains("I/O error"), "{err}");
+    }
 }
