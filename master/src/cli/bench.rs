@@ -2,6 +2,7 @@
 //! target that turns them into the bench's options and emits its records.
 
 use super::{parse_size, runtime};
+use crate::scene_file::shared_data;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -88,29 +89,31 @@ pub struct BenchArgs {
     pub keep: bool,
 }
 
-/// Run the bench `args.target` names.
+/// Run the bench `args.target` names, with its progress on a terminal: a
+/// bar of its configurations where it has a fixed list (calibration,
+/// cluster), else a spinner with the time so far; a line says when it
+/// starts.
 pub(super) fn bench(args: &BenchArgs) -> Result<()> {
-    match args.target {
-        BenchTarget::Calibration => calibration(args),
+    let name = format!("bench {:?}", args.target).to_lowercase();
+    eprintln!("{name}: running (release builds only give meaningful times)...");
+    let pb = crate::progress::spinner(name, None);
+    let result = match args.target {
+        BenchTarget::Calibration => calibration(args, &pb),
         BenchTarget::Reflectance => reflectance(args),
         BenchTarget::Radiosity => radiosity(args),
         BenchTarget::Render => render(args),
-        BenchTarget::Cluster => cluster(args),
+        BenchTarget::Cluster => cluster(args, &pb),
         BenchTarget::Faults => faults(args),
         BenchTarget::Soak => soak(args),
-    }
+    };
+    pb.finish_and_clear();
+    result
 }
 
-/// A file of the shared data set: `../shared/data/NAME` from the working
-/// directory (the repository root), else beside the source tree.
-fn shared_data(name: &str) -> PathBuf {
-    let here = PathBuf::from("../shared/data").join(name);
-    if here.is_file() {
-        return here;
-    }
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(name)
+/// Turn the spinner `pb` into a bar of `len` steps.
+fn as_bar(pb: &indicatif::ProgressBar, len: u64) {
+    pb.set_style(crate::progress::bar_style());
+    pb.set_length(len);
 }
 
 /// The machine a benchmark ran on, for reports.
@@ -140,8 +143,12 @@ fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()
     Ok(())
 }
 
-fn calibration(args: &BenchArgs) -> Result<()> {
-    let records = crate::calibrate::bench_calibration();
+fn calibration(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
+    as_bar(pb, crate::calibrate::BENCH_CONFIGURATIONS as u64);
+    let records = crate::calibrate::bench_calibration_with(&|k, what| {
+        pb.set_position(k as u64);
+        pb.set_message(what.to_string());
+    });
     if !args.json {
         crate::calibrate::write_bench_report(&records, &args.out)
             .with_context(|| format!("cannot write the report to {}", args.out.display()))?;
@@ -211,7 +218,7 @@ fn render(args: &BenchArgs) -> Result<()> {
     emit_bench(args, &bench_render(&ctx, &scene, &opts)?)
 }
 
-fn cluster(args: &BenchArgs) -> Result<()> {
+fn cluster(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
     let nodes: Vec<usize> = if args.nodes.is_empty() {
         vec![2, 4, 8]
@@ -229,11 +236,13 @@ fn cluster(args: &BenchArgs) -> Result<()> {
     {
         anyhow::bail!("--hz {bad}: a frame rate must be between 1 and 1000 Hz");
     }
+    as_bar(pb, (nodes.len() * hz.len()) as u64);
     let records = runtime()?.block_on(crate::cluster::commands::bench_cluster(
         &scene,
         args.frames.unwrap_or(600),
         &nodes,
         &hz,
+        &|| pb.inc(1),
     ))?;
     emit_bench(args, &records)
 }

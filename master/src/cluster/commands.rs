@@ -156,12 +156,14 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
 /// `bench cluster`: a loopback cluster of each of `node_counts` at each of
 /// `rates` Hz (the command's defaults: 2, 4 and 8 nodes at 60 and 120 Hz)
 /// on the demo scene with the scripted walk; one node is killed and
-/// restarted a third of the way in.
+/// restarted a third of the way in. `done()` is called after each
+/// configuration (progress display).
 pub async fn bench_cluster(
     scene: &Showcase,
     frames: u64,
     node_counts: &[usize],
     rates: &[f32],
+    done: &dyn Fn(),
 ) -> Result<Vec<ClusterBenchRecord>> {
     let mut out = Vec::new();
     for &nodes in node_counts {
@@ -174,6 +176,7 @@ pub async fn bench_cluster(
             let r = run_loopback(plan).await?;
             eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
             out.push(bench_record(nodes, hz, frames, &r));
+            done();
         }
     }
     Ok(out)
@@ -285,7 +288,7 @@ pub async fn run_master(
     let label = config.display().to_string();
     let cfg = ClusterConfig::parse(&text, &label)?;
     let base = config.parent().unwrap_or(Path::new("."));
-    let scene = crate::scene_file::load_any(&base.join(&cfg.master.scene))?;
+    let scene = crate::scene_file::load_any(&crate::scene_file::resolve(base, &cfg.master.scene))?;
     check_outputs(&cfg, &scene, base, &label)?;
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
     let tracking = match &cfg.tracking {
