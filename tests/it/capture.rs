@@ -401,6 +401,9 @@ fn bench_records_have_exactly_the_issue_keys() {
     };
     let records = showcase_master::capture::bench_reflectance(&options).unwrap();
     assert_eq!(records.len(), 2 * 3 * 2);
+    // Its progress counted every configuration once.
+    assert_eq!(options.configurations(), records.len() as u64);
+    assert_eq!(options.progress.position(), options.configurations());
     let json = serde_json::to_value(&records).unwrap();
     let mut keys: Vec<&str> = json[0]
         .as_object()

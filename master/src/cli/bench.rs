@@ -99,8 +99,8 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
     let pb = crate::progress::spinner(name, None);
     let result = match args.target {
         BenchTarget::Calibration => calibration(args, &pb),
-        BenchTarget::Reflectance => reflectance(args),
-        BenchTarget::Radiosity => radiosity(args),
+        BenchTarget::Reflectance => reflectance(args, &pb),
+        BenchTarget::Radiosity => radiosity(args, &pb),
         BenchTarget::Render => render(args),
         BenchTarget::Cluster => cluster(args, &pb),
         BenchTarget::Faults => faults(args),
@@ -156,11 +156,13 @@ fn calibration(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     emit_bench(args, &records)
 }
 
-fn reflectance(args: &BenchArgs) -> Result<()> {
+fn reflectance(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let opts = crate::capture::bench::BenchOptions {
         cornell: shared_data("cornell-box.obj"),
+        progress: pb.clone(),
         ..Default::default()
     };
+    as_bar(pb, opts.configurations());
     let records = crate::capture::bench_reflectance(&opts)?;
     if !args.json {
         crate::capture::write_report(&records, &args.out)?;
@@ -168,10 +170,15 @@ fn reflectance(args: &BenchArgs) -> Result<()> {
     emit_bench(args, &records)
 }
 
-fn radiosity(args: &BenchArgs) -> Result<()> {
+fn radiosity(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     use crate::radiosity_job::bench::{ObjectRecords, bench_radiosity_kinds};
     let objects = ObjectRecords::parse(&args.object_records, args.repeats)?;
-    let records = bench_radiosity_kinds(&shared_data("cornell-box.obj"), &args.kinds, &objects)?;
+    let records = bench_radiosity_kinds(
+        &shared_data("cornell-box.obj"),
+        &args.kinds,
+        &objects,
+        &|kind| pb.set_message(format!("{kind} records")),
+    )?;
     if !args.json {
         crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
     }
