@@ -91,20 +91,25 @@ pub struct BenchArgs {
 
 /// Run the bench `args.target` names, with its progress on a terminal: a
 /// bar of its configurations where it has a fixed list (calibration,
-/// cluster), else a spinner with the time so far; a line says when it
-/// starts.
+/// reflectance, cluster), else a spinner with the time so far (radiosity
+/// says which records it is making); a line says when it starts. `faults`
+/// and `soak` print a line per step or per tenth of the frames instead, so
+/// no bar overdraws them.
 pub(super) fn bench(args: &BenchArgs) -> Result<()> {
     let name = format!("bench {:?}", args.target).to_lowercase();
     eprintln!("{name}: running (release builds only give meaningful times)...");
-    let pb = crate::progress::spinner(name, None);
+    let pb = match args.target {
+        BenchTarget::Faults | BenchTarget::Soak => indicatif::ProgressBar::hidden(),
+        _ => crate::progress::spinner(name, None),
+    };
     let result = match args.target {
         BenchTarget::Calibration => calibration(args, &pb),
         BenchTarget::Reflectance => reflectance(args, &pb),
         BenchTarget::Radiosity => radiosity(args, &pb),
-        BenchTarget::Render => render(args),
+        BenchTarget::Render => render(args, &pb),
         BenchTarget::Cluster => cluster(args, &pb),
-        BenchTarget::Faults => faults(args),
-        BenchTarget::Soak => soak(args),
+        BenchTarget::Faults => faults(args, &pb),
+        BenchTarget::Soak => soak(args, &pb),
     };
     pb.finish_and_clear();
     result
@@ -126,8 +131,14 @@ fn machine() -> String {
     )
 }
 
-/// Print a bench's records as one JSON array, or write them as a report.
-fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()> {
+/// Clear the progress `pb`, then print a bench's records as one JSON
+/// array, or write them as a report.
+fn emit_bench<T: serde::Serialize>(
+    args: &BenchArgs,
+    pb: &indicatif::ProgressBar,
+    records: &[T],
+) -> Result<()> {
+    pb.finish_and_clear();
     let json = serde_json::to_string_pretty(records)?;
     if args.json {
         println!("{json}");
@@ -153,7 +164,7 @@ fn calibration(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         crate::calibrate::write_bench_report(&records, &args.out)
             .with_context(|| format!("cannot write the report to {}", args.out.display()))?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
 fn reflectance(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
@@ -167,7 +178,7 @@ fn reflectance(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     if !args.json {
         crate::capture::write_report(&records, &args.out)?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
 fn radiosity(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
@@ -182,7 +193,7 @@ fn radiosity(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     if !args.json {
         crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
 /// The render bench's options from the flags (the renderer's defaults for
@@ -210,19 +221,19 @@ fn render_options(args: &BenchArgs) -> Result<showcase_render::render::bench::Be
     Ok(opts)
 }
 
-fn render(args: &BenchArgs) -> Result<()> {
+fn render(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     use showcase_render::render::bench::{bench_render, floor::bench_floor};
     let scene = crate::render_bench::bench_scene(
         &shared_data("cornell-box.obj"),
         &shared_data("bunny.obj"),
     )?;
     let ctx = showcase_render::gpu::GpuContext::new_headless()?;
-    eprintln!("bench render on {}", ctx.describe());
+    pb.suspend(|| eprintln!("bench render on {}", ctx.describe()));
     let opts = render_options(args)?;
     if args.floor {
-        return emit_bench(args, &bench_floor(&ctx, &scene, &opts)?);
+        return emit_bench(args, pb, &bench_floor(&ctx, &scene, &opts)?);
     }
-    emit_bench(args, &bench_render(&ctx, &scene, &opts)?)
+    emit_bench(args, pb, &bench_render(&ctx, &scene, &opts)?)
 }
 
 fn cluster(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
@@ -249,21 +260,24 @@ fn cluster(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         args.frames.unwrap_or(600),
         &nodes,
         &hz,
-        &|| pb.inc(1),
+        &|n, hz| {
+            pb.inc(1);
+            pb.suspend(|| eprintln!("bench cluster: {n} nodes at {hz} Hz done"));
+        },
     ))?;
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
-fn faults(args: &BenchArgs) -> Result<()> {
+fn faults(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let record = crate::cluster::faults::bench_faults(&crate::cluster::faults::FaultOptions {
         scene: crate::demo::default_scene(),
         node_bin: args.node_bin.clone(),
         keep: args.keep,
     })?;
-    emit_bench(args, &[record])
+    emit_bench(args, pb, &[record])
 }
 
-fn soak(args: &BenchArgs) -> Result<()> {
+fn soak(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
     let frames = args.frames.unwrap_or(12_000);
     anyhow::ensure!(
@@ -271,5 +285,5 @@ fn soak(args: &BenchArgs) -> Result<()> {
         "--frames {frames}: a soak needs at least 100 frames"
     );
     let record = runtime()?.block_on(crate::cluster::soak::bench_soak(&scene, frames))?;
-    emit_bench(args, &[record])
+    emit_bench(args, pb, &[record])
 }

@@ -156,14 +156,14 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
 /// `bench cluster`: a loopback cluster of each of `node_counts` at each of
 /// `rates` Hz (the command's defaults: 2, 4 and 8 nodes at 60 and 120 Hz)
 /// on the demo scene with the scripted walk; one node is killed and
-/// restarted a third of the way in. `done()` is called after each
+/// restarted a third of the way in. `done(nodes, hz)` is called after each
 /// configuration (progress display).
 pub async fn bench_cluster(
     scene: &Showcase,
     frames: u64,
     node_counts: &[usize],
     rates: &[f32],
-    done: &dyn Fn(),
+    done: &dyn Fn(usize, f32),
 ) -> Result<Vec<ClusterBenchRecord>> {
     let mut out = Vec::new();
     for &nodes in node_counts {
@@ -174,9 +174,8 @@ pub async fn bench_cluster(
                 ..walk_plan(scene, nodes, hz, frames)?
             };
             let r = run_loopback(plan).await?;
-            eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
             out.push(bench_record(nodes, hz, frames, &r));
-            done();
+            done(nodes, hz);
         }
     }
     Ok(out)
