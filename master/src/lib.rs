@@ -9,6 +9,7 @@ pub mod cluster;
 pub mod demo;
 pub mod pfm;
 pub mod plot;
+pub mod progress;
 pub mod radiosity_job;
 pub mod render_bench;
 pub mod scene_file;

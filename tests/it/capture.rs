@@ -19,7 +19,7 @@ use showcase_master::capture::pipeline::calibrate_reference;
 use showcase_master::capture::scenes::{cornell_scene, plate_scene};
 use showcase_master::capture::{
     CaptureConfig, CaptureOptions, EtaMode, Method, adjust_camera_gain, capture_reflectance,
-    read_reflectance_map, resize_device, run_capture, run_capture_with, write_reflectance_map,
+    read_reflectance_map, resize_device, run_capture, write_reflectance_map,
 };
 use showcase_proto::{PinholeDevice, Showcase};
 use std::path::Path;
@@ -346,7 +346,8 @@ fn capture_job_writes_maps_and_summary() {
 
 /// A capture job with options (the demo's entry point): the camera is
 /// resampled to the chosen size with its pose and field of view kept, the
-/// map and summary report that size, and the reflectance stays honest.
+/// map and summary report that size, the reflectance stays honest, and
+/// every stage is announced once, in order (the progress display).
 #[test]
 fn capture_job_with_options_resamples_the_camera() {
     let scene = plate_scene((24, 24), true);
@@ -363,7 +364,22 @@ fn capture_job_with_options_resamples_the_camera() {
             ..CaptureConfig::default()
         },
     };
-    let summary = run_capture_with(&scene, &dir, &opts).unwrap();
+    // Through the staged entry point, which announces each stage in order.
+    let stages = std::sync::Mutex::new(Vec::new());
+    let summary = showcase_master::capture::run_capture_staged(&scene, &dir, &opts, &|i, name| {
+        stages.lock().unwrap().push((i, name.to_string()))
+    })
+    .unwrap();
+    let stages = stages.into_inner().unwrap();
+    let names = showcase_master::capture::CAPTURE_STAGES;
+    assert_eq!(
+        stages,
+        names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (i, n.to_string()))
+            .collect::<Vec<_>>()
+    );
     assert_eq!(summary.camera_size, [36, 20]);
     assert_eq!((summary.frames, summary.samples_per_pixel), (8, 4));
     assert!(
@@ -401,6 +417,9 @@ fn bench_records_have_exactly_the_issue_keys() {
     };
     let records = showcase_master::capture::bench_reflectance(&options).unwrap();
     assert_eq!(records.len(), 2 * 3 * 2);
+    // Its progress counted every configuration once.
+    assert_eq!(options.configurations(), records.len() as u64);
+    assert_eq!(options.progress.position(), options.configurations());
     let json = serde_json::to_value(&records).unwrap();
     let mut keys: Vec<&str> = json[0]
         .as_object()

@@ -1,23 +1,90 @@
-//! The main job end to end, short: `demo` with few frames must run every
-//! built stage, write `report.json` and `index.html`, give a reason for
-//! every skipped stage, and report finite headline figures.
+//! The main job end to end, short: `demo` with few frames, run by a copy
+//! of the binary in an empty folder, must run every phase the built-in
+//! cabinet supports, write `report.json` and `index.html`, give a reason
+//! for every skipped phase, and report finite headline figures; on a scene
+//! without devices or observers it must skip what that scene cannot
+//! support and say the run is not complete.
 
 use showcase_master::cli::{Cli, run};
+use std::path::Path;
+use std::process::Command;
 
+/// Holds the child's `showcase-master` arguments (a JSON array).
+const CHILD_ARGS: &str = "SHOWCASE_IT_CHILD_CLI_ARGS";
+
+/// The child process of [`run_cli`], not a test of its own: it runs
+/// `showcase-master` with the arguments in [`CHILD_ARGS`], as the
+/// installed binary would (this test binary links the same library and
+/// command line; Cargo gives this package no path to `showcase-master`).
 #[test]
-fn short_demo_writes_an_honest_report() {
-    use clap::Parser;
-    let out = std::env::temp_dir().join(format!("showcase-demo-{}", std::process::id()));
-    let cli = Cli::try_parse_from([
-        "showcase-master",
-        "demo",
-        "--frames",
-        "30",
-        "--out",
-        out.to_str().unwrap(),
-    ])
-    .unwrap();
-    run(cli).expect("the demo runs");
+#[ignore = "run as a child process by run_cli"]
+fn child_cli() {
+    let args = std::env::var(CHILD_ARGS).expect("only run_cli runs this, with its arguments");
+    let args: Vec<String> = serde_json::from_str(&args).unwrap();
+    run(<Cli as clap::Parser>::try_parse_from(args).unwrap()).unwrap();
+}
+
+/// What a `showcase-master` child process did.
+pub(crate) struct Outcome {
+    /// Whether it exited 0.
+    pub(crate) success: bool,
+    /// Its stdout, less the test harness's own lines.
+    pub(crate) stdout: String,
+    /// Its stderr.
+    pub(crate) stderr: String,
+}
+
+/// Run `showcase-master ARGS` as a child process: `exe` (this test binary
+/// or a copy of it) with `cwd` as its working directory.
+pub(crate) fn run_cli(exe: &Path, cwd: &Path, args: &[&str]) -> Outcome {
+    let mut all = vec!["showcase-master"];
+    all.extend_from_slice(args);
+    let output = Command::new(exe)
+        .args([
+            "--ignored",
+            "--exact",
+            "demo::child_cli",
+            "--nocapture",
+            "-q",
+        ])
+        .env(CHILD_ARGS, serde_json::to_string(&all).unwrap())
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    // libtest's lines: "running 1 test", the progress dot, the result.
+    let harness = |l: &str| {
+        l.is_empty() || l == "running 1 test" || l == "." || l.starts_with("test result:")
+    };
+    Outcome {
+        success: output.status.success(),
+        stdout: String::from_utf8_lossy(&output.stdout)
+            .lines()
+            .filter(|l| !harness(l.trim()))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
+    }
+}
+
+/// A binary copied into an empty folder, away from the source tree and
+/// with that folder as its working directory, runs the default demo from
+/// the scene and data built into it.
+#[test]
+fn short_demo_from_a_copied_binary_writes_an_honest_report() {
+    let dir = std::env::temp_dir().join(format!("showcase-demo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exe = dir.join("showcase-master-copy");
+    std::fs::copy(std::env::current_exe().unwrap(), &exe).unwrap();
+    let run = run_cli(&exe, &dir, &["demo", "--frames", "30", "--out", "out"]);
+    let stderr = run.stderr;
+    assert!(run.success, "the copied binary's demo failed:\n{stderr}");
+    // It said which phase was skipped and why.
+    assert!(
+        stderr.contains("skipped: radiosity (the scene meshes into"),
+        "{stderr}"
+    );
+    let out = dir.join("out");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
@@ -34,7 +101,7 @@ fn short_demo_writes_an_honest_report() {
         assert_eq!(&bytes[1..4], b"PNG", "{file}");
         assert!(html.contains(file), "index.html does not show {file}");
     }
-    std::fs::remove_dir_all(&out).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
     // Three frames: two projectors' values, two faces' two eyes, per
     // observer its target, composite, mirror part and heat map, and the
     // camera's target and measurement.
@@ -42,21 +109,24 @@ fn short_demo_writes_an_honest_report() {
 
     let phases = report["phases"].as_array().unwrap();
     let names: Vec<&str> = phases.iter().map(|p| p["name"].as_str().unwrap()).collect();
-    assert_eq!(
-        names,
-        [
-            "scene",
-            "calibration",
-            "reflectance",
-            "radiosity",
-            "interactive",
-            "rendering"
-        ]
-    );
+    assert_eq!(names, showcase_master::demo::PHASES);
+    // Every phase ran but radiosity on the cabinet itself, which the
+    // solver cannot do in the demo's time yet (issue #23): skipped with
+    // its reason, so the run is not complete.
     for p in phases {
-        assert_eq!(p["status"], "ran", "{p}");
+        if p["name"] == "radiosity" {
+            assert_eq!(p["status"], "skipped", "{p}");
+            let reason = p["reason"].as_str().unwrap();
+            assert!(
+                reason.contains("elements") && reason.contains("#23"),
+                "{reason}"
+            );
+        } else {
+            assert_eq!(p["status"], "ran", "{p}");
+            assert!(p.get("reason").is_none(), "{p}");
+        }
     }
-    assert_eq!(report["complete"], serde_json::json!(true));
+    assert_eq!(report["complete"], serde_json::json!(false));
     let figures = &report["figures"];
     for key in [
         "calibration_rms_px",
@@ -72,8 +142,8 @@ fn short_demo_writes_an_honest_report() {
         "reflectance_rel_rmse",
         "reflectance_coverage",
         "reflectance_eta_rel_error",
-        "radiosity_consistency_rel_rmse",
-        "radiosity_paper_consistency_rel_rmse",
+        "radiosity_figure3_consistency_rel_rmse",
+        "radiosity_figure3_paper_consistency_rel_rmse",
     ] {
         let v = figures[key]
             .as_f64()
@@ -88,7 +158,9 @@ fn short_demo_writes_an_honest_report() {
     let reflectance = figures["reflectance_rel_rmse"].as_f64().unwrap();
     assert!(reflectance <= 0.02, "reflectance rel RMSE {reflectance}");
     // Augmented radiosity through the simulated projectors, within 0.03.
-    let radiosity = figures["radiosity_consistency_rel_rmse"].as_f64().unwrap();
+    let radiosity = figures["radiosity_figure3_consistency_rel_rmse"]
+        .as_f64()
+        .unwrap();
     assert!(radiosity <= 0.03, "radiosity consistency {radiosity}");
     assert_eq!(figures["dropped_frames"], 0);
     // Swap skew and tracking-to-swap are timings: `bench cluster` holds
@@ -148,4 +220,93 @@ fn short_demo_writes_an_honest_report() {
     }
     // The walk was recorded: a header plus one datagram per frame.
     assert_eq!(session.lines().count(), 31);
+}
+
+/// A scene with an object and a light but no device and no observer:
+/// calibration, reflectance, the cluster and the rendering are skipped,
+/// each saying what the scene lacks, radiosity runs on the scene itself,
+/// and the report says the run is not complete and has no figure of a
+/// phase that did not run.
+#[test]
+fn a_scene_without_devices_skips_what_it_cannot_support() {
+    use clap::Parser;
+    let dir = std::env::temp_dir().join(format!("showcase-demo-bare-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("bare.toml");
+    std::fs::write(
+        &scene,
+        r#"name = "bare"
+
+[[object]]
+name = "floor"
+mesh = "builtin:plate"
+size = [0.4, 0.4]
+subdivisions = 2
+kind = "real"
+
+[[light]]
+name = "lamp"
+type = "point"
+position = [0.0, 0.4, 0.0]
+intensity = [0.3, 0.3, 0.3]
+"#,
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let cli = Cli::try_parse_from([
+        "showcase-master",
+        "demo",
+        "--frames",
+        "30",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .unwrap();
+    run(cli).expect("the demo runs what the scene supports");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let summary = std::fs::read_to_string(out.join("radiosity/summary.json")).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(report["complete"], serde_json::json!(false));
+    let phases = report["phases"].as_array().unwrap();
+    let status = |name: &str| {
+        let p = phases.iter().find(|p| p["name"] == name).unwrap();
+        (
+            p["status"].as_str().unwrap().to_string(),
+            p["reason"].as_str().unwrap_or("").to_string(),
+        )
+    };
+    for (name, lacks) in [
+        ("calibration", "no projector or camera"),
+        ("reflectance", "no projector"),
+        ("interactive", "no CRT face or projector"),
+        ("rendering", "no CRT face or projector"),
+    ] {
+        let (s, reason) = status(name);
+        assert_eq!(s, "skipped", "{name}");
+        assert!(reason.contains(lacks), "{name}: {reason}");
+    }
+    for name in ["scene", "radiosity", "radiosity_figure3"] {
+        assert_eq!(status(name), ("ran".to_string(), String::new()), "{name}");
+    }
+    // Radiosity solved this scene, not another.
+    let elements = report["figures"]["radiosity_elements"].as_u64().unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    assert_eq!(summary["elements"].as_u64(), Some(elements));
+    // No figure of a phase that did not run: no frame rate of a cluster of
+    // 0 nodes, no observer consistency without observers.
+    let figures = report["figures"].as_object().unwrap();
+    for key in [
+        "calibration_rms_px",
+        "reflectance_rel_rmse",
+        "frame_rate_hz",
+        "dropped_frames",
+        "observer_consistency_rel_rmse",
+        "interactive_consistency_rel_rmse",
+    ] {
+        assert!(!figures.contains_key(key), "{key} reported: {figures:?}");
+    }
 }

@@ -74,6 +74,7 @@ fn radiosity_refuses_a_scene_without_materials_light_or_surfaces() -> anyhow::Re
         max_patch_area: Some(0.05),
         hemicube: Some(16),
         threshold: Some(0.1),
+        ..Default::default()
     };
     let refused = |file: &str, text: &str| -> anyhow::Result<String> {
         let path = dir.join(file);
@@ -123,6 +124,7 @@ fn cornell_box_solution_ply_matches_closed_forms() -> anyhow::Result<()> {
             max_patch_area: Some(0.02),
             hemicube: Some(32),
             threshold: Some(1e-2),
+            ..Default::default()
         },
     )?;
     assert!(summary.unshot_fraction < 1e-2);
@@ -425,4 +427,57 @@ fn gathered_one_bounce_maps_reach_the_consistency_target() -> anyhow::Result<()>
         .sum();
     assert!(((sq / gathered.pixels as f64).sqrt() - gathered.rel_rmse).abs() < 1e-9);
     Ok(())
+}
+
+/// `radiosity` says in one line what it did and where the summary is,
+/// and keeps stdout for `--json`: the summary file parses and agrees with
+/// what `--json` prints.
+#[test]
+fn radiosity_command_writes_its_summary_to_a_file_and_one_line() {
+    let dir = std::env::temp_dir().join(format!("showcase-radiosity-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exe = std::env::current_exe().unwrap();
+    let cornell = std::fs::canonicalize(CORNELL).unwrap();
+    let args = |out: &'static str| {
+        vec![
+            "radiosity".to_string(),
+            "--scene".into(),
+            cornell.to_str().unwrap().into(),
+            "--out".into(),
+            out.into(),
+            "--max-patch-area".into(),
+            "0.05".into(),
+            "--hemicube".into(),
+            "16".into(),
+            "--threshold".into(),
+            "0.1".into(),
+        ]
+    };
+    let quiet = args("quiet");
+    let quiet: Vec<&str> = quiet.iter().map(String::as_str).collect();
+    let run = crate::demo::run_cli(&exe, &dir, &quiet);
+    assert!(run.success, "{}", run.stderr);
+    assert_eq!(run.stdout, "", "stdout is for --json only");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("quiet/summary.json")).unwrap())
+            .unwrap();
+    let line = run
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("radiosity: ") && l.contains("summary.json"))
+        .unwrap_or_else(|| panic!("no summary line in {}", run.stderr));
+    assert!(
+        line.contains(&format!("{} elements", summary["elements"])),
+        "{line}"
+    );
+    let mut json = args("json");
+    json.push("--json".into());
+    let json: Vec<&str> = json.iter().map(String::as_str).collect();
+    let run = crate::demo::run_cli(&exe, &dir, &json);
+    assert!(run.success, "{}", run.stderr);
+    let printed: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(printed["elements"], summary["elements"]);
+    assert_eq!(printed["shots"], summary["shots"]);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -190,12 +190,30 @@ pub fn bench_configuration(
 /// The whole sweep: both methods, coplanar and not, every noise level and
 /// point count of [`BENCH_NOISE_PX`] and [`BENCH_POINTS`].
 pub fn bench_calibration() -> Vec<BenchRecord> {
+    bench_calibration_with(&|_, _| {})
+}
+
+/// Configurations [`bench_calibration`] runs.
+pub const BENCH_CONFIGURATIONS: usize = 2 * BENCH_POINTS.len() * BENCH_NOISE_PX.len() * 2;
+
+/// [`bench_calibration`], calling `done(k, what)` after the `k`-th of
+/// [`BENCH_CONFIGURATIONS`] configurations (progress display).
+pub fn bench_calibration_with(done: &dyn Fn(usize, &str)) -> Vec<BenchRecord> {
     let mut records = Vec::new();
+    let mut k = 0;
     for coplanar in [false, true] {
         for points in BENCH_POINTS {
             for noise_px in BENCH_NOISE_PX {
                 for method in [Method::Lm, Method::Powell] {
                     records.extend(bench_configuration(method, points, noise_px, coplanar));
+                    k += 1;
+                    done(
+                        k,
+                        &format!(
+                            "{method:?}, {points} points, {noise_px} px{}",
+                            if coplanar { ", coplanar" } else { "" }
+                        ),
+                    );
                 }
             }
         }

@@ -25,9 +25,9 @@ mod powell;
 mod simulate;
 
 pub use bench::{
-    BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, HELDOUT_POINTS, SyntheticCase,
-    bench_calibration, bench_configuration, heldout_rms, rotation_angle_deg, synthetic_case,
-    write_bench_report,
+    BENCH_CONFIGURATIONS, BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, HELDOUT_POINTS,
+    SyntheticCase, bench_calibration, bench_calibration_with, bench_configuration, heldout_rms,
+    rotation_angle_deg, synthetic_case, write_bench_report,
 };
 pub use io::{DEVICE_FAR_M, DEVICE_NEAR_M};
 pub use simulate::{

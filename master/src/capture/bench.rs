@@ -75,12 +75,23 @@ pub struct BenchOptions {
     pub piece_tiles: u32,
     /// Piecewise capture's mask growth in projector pixels.
     pub piece_dilate_px: u32,
+    /// Told each configuration as it is measured (one step each of
+    /// [`BenchOptions::configurations`]); hidden by default.
+    pub progress: indicatif::ProgressBar,
+}
+
+impl BenchOptions {
+    /// Configurations measured: per scene, frame count, method and eta
+    /// mode (given and estimated).
+    pub fn configurations(&self) -> u64 {
+        (self.scenes.len() * self.frames.len() * self.methods.len() * 2) as u64
+    }
 }
 
 impl Default for BenchOptions {
     fn default() -> Self {
         Self {
-            cornell: PathBuf::from("../shared/data/cornell-box.obj"),
+            cornell: crate::scene_file::shared_data("cornell-box.obj"),
             size: 64,
             samples_per_pixel: 512,
             frames: vec![1, 2, 4, 8, 16, 32, 64],
@@ -88,6 +99,7 @@ impl Default for BenchOptions {
             noise: true,
             methods: vec![Method::Naive, Method::Piecewise, Method::Corrected],
             gather_samples: 1024,
+            progress: indicatif::ProgressBar::hidden(),
             piece_tiles: CaptureConfig::default().piece_tiles,
             piece_dilate_px: 1,
         }
@@ -174,6 +186,12 @@ fn bench_scene(
                     piece_dilate_px: options.piece_dilate_px,
                     ..CaptureConfig::default()
                 };
+                options.progress.inc(1);
+                options.progress.set_message(format!(
+                    "{name}, {frames} frames, {}, eta {}",
+                    method.name(),
+                    if estimated { "estimated" } else { "given" }
+                ));
                 // The fit made above for this K, not one per method.
                 let levels = config.eta.resolve(scene, || Ok(fit))?;
                 let t = Instant::now();

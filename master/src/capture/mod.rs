@@ -185,6 +185,29 @@ pub fn run_capture_with(
     out: &Path,
     opts: &CaptureOptions,
 ) -> anyhow::Result<CaptureSummary> {
+    run_capture_staged(scene, out, opts, &|_, _| {})
+}
+
+/// The stages of a capture job, in order, as [`run_capture_staged`]
+/// announces them.
+pub const CAPTURE_STAGES: [&str; 5] = [
+    "setting up the sims and the camera gain",
+    "fitting eta and the black level on the reference target",
+    "light transport of the projector images",
+    "capturing frames and extracting the reflectance",
+    "comparing with the truth and writing the map",
+];
+
+/// [`run_capture_with`], calling `stage(i, name)` as stage `i` of
+/// [`CAPTURE_STAGES`] begins (progress display).
+pub fn run_capture_staged(
+    scene: &Showcase,
+    out: &Path,
+    opts: &CaptureOptions,
+    stage: &dyn Fn(usize, &str),
+) -> anyhow::Result<CaptureSummary> {
+    let begin = |i: usize| stage(i, CAPTURE_STAGES[i]);
+    begin(0);
     let t0 = Instant::now();
     let mut seconds = CaptureSeconds::default();
     let mut scene = scene.clone();
@@ -230,10 +253,13 @@ pub fn run_capture_with(
         s
     };
     seconds.setup = t0.elapsed().as_secs_f64();
+    begin(1);
     let levels = config.resolve_eta(&scene)?;
     seconds.calibration = lap(&mut t);
+    begin(2);
     warm_transport(&scene, &sim, &config)?;
     seconds.light_transport = lap(&mut t);
+    begin(3);
     let outcome = capture_map(
         &scene,
         &mut sim.projector(0)?,
@@ -242,6 +268,7 @@ pub fn run_capture_with(
         &config,
     )?;
     seconds.capture = lap(&mut t);
+    begin(4);
     let (truth, objects) = sim.ground_truth(0)?;
     let rel_rmse =
         showcase_light::metrics::relative_rmse(&outcome.reflectance, &truth, Some(&outcome.valid))

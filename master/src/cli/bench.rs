@@ -2,6 +2,7 @@
 //! target that turns them into the bench's options and emits its records.
 
 use super::{parse_size, runtime};
+use crate::scene_file::shared_data;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -88,29 +89,36 @@ pub struct BenchArgs {
     pub keep: bool,
 }
 
-/// Run the bench `args.target` names.
+/// Run the bench `args.target` names, with its progress on a terminal: a
+/// bar of its configurations where it has a fixed list (calibration,
+/// reflectance, cluster), else a spinner with the time so far (radiosity
+/// says which records it is making); a line says when it starts. `faults`
+/// and `soak` print a line per step or per tenth of the frames instead, so
+/// no bar overdraws them.
 pub(super) fn bench(args: &BenchArgs) -> Result<()> {
-    match args.target {
-        BenchTarget::Calibration => calibration(args),
-        BenchTarget::Reflectance => reflectance(args),
-        BenchTarget::Radiosity => radiosity(args),
-        BenchTarget::Render => render(args),
-        BenchTarget::Cluster => cluster(args),
-        BenchTarget::Faults => faults(args),
-        BenchTarget::Soak => soak(args),
-    }
+    let name = format!("bench {:?}", args.target).to_lowercase();
+    eprintln!("{name}: running (release builds only give meaningful times)...");
+    let pb = match args.target {
+        BenchTarget::Faults | BenchTarget::Soak => indicatif::ProgressBar::hidden(),
+        _ => crate::progress::spinner(name, None),
+    };
+    let result = match args.target {
+        BenchTarget::Calibration => calibration(args, &pb),
+        BenchTarget::Reflectance => reflectance(args, &pb),
+        BenchTarget::Radiosity => radiosity(args, &pb),
+        BenchTarget::Render => render(args, &pb),
+        BenchTarget::Cluster => cluster(args, &pb),
+        BenchTarget::Faults => faults(args, &pb),
+        BenchTarget::Soak => soak(args, &pb),
+    };
+    pb.finish_and_clear();
+    result
 }
 
-/// A file of the shared data set: `../shared/data/NAME` from the working
-/// directory (the repository root), else beside the source tree.
-fn shared_data(name: &str) -> PathBuf {
-    let here = PathBuf::from("../shared/data").join(name);
-    if here.is_file() {
-        return here;
-    }
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(name)
+/// Turn the spinner `pb` into a bar of `len` steps.
+fn as_bar(pb: &indicatif::ProgressBar, len: u64) {
+    pb.set_style(crate::progress::bar_style());
+    pb.set_length(len);
 }
 
 /// The machine a benchmark ran on, for reports.
@@ -123,8 +131,14 @@ fn machine() -> String {
     )
 }
 
-/// Print a bench's records as one JSON array, or write them as a report.
-fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()> {
+/// Clear the progress `pb`, then print a bench's records as one JSON
+/// array, or write them as a report.
+fn emit_bench<T: serde::Serialize>(
+    args: &BenchArgs,
+    pb: &indicatif::ProgressBar,
+    records: &[T],
+) -> Result<()> {
+    pb.finish_and_clear();
     let json = serde_json::to_string_pretty(records)?;
     if args.json {
         println!("{json}");
@@ -140,35 +154,46 @@ fn emit_bench<T: serde::Serialize>(args: &BenchArgs, records: &[T]) -> Result<()
     Ok(())
 }
 
-fn calibration(args: &BenchArgs) -> Result<()> {
-    let records = crate::calibrate::bench_calibration();
+fn calibration(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
+    as_bar(pb, crate::calibrate::BENCH_CONFIGURATIONS as u64);
+    let records = crate::calibrate::bench_calibration_with(&|k, what| {
+        pb.set_position(k as u64);
+        pb.set_message(what.to_string());
+    });
     if !args.json {
         crate::calibrate::write_bench_report(&records, &args.out)
             .with_context(|| format!("cannot write the report to {}", args.out.display()))?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
-fn reflectance(args: &BenchArgs) -> Result<()> {
+fn reflectance(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let opts = crate::capture::bench::BenchOptions {
         cornell: shared_data("cornell-box.obj"),
+        progress: pb.clone(),
         ..Default::default()
     };
+    as_bar(pb, opts.configurations());
     let records = crate::capture::bench_reflectance(&opts)?;
     if !args.json {
         crate::capture::write_report(&records, &args.out)?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
-fn radiosity(args: &BenchArgs) -> Result<()> {
+fn radiosity(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     use crate::radiosity_job::bench::{ObjectRecords, bench_radiosity_kinds};
     let objects = ObjectRecords::parse(&args.object_records, args.repeats)?;
-    let records = bench_radiosity_kinds(&shared_data("cornell-box.obj"), &args.kinds, &objects)?;
+    let records = bench_radiosity_kinds(
+        &shared_data("cornell-box.obj"),
+        &args.kinds,
+        &objects,
+        &|kind| pb.set_message(format!("{kind} records")),
+    )?;
     if !args.json {
         crate::radiosity_job::report::write_report(&records, &args.out, &machine())?;
     }
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
 /// The render bench's options from the flags (the renderer's defaults for
@@ -196,22 +221,22 @@ fn render_options(args: &BenchArgs) -> Result<showcase_render::render::bench::Be
     Ok(opts)
 }
 
-fn render(args: &BenchArgs) -> Result<()> {
+fn render(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     use showcase_render::render::bench::{bench_render, floor::bench_floor};
     let scene = crate::render_bench::bench_scene(
         &shared_data("cornell-box.obj"),
         &shared_data("bunny.obj"),
     )?;
     let ctx = showcase_render::gpu::GpuContext::new_headless()?;
-    eprintln!("bench render on {}", ctx.describe());
+    pb.suspend(|| eprintln!("bench render on {}", ctx.describe()));
     let opts = render_options(args)?;
     if args.floor {
-        return emit_bench(args, &bench_floor(&ctx, &scene, &opts)?);
+        return emit_bench(args, pb, &bench_floor(&ctx, &scene, &opts)?);
     }
-    emit_bench(args, &bench_render(&ctx, &scene, &opts)?)
+    emit_bench(args, pb, &bench_render(&ctx, &scene, &opts)?)
 }
 
-fn cluster(args: &BenchArgs) -> Result<()> {
+fn cluster(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
     let nodes: Vec<usize> = if args.nodes.is_empty() {
         vec![2, 4, 8]
@@ -229,25 +254,30 @@ fn cluster(args: &BenchArgs) -> Result<()> {
     {
         anyhow::bail!("--hz {bad}: a frame rate must be between 1 and 1000 Hz");
     }
+    as_bar(pb, (nodes.len() * hz.len()) as u64);
     let records = runtime()?.block_on(crate::cluster::commands::bench_cluster(
         &scene,
         args.frames.unwrap_or(600),
         &nodes,
         &hz,
+        &|n, hz| {
+            pb.inc(1);
+            pb.suspend(|| eprintln!("bench cluster: {n} nodes at {hz} Hz done"));
+        },
     ))?;
-    emit_bench(args, &records)
+    emit_bench(args, pb, &records)
 }
 
-fn faults(args: &BenchArgs) -> Result<()> {
+fn faults(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let record = crate::cluster::faults::bench_faults(&crate::cluster::faults::FaultOptions {
         scene: crate::demo::default_scene(),
         node_bin: args.node_bin.clone(),
         keep: args.keep,
     })?;
-    emit_bench(args, &[record])
+    emit_bench(args, pb, &[record])
 }
 
-fn soak(args: &BenchArgs) -> Result<()> {
+fn soak(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
     let frames = args.frames.unwrap_or(12_000);
     anyhow::ensure!(
@@ -255,5 +285,5 @@ fn soak(args: &BenchArgs) -> Result<()> {
         "--frames {frames}: a soak needs at least 100 frames"
     );
     let record = runtime()?.block_on(crate::cluster::soak::bench_soak(&scene, frames))?;
-    emit_bench(args, &[record])
+    emit_bench(args, pb, &[record])
 }

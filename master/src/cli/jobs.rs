@@ -15,7 +15,9 @@ pub struct DemoArgs {
     /// Frames of the interactive stage.
     #[arg(long, default_value_t = 240)]
     pub frames: u64,
-    /// Scene file (default: the built-in demo cabinet).
+    /// Scene file, or a built-in scene (`builtin:showcase`, the default
+    /// demo cabinet; `builtin:figure3`; `builtin:cornell`). Every phase
+    /// runs on it; one it cannot support is skipped with the reason.
     #[arg(long)]
     pub scene: Option<PathBuf>,
 }
@@ -142,6 +144,9 @@ pub struct CaptureArgs {
     /// Output folder for the reflectance maps and summary.
     #[arg(long)]
     pub out: PathBuf,
+    /// Also print the summary (written to `<out>/summary.json`) on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `capture --sim`: the capture job with its default options.
@@ -152,18 +157,45 @@ pub(super) fn capture(args: &CaptureArgs) -> Result<()> {
         );
     }
     let scene = crate::scene_file::load_any(&args.scene)?;
-    let summary = crate::capture::run_capture(&scene, &args.out)?;
-    println!("{}", serde_json::to_string_pretty(&summary)?);
+    let stages = crate::capture::CAPTURE_STAGES.len() as u64;
+    let pb = crate::progress::bar("capture", stages);
+    let to_log = !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let summary = crate::capture::run_capture_staged(
+        &scene,
+        &args.out,
+        &crate::capture::CaptureOptions::default(),
+        &|i, name| {
+            pb.set_position(i as u64);
+            pb.set_message(name.to_string());
+            if to_log {
+                eprintln!("capture: stage {}/{stages}: {name}...", i + 1);
+            }
+        },
+    );
+    pb.finish_and_clear();
+    let summary = summary?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
+    eprintln!(
+        "capture: {} frames, rel RMSE {:.4} against the sim's albedo over {:.0}% of the object pixels, in {:.1} s; wrote {}",
+        summary.frames,
+        summary.rel_rmse,
+        100.0 * summary.coverage,
+        summary.seconds.total,
+        args.out.join("summary.json").display()
+    );
     Ok(())
 }
 
 /// Arguments of `radiosity`.
 #[derive(Debug, Args)]
 pub struct RadiosityArgs {
-    /// Scene file (TOML, or an OBJ such as the Cornell box).
+    /// Scene file (TOML, or an OBJ such as the Cornell box) or built-in
+    /// scene (`builtin:figure3`).
     #[arg(long)]
     pub scene: PathBuf,
-    /// Output folder.
+    /// Output folder (the solution, the maps and `summary.json`).
     #[arg(long)]
     pub out: PathBuf,
     /// Largest patch area in square metres.
@@ -179,6 +211,9 @@ pub struct RadiosityArgs {
     /// (wgpu rasterisation).
     #[arg(long, default_value = "cpu")]
     pub form_factors: crate::radiosity_job::FormFactorDevice,
+    /// Also print the summary (written to `<out>/summary.json`) on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 impl From<&RadiosityArgs> for crate::radiosity_job::RadiosityOptions {
@@ -187,19 +222,38 @@ impl From<&RadiosityArgs> for crate::radiosity_job::RadiosityOptions {
             max_patch_area: a.max_patch_area,
             hemicube: a.hemicube,
             threshold: a.threshold,
+            progress: Default::default(),
         }
     }
 }
 
-/// `radiosity`: solve a scene and print the job's summary.
+/// `radiosity`: solve a scene, with the shots and the unshot energy as
+/// progress; the summary goes to `<out>/summary.json` (and to stdout with
+/// `--json`), and one line says what was done and where.
 pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
-    let summary = crate::radiosity_job::run_radiosity_on(
-        &args.scene,
-        &args.out,
-        &args.into(),
-        args.form_factors,
-    )?;
-    println!("{}", serde_json::to_string_pretty(&summary)?);
+    let pb = crate::progress::spinner("radiosity", Some("shots"));
+    let mut options: crate::radiosity_job::RadiosityOptions = args.into();
+    options.progress = crate::progress::radiosity_shots(&pb, "radiosity");
+    eprintln!("radiosity: solving {}...", args.scene.display());
+    let summary =
+        crate::radiosity_job::run_radiosity_on(&args.scene, &args.out, &options, args.form_factors);
+    pb.finish_and_clear();
+    let summary = summary?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
+    eprintln!(
+        "radiosity: {} patches, {} elements, {} shots to {:.4} unshot in {:.1} s; wrote {} ({}, {} irradiance maps, {} light maps)",
+        summary.patches,
+        summary.elements,
+        summary.shots,
+        summary.unshot_fraction,
+        summary.seconds,
+        args.out.join("summary.json").display(),
+        summary.solution.display(),
+        summary.irradiance_maps.len(),
+        summary.light_maps.len()
+    );
     Ok(())
 }
 
@@ -209,7 +263,8 @@ pub struct ReplayArgs {
     /// Recorded session file (`demo` writes one: `showcase-out/session.jsonl`).
     #[arg(long)]
     pub session: PathBuf,
-    /// Scene file (default: the built-in demo cabinet).
+    /// Scene file or built-in scene (default: `builtin:showcase`, the demo
+    /// cabinet).
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Frame rate of the replay.

@@ -157,12 +157,14 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
 /// `bench cluster`: a loopback cluster of each of `node_counts` at each of
 /// `rates` Hz (the command's defaults: 2, 4 and 8 nodes at 60 and 120 Hz)
 /// on the demo scene with the scripted walk; one node is killed and
-/// restarted a third of the way in.
+/// restarted a third of the way in. `done(nodes, hz)` is called after each
+/// configuration (progress display).
 pub async fn bench_cluster(
     scene: &Showcase,
     frames: u64,
     node_counts: &[usize],
     rates: &[f32],
+    done: &dyn Fn(usize, f32),
 ) -> Result<Vec<ClusterBenchRecord>> {
     let mut out = Vec::new();
     for &nodes in node_counts {
@@ -173,8 +175,8 @@ pub async fn bench_cluster(
                 ..walk_plan(scene, nodes, hz, frames)?
             };
             let r = run_loopback(plan).await?;
-            eprintln!("bench cluster: {nodes} nodes at {hz} Hz done");
             out.push(bench_record(nodes, hz, frames, &r));
+            done(nodes, hz);
         }
     }
     Ok(out)
@@ -288,7 +290,7 @@ pub async fn run_master(
     let label = config.display().to_string();
     let cfg = ClusterConfig::parse(&text, &label)?;
     let base = config.parent().unwrap_or(Path::new("."));
-    let scene = crate::scene_file::load_any(&base.join(&cfg.master.scene))?;
+    let scene = crate::scene_file::load_any(&crate::scene_file::resolve(base, &cfg.master.scene))?;
     let names = crate::scene_file::SceneNames::of(&scene);
     if let Some(p) =
         super::check::node_problems(&cfg, Some(&names), Some(&scene), base, &label).first()

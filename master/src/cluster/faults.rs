@@ -322,8 +322,13 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
             node_bin.display()
         );
     }
-    let scene = std::fs::canonicalize(&opts.scene)
-        .with_context(|| format!("scene {}", opts.scene.display()))?;
+    // The config lies in another folder: a file must be absolute there.
+    let scene = if crate::scene_file::is_builtin(&opts.scene) {
+        opts.scene.clone()
+    } else {
+        std::fs::canonicalize(&opts.scene)
+            .with_context(|| format!("scene {}", opts.scene.display()))?
+    };
     let dir = std::env::temp_dir().join(format!("showcase-faults-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let names: Vec<String> = NODES.iter().map(|(n, _)| (*n).to_owned()).collect();

@@ -383,7 +383,7 @@ fn record(
 /// Run the radiosity benchmark on the Cornell box at `cornell` (the OBJ).
 /// Slow (minutes): build in release.
 pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
-    bench_radiosity_kinds(cornell, &[], &ObjectRecords::default())
+    bench_radiosity_kinds(cornell, &[], &ObjectRecords::default(), &|_| {})
 }
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
@@ -401,12 +401,14 @@ pub const RECORD_KINDS: [&str; 7] = [
 /// [`bench_radiosity_at`], making only the records whose `"kind"` is in
 /// `kinds` (all of them when `kinds` is empty), and of the
 /// `incremental_object` kind those of `objects`; the fine reference
-/// solution is solved only when a record that needs it is made. An
+/// solution is solved only when a record that needs it is made;
+/// `making(kinds)` is told which records are being made (progress). An
 /// unknown kind is an error that lists the known ones.
 pub fn bench_radiosity_kinds(
     cornell: &Path,
     kinds: &[String],
     objects: &ObjectRecords,
+    making: &dyn Fn(&str),
 ) -> anyhow::Result<Vec<BenchRecord>> {
     if let Some(bad) = kinds.iter().find(|k| !RECORD_KINDS.contains(&k.as_str())) {
         anyhow::bail!(
@@ -421,14 +423,17 @@ pub fn bench_radiosity_kinds(
         .iter()
         .any(|k| wanted(k))
     {
+        making("reference, gathered, sweep and scaling");
         bench_against_reference(&showcase, &wanted, &mut records)?;
     }
     if wanted("incremental") {
+        making("incremental");
         for intensity in [0.5, 0.05, 0.005] {
             records.push(incremental_record(&showcase, intensity)?);
         }
     }
     if wanted("incremental_object") {
+        making("incremental_object");
         let shift = Vec3::new(0.03, 0.0, 0.02);
         let with_cube = cornell_with_small_cube(&showcase, 0.06);
         for (name, area) in &objects.records {
@@ -447,6 +452,7 @@ pub fn bench_radiosity_kinds(
         }
     }
     if wanted("augmented") {
+        making("augmented");
         records.push(augmented_record(&showcase)?);
     }
     Ok(records)

@@ -32,6 +32,8 @@ pub struct RadiosityOptions {
     pub hemicube: Option<u32>,
     /// Unshot-energy threshold.
     pub threshold: Option<f64>,
+    /// Told after every shot (progress display).
+    pub progress: radiosity::ShotProgress,
 }
 
 /// Where the hemi-cube's item buffers are made (`--form-factors cpu|gpu`).
@@ -81,6 +83,7 @@ impl RadiosityOptions {
             hemicube: self.hemicube.unwrap_or(d.hemicube),
             threshold: self.threshold.unwrap_or(d.threshold),
             method: FormFactorMethod::Hybrid,
+            progress: self.progress.clone(),
             ..d
         }
     }
@@ -223,6 +226,20 @@ pub fn solve_showcase_on(
     })
 }
 
+/// Patches and elements of `showcase` meshed with `options`, before
+/// adaptive refinement: what a solve's cost grows with. An error says why
+/// the scene has nothing to solve (no surface, nothing emitting light).
+pub fn mesh_size(
+    showcase: &Showcase,
+    options: &RadiosityOptions,
+) -> anyhow::Result<(usize, usize)> {
+    let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
+    let mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
+    let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+    check_solvable(&mesh, &lights)?;
+    Ok((mesh.patches.len(), mesh.elements.len()))
+}
+
 /// Refuse a scene whose radiosity is zero for want of input: no surface
 /// to solve, or nothing that emits light (no positive `Ke`, no light),
 /// which is what an OBJ without its material library looks like.
@@ -277,9 +294,25 @@ pub fn run_radiosity_on(
     device: FormFactorDevice,
 ) -> anyhow::Result<Summary> {
     let showcase = crate::scene_file::load_any(scene)?;
+    run_radiosity_scene(
+        &showcase,
+        &scene.display().to_string(),
+        out,
+        options,
+        device,
+    )
+}
+
+/// [`run_radiosity_on`] for a scene in memory, named `label` in errors.
+pub fn run_radiosity_scene(
+    showcase: &Showcase,
+    label: &str,
+    out: &Path,
+    options: &RadiosityOptions,
+    device: FormFactorDevice,
+) -> anyhow::Result<Summary> {
     let start = Instant::now();
-    let solved = solve_showcase_on(&showcase, options, device)
-        .with_context(|| scene.display().to_string())?;
+    let solved = solve_showcase_on(showcase, options, device).with_context(|| label.to_string())?;
     let mut maps = Vec::new();
     if let Some(a) = &solved.augmented {
         // The real room's interreflection gathered at each vertex, not

@@ -78,6 +78,11 @@ pub(crate) fn load(path: &Path) -> Result<Vec<Part>, MeshFileError> {
 }
 
 fn read_limited(path: &Path) -> Result<Vec<u8>, MeshFileError> {
+    if let Some(built_in) = super::embedded::read(path) {
+        return built_in
+            .map(<[u8]>::to_vec)
+            .map_err(|e| MeshFileError::new(format!("cannot read: {e}")));
+    }
     let meta =
         std::fs::metadata(path).map_err(|e| MeshFileError::new(format!("cannot read: {e}")))?;
     if !meta.is_file() {
@@ -118,7 +123,9 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<Vec<Part>, MeshFileError> {
         let mut reader = std::io::BufReader::new(bytes);
         tobj::load_obj_buf(&mut reader, &options, |mtl_path| {
             let full = dir.join(mtl_path);
-            let result = std::fs::read(&full)
+            let result = super::embedded::read(&full)
+                .map(|b| b.map(<[u8]>::to_vec))
+                .unwrap_or_else(|| std::fs::read(&full))
                 .map_err(|e| format!("cannot read material library {}: {e}", full.display()))
                 .and_then(|mtl| {
                     tobj::load_mtl_buf(&mut std::io::BufReader::new(mtl.as_slice()))

@@ -7,6 +7,11 @@
 //! error names the scene file and the line (TOML errors) or field
 //! (everything else), and bad input never panics.
 //!
+//! A path `builtin:NAME` names a scene built into the binary
+//! (`builtin:showcase`, the demo cabinet; `builtin:figure3`;
+//! `builtin:cornell`; see `embedded.rs`), so an installed binary needs no
+//! source tree.
+//!
 //! # Conventions
 //! Metres, a right-handed world with y up, linear RGB. Paths (meshes,
 //! calibration files) are relative to the scene file's folder. Every table
@@ -121,6 +126,7 @@
 
 mod builtin;
 mod device;
+mod embedded;
 mod error;
 mod mesh_scene;
 mod mesh_source;
@@ -128,6 +134,7 @@ mod object;
 mod outline;
 mod schema;
 
+pub use embedded::{SCENES as BUILTIN_SCENES, is_builtin, shared_data};
 pub use error::SceneError;
 pub use outline::{SceneNames, SceneOutline, outline, read_calibration};
 
@@ -157,6 +164,17 @@ pub fn load_any(path: &Path) -> Result<Showcase, SceneError> {
     }
 }
 
+/// A scene path `scene` as written in a file in folder `base`: joined to
+/// `base`, unless it is a built-in name (`builtin:showcase`), which stays
+/// as it is.
+pub fn resolve(base: &Path, scene: &Path) -> std::path::PathBuf {
+    if is_builtin(scene) {
+        scene.to_path_buf()
+    } else {
+        base.join(scene)
+    }
+}
+
 /// Load and validate the scene file at `path`. Relative paths inside it are
 /// resolved against its folder; errors name it as `path` is written.
 pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
@@ -173,6 +191,19 @@ fn read_scene_text(path: &Path) -> Result<(String, String), SceneError> {
         file: file.clone(),
         error,
     };
+    if let Some(resolved) = embedded::scene_file(path) {
+        let resolved = resolved.map_err(|problem| SceneError::Invalid {
+            file: file.clone(),
+            field: "scene".into(),
+            problem,
+        })?;
+        let text = embedded::read(&resolved)
+            .unwrap_or_else(|| Err(std::io::ErrorKind::NotFound.into()))
+            .and_then(|b| std::str::from_utf8(b).map_err(std::io::Error::other))
+            .map_err(read_err)?;
+        let base_dir = resolved.parent().unwrap_or(Path::new(""));
+        return load_scene_str(text, base_dir, &file);
+    }
     let meta = std::fs::metadata(path).map_err(read_err)?;
     if meta.len() > MAX_SCENE_FILE_BYTES {
         return Err(SceneError::Invalid {

@@ -53,7 +53,8 @@ pub use gather::{
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{
-    ConvergencePoint, FormFactorMethod, MoveError, MoveStats, Shooter, SolveError, SolveOptions,
+    ConvergencePoint, FormFactorMethod, MoveError, MoveStats, Shooter, ShotProgress, SolveError,
+    SolveOptions,
 };
 
 use crate::SceneGeometry;

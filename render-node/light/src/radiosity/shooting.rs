@@ -47,7 +47,7 @@ mod moving;
 mod options;
 mod ray_cast;
 pub use moving::{MoveError, MoveStats};
-pub use options::{FormFactorMethod, ItemBufferBackend, SolveError, SolveOptions};
+pub use options::{FormFactorMethod, ItemBufferBackend, ShotProgress, SolveError, SolveOptions};
 pub(crate) use ray_cast::RayMask;
 
 /// One point of the convergence curve.
@@ -365,10 +365,12 @@ impl<'a> Shooter<'a> {
             self.cache_row(shooter, (ff, scale, rays));
         }
         self.shots += 1;
-        self.curve.push(ConvergencePoint {
+        let point = ConvergencePoint {
             shots: self.shots,
             unshot_fraction: self.unshot_fraction(),
-        });
+        };
+        self.curve.push(point);
+        self.options.progress.report(point);
         true
     }
 

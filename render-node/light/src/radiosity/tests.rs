@@ -561,3 +561,23 @@ fn hidden_vertices_under_a_box_take_their_visible_neighbours() {
     }
     assert!(v.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
 }
+
+#[test]
+fn progress_is_told_every_shot_in_order() {
+    use std::sync::{Arc, Mutex};
+    let s = closed_box(0.8, 1.0);
+    let (m, g) = mesh_of(&s, 0.13, 0);
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let sink = seen.clone();
+    let mut o = options(FormFactorMethod::Hybrid, 64, 1e-2);
+    o.progress = ShotProgress::new(move |p| sink.lock().unwrap().push(p));
+    let solution = super::solve(&m, &g, &[], &o).unwrap();
+    let seen = seen.lock().unwrap();
+    assert!(solution.shots > 1, "{} shots", solution.shots);
+    // One call per shot, counting 1, 2, 3, ..., the last at the solve's
+    // end, with the unshot fraction the convergence curve records.
+    let shots: Vec<usize> = seen.iter().map(|p| p.shots).collect();
+    assert_eq!(shots, (1..=solution.shots).collect::<Vec<_>>());
+    assert_eq!(&seen[..], &solution.convergence[..]);
+    assert!(seen.last().unwrap().unshot_fraction < o.threshold);
+}

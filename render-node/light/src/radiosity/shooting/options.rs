@@ -2,6 +2,7 @@
 //! who makes the hemi-cube's item buffers, and why a solve cannot start.
 
 use crate::radiosity::hemicube::{ItemBufferError, ItemBufferRasteriser};
+use crate::radiosity::shooting::ConvergencePoint;
 use std::sync::Arc;
 
 /// How a shot's form factors are computed.
@@ -100,6 +101,50 @@ pub struct SolveOptions {
     pub form_factor_cache_bytes: usize,
     /// Who makes the hemi-cube item buffers.
     pub item_buffer: ItemBufferBackend,
+    /// Told after every shot (progress display; none by default).
+    pub progress: ShotProgress,
+}
+
+/// A callback told the shots so far and the unshot fraction after every
+/// shot of a solve, so that a caller can show progress: the solver itself
+/// does no IO. Each solve (refinement round, augmented pass) counts its
+/// shots from 1.
+#[derive(Clone, Default)]
+pub struct ShotProgress(Option<Arc<dyn Fn(ConvergencePoint) + Send + Sync>>);
+
+impl ShotProgress {
+    /// Call `f` after every shot.
+    pub fn new(f: impl Fn(ConvergencePoint) + Send + Sync + 'static) -> Self {
+        Self(Some(Arc::new(f)))
+    }
+
+    /// Tell the callback, if there is one.
+    pub(crate) fn report(&self, point: ConvergencePoint) {
+        if let Some(f) = &self.0 {
+            f(point);
+        }
+    }
+}
+
+impl std::fmt::Debug for ShotProgress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "ShotProgress(set)"
+        } else {
+            "ShotProgress(none)"
+        })
+    }
+}
+
+impl PartialEq for ShotProgress {
+    /// Equal when neither is set or both are the same callback.
+    fn eq(&self, other: &Self) -> bool {
+        match (&self.0, &other.0) {
+            (None, None) => true,
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
 }
 
 impl Default for SolveOptions {
@@ -115,6 +160,7 @@ impl Default for SolveOptions {
             visibility_samples: 4,
             form_factor_cache_bytes: 1 << 30,
             item_buffer: ItemBufferBackend::Cpu,
+            progress: ShotProgress::default(),
         }
     }
 }
