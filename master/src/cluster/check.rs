@@ -95,7 +95,7 @@ pub fn check_cluster(config: &Path) -> CheckReport {
     );
     let base = config.parent().unwrap_or(Path::new("."));
     r.problems.extend(address_problems(&cfg, &label));
-    let (scene, names) = check_scene(&mut r, &scene_file::resolve(&base, &cfg.master.scene));
+    let (scene, names) = check_scene(&mut r, &scene_file::resolve(base, &cfg.master.scene));
     r.problems.extend(node_problems(
         &cfg,
         names.as_ref(),
