@@ -52,6 +52,8 @@ pub struct Report {
     pub figures: serde_json::Map<String, serde_json::Value>,
     /// Images written, in rows, for `index.html`.
     pub gallery: Vec<GalleryRow>,
+    /// What the page plots beside the figures.
+    pub histories: page::Histories,
 }
 
 /// A row of images in `index.html`.
@@ -136,7 +138,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     let truth = scene.clone();
     let t = Instant::now();
     let pb = progress("calibration", None);
-    let calibration = calibration_stage(&mut scene)?;
+    let calibration = calibration_stage(&mut scene, &mut report.histories)?;
     pb.finish_and_clear();
     report.ran("calibration", t, calibration.detail);
     report.figures.extend(calibration.figures);
@@ -282,8 +284,12 @@ fn radiosity_stage(out: &Path) -> Result<StageOutcome> {
 
 /// Calibrate every projector and camera from simulated fiducial marks
 /// (0.5 px noise) on a rig in the cabinet, and put the calibrated devices
-/// in the scene in place of the true ones for everything that follows.
-fn calibration_stage(scene: &mut showcase_proto::Showcase) -> Result<StageOutcome> {
+/// in the scene in place of the true ones for everything that follows;
+/// each device's residuals go to `histories` for the page's plot.
+fn calibration_stage(
+    scene: &mut showcase_proto::Showcase,
+    histories: &mut page::Histories,
+) -> Result<StageOutcome> {
     use crate::calibrate::{CalibrateOptions, calibrate, fiducial_rig, simulate_fiducials};
     const NOISE_PX: f64 = 0.5;
     let rig = fiducial_rig(40, 7);
@@ -322,6 +328,9 @@ fn calibration_stage(scene: &mut showcase_proto::Showcase) -> Result<StageOutcom
             cal.rms_px,
             centre_error * 1e3
         ));
+        histories
+            .calibration
+            .push(page::DeviceResiduals::new(&name, &cal));
         *device = calibrated;
     }
     let mut figures = serde_json::Map::new();
