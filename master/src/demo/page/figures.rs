@@ -11,8 +11,6 @@
 pub(in crate::demo) enum Target {
     /// At most this value.
     AtMost(f64),
-    /// At least this value.
-    AtLeast(f64),
     /// Exactly this value.
     Equal(f64),
 }
@@ -26,7 +24,6 @@ impl Target {
         }
         Some(match self {
             Target::AtMost(t) => v <= t,
-            Target::AtLeast(t) => v >= t,
             Target::Equal(t) => v == t,
         })
     }
@@ -34,7 +31,7 @@ impl Target {
     /// The bound itself: what a plot draws as the target line.
     pub(in crate::demo) fn value(self) -> f64 {
         match self {
-            Target::AtMost(t) | Target::AtLeast(t) | Target::Equal(t) => t,
+            Target::AtMost(t) | Target::Equal(t) => t,
         }
     }
 
@@ -42,7 +39,6 @@ impl Target {
     fn text(self, unit: &str) -> String {
         let (op, t) = match self {
             Target::AtMost(t) => ("≤", t),
-            Target::AtLeast(t) => ("≥", t),
             Target::Equal(t) => ("=", t),
         };
         // Targets are round numbers: their shortest form.
@@ -357,8 +353,6 @@ mod tests {
     fn targets_mark_pass_or_miss() {
         assert_eq!(Target::AtMost(1.0).met_by(1.0), Some(true));
         assert_eq!(Target::AtMost(1.0).met_by(1.01), Some(false));
-        assert_eq!(Target::AtLeast(0.6).met_by(0.59), Some(false));
-        assert_eq!(Target::AtLeast(0.6).met_by(0.6), Some(true));
         assert_eq!(Target::Equal(0.0).met_by(0.0), Some(true));
         assert_eq!(Target::Equal(0.0).met_by(1.0), Some(false));
         assert_eq!(Target::AtMost(1.0).met_by(f64::NAN), None);
