@@ -373,8 +373,9 @@ fn linear_steps(values: impl Iterator<Item = f64>) -> (f64, f64, f64) {
     (a, b, step)
 }
 
-/// `text` with the characters that XML gives a meaning escaped.
-fn escape(text: &str) -> String {
+/// `text` with the characters that XML and HTML give a meaning escaped:
+/// the one escaper of the SVG plots and the report pages.
+pub(crate) fn escape(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         match c {

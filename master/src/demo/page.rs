@@ -11,6 +11,7 @@ mod plots;
 
 use super::views::{HEAT_MAP_SUFFIX, HEAT_STOPS, HEAT_UNCOVERED, heat_stop_rgb};
 use super::{GalleryRow, Report};
+use crate::plot::escape as html_escape;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use serde_json::Value;
@@ -369,13 +370,6 @@ fn colour_bar(id: &str) -> String {
         hex(HEAT_UNCOVERED),
         W + 26.0
     )
-}
-
-fn html_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 #[cfg(test)]
