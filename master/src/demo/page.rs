@@ -86,7 +86,8 @@ tr.skipped{color:#a00}.pass{color:#080;font-weight:bold}.miss{color:#c00;font-we
 table.sub td{border:none;padding:0 6px;font-size:small}code{font-size:small;color:#555}\
 .row{display:flex;flex-wrap:wrap;gap:8px}figure{margin:0}\
 figcaption{font-size:small;max-width:400px}img{image-rendering:pixelated;max-width:400px}\
-img.plot{image-rendering:auto;max-width:720px}.colour-bar{display:block}\
+img.plot{image-rendering:auto;max-width:720px}figure.plot figcaption{max-width:720px}\
+table#figures td.meaning{min-width:18em}.pass,.miss{white-space:nowrap}.colour-bar{display:block}\
 .meaning{font-size:small;color:#444}.error{color:#c00}";
 
 /// The phases, each with its status, time and detail; a phase that gives
@@ -171,7 +172,34 @@ fn value_html(v: &Value) -> String {
         Value::Array(items) if items.iter().all(|i| !i.is_object()) => {
             items.iter().map(value_html).collect::<Vec<_>>().join(", ")
         }
-        Value::Array(items) => items.iter().map(value_html).collect::<Vec<_>>().join(""),
+        // A list of records (one per observer): a column each, a row per
+        // field.
+        Value::Array(items) => {
+            let mut keys: Vec<&String> = Vec::new();
+            for k in items
+                .iter()
+                .filter_map(Value::as_object)
+                .flat_map(|o| o.keys())
+            {
+                if !keys.contains(&k) {
+                    keys.push(k);
+                }
+            }
+            let mut t = String::from("<table class=\"sub\">");
+            for k in keys {
+                let _ = write!(t, "<tr><td>{}</td>", html_escape(k));
+                for item in items {
+                    let _ = write!(
+                        t,
+                        "<td class=\"num\">{}</td>",
+                        value_html(item.get(k.as_str()).unwrap_or(&Value::Null))
+                    );
+                }
+                t.push_str("</tr>");
+            }
+            t.push_str("</table>");
+            t
+        }
         Value::Object(fields) => {
             let mut t = String::from("<table class=\"sub\">");
             for (k, f) in fields {
@@ -211,7 +239,7 @@ fn plots_section(out: &Path, page: &Path, report: &Report) -> Result<String> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         let _ = writeln!(
             html,
-            "<figure><img class=\"plot\" src=\"{PAGE_DIR}/{}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>",
+            "<figure class=\"plot\"><img class=\"plot\" src=\"{PAGE_DIR}/{}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>",
             p.file,
             html_escape(&p.caption)
         );
@@ -396,6 +424,27 @@ mod tests {
         let at = |s: &str| html.find(s).unwrap();
         assert!(at("swap_skew_ms_p99") < at("dropped_frames"));
         assert!(at("dropped_frames") < at("a_new_figure"));
+    }
+
+    #[test]
+    fn a_list_of_records_is_a_table_with_a_column_each() {
+        let v = serde_json::json!([
+            {"observer": "a", "x": 0.5},
+            {"observer": "b", "x": 0.25, "y": null}
+        ]);
+        let html = value_html(&v);
+        assert!(html.contains(
+            "<tr><td>observer</td><td class=\"num\">a</td><td class=\"num\">b</td></tr>"
+        ));
+        assert!(html.contains(
+            "<tr><td>x</td><td class=\"num\">0.500</td><td class=\"num\">0.250</td></tr>"
+        ));
+        assert!(
+            html.contains(
+                "<tr><td>y</td><td class=\"num\">n/a</td><td class=\"num\">n/a</td></tr>"
+            )
+        );
+        assert_eq!(value_html(&serde_json::json!([0.5, null])), "0.500, n/a");
     }
 
     #[test]

@@ -15,30 +15,31 @@ const SOLUTION_SIZE: (u32, u32) = (320, 240);
 /// Vertical field of view of that drawing.
 const SOLUTION_FOV_DEG: f64 = 40.0;
 
-/// The direction from the mesh's centre to the eye: of the four horizontal
-/// axes, the one most of the front faces (area-weighted) turn to, raised a
-/// little so floors show. An open box (the Cornell box) is seen through its
-/// open side, as its walls face inwards.
+/// The direction from the mesh's centre to the eye: towards the mesh's
+/// open side, raised a little so floors show. The area-weighted normals of
+/// a closed surface sum to zero, so their sum points out of the opening of
+/// an open box whose walls face inwards (the Cornell box), and closed
+/// objects inside it do not change it; a mesh with no opening (or one
+/// open upwards or downwards only) is seen from -z.
 fn view_direction(mesh: &VertexMesh) -> DVec3 {
-    let facing = |d: DVec3| -> f64 {
-        mesh.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-                // Twice the area times the unit normal.
-                let n = (b - a).cross(c - a);
-                0.5 * n.dot(d).max(0.0)
-            })
-            .sum()
-    };
-    let best = [DVec3::NEG_Z, DVec3::Z, DVec3::X, DVec3::NEG_X]
-        .into_iter()
-        .map(|d| (facing(d), d))
-        .fold((f64::NEG_INFINITY, DVec3::NEG_Z), |a, b| {
-            if b.0 > a.0 { b } else { a }
+    let (open, area) = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            // The area times the unit normal.
+            0.5 * (b - a).cross(c - a)
         })
-        .1;
-    (best + 0.3 * DVec3::Y).normalize()
+        .fold((DVec3::ZERO, 0.0), |(sum, area), n| {
+            (sum + n, area + n.length())
+        });
+    let horizontal = DVec3::new(open.x, 0.0, open.z);
+    let side = if horizontal.length() > 1e-3 * area {
+        horizontal.normalize()
+    } else {
+        DVec3::NEG_Z
+    };
+    (side + 0.3 * DVec3::Y).normalize()
 }
 
 /// `mesh` drawn from [`view_direction`], far enough that its bounding
@@ -158,6 +159,39 @@ mod tests {
         let top = (0..48).find(|&y| !row(y).is_empty()).unwrap();
         let bottom = (0..48).rev().find(|&y| !row(y).is_empty()).unwrap();
         assert!(row(top)[0] > row(bottom)[row(bottom).len() - 1]);
+    }
+
+    #[test]
+    fn an_open_box_is_seen_through_its_opening() {
+        // Five inward-facing walls of a unit box, open towards +x.
+        let quad = |o: DVec3, u: DVec3, v: DVec3| [o, o + u, o + u + v, o + v];
+        let walls = [
+            quad(DVec3::ZERO, DVec3::Y, DVec3::Z), // x = 0, normal +x
+            quad(DVec3::ZERO, DVec3::Z, DVec3::X), // floor, normal +y
+            quad(DVec3::Y, DVec3::X, DVec3::Z),    // ceiling, normal -y
+            quad(DVec3::ZERO, DVec3::X, DVec3::Y), // z = 0, normal +z
+            quad(DVec3::Z, DVec3::Y, DVec3::X),    // z = 1, normal -z
+        ];
+        let mut mesh = VertexMesh::default();
+        for w in walls {
+            let k = mesh.positions.len() as u32;
+            mesh.positions.extend(w);
+            mesh.normals.extend([DVec3::ZERO; 4]);
+            mesh.values.extend([DVec3::ONE; 4]);
+            mesh.triangles
+                .extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+        }
+        let d = view_direction(&mesh);
+        assert!(d.x > 0.9 && d.y > 0.0 && d.z.abs() < 1e-9, "{d}");
+        // Closed (the sixth wall added): seen from -z.
+        let k = mesh.positions.len() as u32;
+        mesh.positions.extend(quad(DVec3::X, DVec3::Z, DVec3::Y)); // x = 1, normal -x
+        mesh.normals.extend([DVec3::ZERO; 4]);
+        mesh.values.extend([DVec3::ONE; 4]);
+        mesh.triangles
+            .extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+        let d = view_direction(&mesh);
+        assert!(d.z < -0.9, "{d}");
     }
 
     #[test]

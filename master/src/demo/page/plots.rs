@@ -69,10 +69,12 @@ pub(super) fn frame_plots(lines: &[(f64, Option<f64>, Option<f64>)]) -> Vec<Page
             file,
             caption: format!(
                 "{title} (ms; the p99 is the figure {figure}{})",
-                figures::figure(figure).map_or(String::new(), |f| format!(
-                    ", target {}",
-                    figures::target_text(f)
-                ))
+                figures::figure(figure)
+                    .filter(|f| f.target.is_some())
+                    .map_or(String::new(), |f| format!(
+                        ", target {}",
+                        figures::target_text(f)
+                    ))
             ),
             svg: Plot {
                 title: title.into(),
@@ -218,7 +220,7 @@ mod tests {
         assert!(skew.contains("target ≤ 1 ms"));
         // Tracking-to-swap has no stated target: no line.
         assert_eq!(plots[1].svg.matches("<circle").count(), 2);
-        assert!(!plots[1].svg.contains("target"));
+        assert!(!plots[1].svg.contains("target") && !plots[1].caption.contains("target"));
         assert!(frame_plots(&[(0.0, None, None)]).is_empty());
     }
 
