@@ -87,7 +87,7 @@ table.sub td{border:none;padding:0 6px;font-size:small}code{font-size:small;colo
 .row{display:flex;flex-wrap:wrap;gap:8px}figure{margin:0}\
 figcaption{font-size:small;max-width:400px}img{image-rendering:pixelated;max-width:400px}\
 img.plot{image-rendering:auto;max-width:720px}figure.plot figcaption{max-width:720px}\
-table#figures td.meaning{min-width:18em}.pass,.miss{white-space:nowrap}.colour-bar{display:block}\
+td.figure{min-width:16em;max-width:28em}.pass,.miss{white-space:nowrap}.colour-bar{display:block}\
 .meaning{font-size:small;color:#444}.error{color:#c00}";
 
 /// The phases, each with its status, time and detail; a phase that gives
@@ -115,7 +115,8 @@ fn phases_table(report: &Report) -> String {
 }
 
 /// The figures, one row each in the page's order: label and name, value,
-/// unit, target, pass or miss, meaning. Unknown figures show raw.
+/// unit, target, pass or miss; the label with the figure's name and
+/// meaning. Unknown figures show raw.
 fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
     let mut names: Vec<&String> = figures_map.keys().collect();
     names.sort_by_key(|n| (figures::order(n), n.as_str()));
@@ -125,8 +126,9 @@ fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
         let Some(f) = figures::figure(name) else {
             let _ = writeln!(
                 rows,
-                "<tr class=\"unknown\" data-figure=\"{0}\"><td><code>{0}</code></td><td class=\"num\">{1}</td>\
-                 <td class=\"unit\">?</td><td>—</td><td></td><td class=\"meaning\">not described</td></tr>",
+                "<tr class=\"unknown\" data-figure=\"{0}\"><td class=\"figure\"><code>{0}</code>\
+                 <div class=\"meaning\">not described</div></td><td class=\"num\">{1}</td>\
+                 <td class=\"unit\">?</td><td>—</td><td></td></tr>",
                 html_escape(name),
                 html_escape(&value.to_string())
             );
@@ -142,20 +144,20 @@ fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
         };
         let _ = writeln!(
             rows,
-            "<tr data-figure=\"{}\"><td>{}<br><code>{}</code></td><td class=\"num\">{}</td>\
-             <td class=\"unit\">{}</td><td class=\"num\">{}</td><td>{mark}</td><td class=\"meaning\">{}</td></tr>",
+            "<tr data-figure=\"{}\"><td class=\"figure\">{} <code>{}</code><div class=\"meaning\">{}</div></td>\
+             <td class=\"num\">{}</td><td class=\"unit\">{}</td><td class=\"num\">{}</td><td>{mark}</td></tr>",
             html_escape(name),
             html_escape(f.label),
             html_escape(name),
+            html_escape(f.meaning),
             value_html(value),
             html_escape(f.unit),
             html_escape(&figures::target_text(f)),
-            html_escape(f.meaning)
         );
     }
     format!(
         "<h2>Figures</h2>\n<table id=\"figures\"><tr><th>figure</th><th>value</th><th>unit</th>\
-         <th>target</th><th></th><th>meaning</th></tr>\n{rows}</table>\n"
+         <th>target</th><th></th></tr>\n{rows}</table>\n"
     )
 }
 
@@ -319,7 +321,7 @@ fn pictures_section(out: &Path, page: &Path) -> String {
     for (name, images, errors) in rows {
         let _ = writeln!(html, "<h3>{}</h3><div class=\"row\">", html_escape(&name));
         for (caption, file) in images {
-            html.push_str(&figure_html(&caption, &file));
+            html.push_str(&figure_html(&caption, &file, ""));
         }
         html.push_str("</div>\n");
         for e in errors {
@@ -346,19 +348,22 @@ fn gallery_section(gallery: &[GalleryRow]) -> String {
             html_escape(&row.title)
         );
         for (i, (caption, file)) in row.images.iter().enumerate() {
-            html.push_str(&figure_html(caption, file));
-            if file.ends_with(HEAT_MAP_SUFFIX) {
-                html.push_str(&colour_bar(&format!("heat-{r}-{i}")));
-            }
+            let bar = if file.ends_with(HEAT_MAP_SUFFIX) {
+                colour_bar(&format!("heat-{r}-{i}"))
+            } else {
+                String::new()
+            };
+            html.push_str(&figure_html(caption, file, &bar));
         }
         html.push_str("</div>\n");
     }
     html
 }
 
-fn figure_html(caption: &str, file: &str) -> String {
+/// An image with its caption, and `extra` (HTML) under them.
+fn figure_html(caption: &str, file: &str, extra: &str) -> String {
     format!(
-        "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>\n",
+        "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption>{extra}</figure>\n",
         html_escape(file),
         html_escape(caption)
     )
@@ -385,7 +390,7 @@ fn colour_bar(id: &str) -> String {
             "<text x=\"{:.1}\" y=\"44\" text-anchor=\"middle\">{}{}</text>",
             10.0 + W * d / max,
             if last { "≥ " } else { "" },
-            figures::format_number(*d)
+            d
         );
     }
     format!(
@@ -451,7 +456,7 @@ mod tests {
     fn the_colour_bar_names_every_stop() {
         let bar = colour_bar("x");
         assert_eq!(bar.matches("<stop ").count(), HEAT_STOPS.len());
-        for label in [">0<", ">2.50<", ">5<", ">7.50<", ">≥ 10<"] {
+        for label in [">0<", ">2.5<", ">5<", ">7.5<", ">≥ 10<"] {
             assert!(bar.contains(label), "{label}: {bar}");
         }
         assert!(bar.contains("stop-color=\"#ff0000\""));

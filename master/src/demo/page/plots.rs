@@ -31,29 +31,41 @@ fn target_line(figure: &str, xs: (f64, f64)) -> Option<Series> {
     })
 }
 
-/// Per-frame plots from the lines of `metrics.jsonl`: `(frame, swap skew
-/// ms, tracking-to-swap ms)`; frames without a value are left out.
-pub(super) fn frame_plots(lines: &[(f64, Option<f64>, Option<f64>)]) -> Vec<PagePlot> {
+/// What the page plots of one line of `metrics.jsonl`
+/// (`cluster::metrics::FrameMetrics`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FrameLine {
+    /// Frame number.
+    pub frame: f64,
+    /// Swap skew (ms), if measured.
+    pub skew_ms: Option<f64>,
+    /// Tracking to swap (ms), if measured.
+    pub latency_ms: Option<f64>,
+}
+
+/// Per-frame plots of swap skew and tracking-to-swap latency; frames
+/// without a value are left out.
+pub(super) fn frame_plots(lines: &[FrameLine]) -> Vec<PagePlot> {
     let mut plots = Vec::new();
-    let first = lines.first().map_or(0.0, |l| l.0);
-    let last = lines.last().map_or(0.0, |l| l.0);
+    let first = lines.first().map_or(0.0, |l| l.frame);
+    let last = lines.last().map_or(0.0, |l| l.frame);
     for (file, title, figure, pick) in [
         (
             "swap_skew.svg",
             "Swap skew per frame",
             "swap_skew_ms_p99",
-            (|l: &(f64, Option<f64>, Option<f64>)| l.1) as fn(&_) -> _,
+            (|l: &FrameLine| l.skew_ms) as fn(&FrameLine) -> Option<f64>,
         ),
         (
             "tracking_to_swap.svg",
             "Tracking-to-swap latency per frame",
             "tracking_to_swap_ms_p99",
-            |l| l.2,
+            |l| l.latency_ms,
         ),
     ] {
         let points: Vec<Point> = lines
             .iter()
-            .filter_map(|l| pick(l).map(|v| Point::at(l.0, v)))
+            .filter_map(|l| pick(l).map(|v| Point::at(l.frame, v)))
             .collect();
         if points.is_empty() {
             continue;
@@ -91,9 +103,8 @@ pub(super) fn frame_plots(lines: &[(f64, Option<f64>, Option<f64>)]) -> Vec<Page
     plots
 }
 
-/// `(frame, swap_skew_ms, tracking_to_swap_ms)` of each line of a
-/// `metrics.jsonl` (`cluster::metrics::FrameMetrics`).
-pub(super) fn read_frame_metrics(path: &Path) -> Result<Vec<(f64, Option<f64>, Option<f64>)>> {
+/// Each line of a `metrics.jsonl`.
+pub(super) fn read_frame_metrics(path: &Path) -> Result<Vec<FrameLine>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     text.lines()
@@ -105,11 +116,11 @@ pub(super) fn read_frame_metrics(path: &Path) -> Result<Vec<(f64, Option<f64>, O
             let frame = v["frame"]
                 .as_f64()
                 .with_context(|| format!("{} line {}: no frame", path.display(), i + 1))?;
-            Ok((
+            Ok(FrameLine {
                 frame,
-                v["swap_skew_ms"].as_f64(),
-                v["tracking_to_swap_ms"].as_f64(),
-            ))
+                skew_ms: v["swap_skew_ms"].as_f64(),
+                latency_ms: v["tracking_to_swap_ms"].as_f64(),
+            })
         })
         .collect()
 }
@@ -207,10 +218,15 @@ mod tests {
 
     #[test]
     fn frame_plots_skip_missing_values_and_draw_the_skew_target() {
+        let line = |frame, skew_ms, latency_ms| FrameLine {
+            frame,
+            skew_ms,
+            latency_ms,
+        };
         let lines = [
-            (0.0, Some(0.2), None),
-            (1.0, None, Some(12.0)),
-            (2.0, Some(0.4), Some(11.0)),
+            line(0.0, Some(0.2), None),
+            line(1.0, None, Some(12.0)),
+            line(2.0, Some(0.4), Some(11.0)),
         ];
         let plots = frame_plots(&lines);
         assert_eq!(plots.len(), 2);
@@ -221,7 +237,7 @@ mod tests {
         // Tracking-to-swap has no stated target: no line.
         assert_eq!(plots[1].svg.matches("<circle").count(), 2);
         assert!(!plots[1].svg.contains("target") && !plots[1].caption.contains("target"));
-        assert!(frame_plots(&[(0.0, None, None)]).is_empty());
+        assert!(frame_plots(&[line(0.0, None, None)]).is_empty());
     }
 
     #[test]
