@@ -29,6 +29,10 @@ pub(crate) fn check_report_page(out: &Path, report: &Value) {
         figures.len(),
         "the figures table should have one row per figure"
     );
+    assert!(
+        !html.contains("<tr class=\"unknown\""),
+        "a figure the page does not describe: add it to demo/page/figures.rs"
+    );
     for plot in PLOTS {
         let svg = std::fs::read_to_string(out.join(plot)).unwrap_or_else(|e| panic!("{plot}: {e}"));
         assert!(

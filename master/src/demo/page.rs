@@ -82,7 +82,7 @@ pub(super) fn write_report(out: &Path, report: &Report) -> Result<()> {
 const STYLE: &str = "body{font-family:sans-serif;margin:2em;max-width:1400px}\
 td,th{padding:4px 10px;border-bottom:1px solid #ddd;text-align:left;vertical-align:top}\
 td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}\
-tr.skipped{color:#a00}.pass{color:#080;font-weight:bold}.miss{color:#c00;font-weight:bold}\
+tr.skipped{color:#a00}tr.detail td{border-bottom:1px solid #ddd}.pass{color:#080;font-weight:bold}.miss{color:#c00;font-weight:bold}\
 table.sub td{border:none;padding:0 6px;font-size:small}code{font-size:small;color:#555}\
 .row{display:flex;flex-wrap:wrap;gap:8px}figure{margin:0}\
 figcaption{font-size:small;max-width:400px}img{image-rendering:pixelated;max-width:400px}\
@@ -142,6 +142,14 @@ fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
             },
             _ => "",
         };
+        // Records (per object, per observer) take a row of their own
+        // below, so the table keeps to the page's width.
+        let nested = match value {
+            Value::Object(_) => true,
+            Value::Array(items) => items.iter().any(Value::is_object),
+            _ => false,
+        };
+        let shown = value_html(value);
         let _ = writeln!(
             rows,
             "<tr data-figure=\"{}\"><td class=\"figure\">{} <code>{}</code><div class=\"meaning\">{}</div></td>\
@@ -150,10 +158,16 @@ fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
             html_escape(f.label),
             html_escape(name),
             html_escape(f.meaning),
-            value_html(value),
+            if nested { "below" } else { &shown },
             html_escape(f.unit),
             html_escape(&figures::target_text(f)),
         );
+        if nested {
+            let _ = writeln!(
+                rows,
+                "<tr class=\"detail\"><td></td><td colspan=\"4\">{shown}</td></tr>"
+            );
+        }
     }
     format!(
         "<h2>Figures</h2>\n<table id=\"figures\"><tr><th>figure</th><th>value</th><th>unit</th>\
@@ -416,8 +430,15 @@ mod tests {
         m.insert("dropped_frames".into(), serde_json::json!(2));
         m.insert("frame_rate_hz".into(), serde_json::json!(59.98765));
         m.insert("a_new_figure".into(), serde_json::json!([1.5, 2]));
+        m.insert(
+            "interactive_consistency_rel_rmse_per_object".into(),
+            serde_json::json!({"plate": 0.001}),
+        );
         let html = figures_table(&m);
-        assert_eq!(html.matches("<tr data-figure=").count(), 3);
+        assert_eq!(html.matches("<tr data-figure=").count(), 4);
+        // A record gets a row of its own under its figure's.
+        assert!(html.contains("<td class=\"num\">below</td>"));
+        assert!(html.contains("<tr class=\"detail\"><td></td><td colspan=\"4\"><table class=\"sub\"><tr><td>plate</td>"));
         assert!(html.contains(">0.123</td><td class=\"unit\">ms</td><td class=\"num\">≤ 1 ms</td><td><span class=\"pass\">"));
         assert!(html.contains(">2</td><td class=\"unit\">frames</td><td class=\"num\">= 0 frames</td><td><span class=\"miss\">"));
         assert!(
