@@ -68,7 +68,12 @@ pub(super) fn write_report(out: &Path, report: &Report) -> Result<()> {
          Raw numbers: <a href=\"report.json\">report.json</a>.</p>\n",
         report.complete
     );
-    html.push_str(&phases_table(report));
+    let phases: Vec<Value> = report
+        .phases
+        .iter()
+        .map(|p| serde_json::to_value(p).unwrap_or(Value::Null))
+        .collect();
+    html.push_str(&phases_table(&phases));
     html.push_str(&figures_table(&report.figures));
     html.push_str(&plots_section(out, &page, report)?);
     html.push_str(&pictures_section(out, &page));
@@ -90,23 +95,23 @@ img.plot{image-rendering:auto;max-width:720px}figure.plot figcaption{max-width:7
 td.figure{min-width:16em;max-width:28em}.pass,.miss{white-space:nowrap}.colour-bar{display:block}\
 .meaning{font-size:small;color:#444}.error{color:#c00}";
 
-/// The phases, each with its status, time and detail; a phase that gives
-/// a reason (a skipped one) shows it.
-fn phases_table(report: &Report) -> String {
+/// The phases (as `report.json` has them), each with its status, time and
+/// detail; a phase that gives a reason (a skipped one) shows it. Read
+/// through JSON so a phase's optional fields show when present.
+fn phases_table(phases: &[Value]) -> String {
     let mut rows = String::new();
-    for p in &report.phases {
-        // Read through JSON so a phase's optional fields show when present.
-        let v = serde_json::to_value(p).unwrap_or(Value::Null);
+    for v in phases {
+        let text = |key: &str| html_escape(v[key].as_str().unwrap_or(""));
         let reason = v["reason"]
             .as_str()
             .map_or(String::new(), |r| format!("<b>{}</b> ", html_escape(r)));
         let _ = writeln!(
             rows,
             "<tr class=\"{0}\"><td>{1}</td><td>{0}</td><td class=\"num\">{2:.2}</td><td>{reason}{3}</td></tr>",
-            html_escape(v["status"].as_str().unwrap_or("")),
-            html_escape(&p.name),
-            p.seconds,
-            html_escape(&p.detail)
+            text("status"),
+            text("name"),
+            v["seconds"].as_f64().unwrap_or(f64::NAN),
+            text("detail")
         );
     }
     format!(
@@ -153,11 +158,13 @@ fn figures_table(figures_map: &serde_json::Map<String, Value>) -> String {
         let _ = writeln!(
             rows,
             "<tr data-figure=\"{}\"><td class=\"figure\">{} <code>{}</code><div class=\"meaning\">{}</div></td>\
-             <td class=\"num\">{}</td><td class=\"unit\">{}</td><td class=\"num\">{}</td><td>{mark}</td></tr>",
+             <td class=\"{}\">{}</td><td class=\"unit\">{}</td><td class=\"num\">{}</td><td>{mark}</td></tr>",
             html_escape(name),
             html_escape(f.label),
             html_escape(name),
             html_escape(f.meaning),
+            // Words wrap; numbers keep to one line.
+            if value.is_string() { "text" } else { "num" },
             if nested { "below" } else { &shown },
             html_escape(f.unit),
             html_escape(&figures::target_text(f)),
@@ -430,12 +437,16 @@ mod tests {
         m.insert("dropped_frames".into(), serde_json::json!(2));
         m.insert("frame_rate_hz".into(), serde_json::json!(59.98765));
         m.insert("a_new_figure".into(), serde_json::json!([1.5, 2]));
+        m.insert("renderer".into(), serde_json::json!("llvmpipe (LLVM 15)"));
         m.insert(
             "interactive_consistency_rel_rmse_per_object".into(),
             serde_json::json!({"plate": 0.001}),
         );
         let html = figures_table(&m);
-        assert_eq!(html.matches("<tr data-figure=").count(), 4);
+        assert_eq!(html.matches("<tr data-figure=").count(), 5);
+        assert!(
+            html.contains("<td class=\"text\">llvmpipe (LLVM 15)</td><td class=\"unit\">text</td>")
+        );
         // A record gets a row of its own under its figure's.
         assert!(html.contains("<td class=\"num\">below</td>"));
         assert!(html.contains("<tr class=\"detail\"><td></td><td colspan=\"4\"><table class=\"sub\"><tr><td>plate</td>"));
@@ -450,6 +461,18 @@ mod tests {
         let at = |s: &str| html.find(s).unwrap();
         assert!(at("swap_skew_ms_p99") < at("dropped_frames"));
         assert!(at("dropped_frames") < at("a_new_figure"));
+    }
+
+    #[test]
+    fn a_skipped_phase_shows_its_reason() {
+        let phases = [
+            serde_json::json!({"name": "scene", "status": "ran", "seconds": 0.5, "detail": "7 objects"}),
+            serde_json::json!({"name": "radiosity", "status": "skipped", "seconds": 0.0,
+                "detail": "", "reason": "the scene has no projector < 1"}),
+        ];
+        let html = phases_table(&phases);
+        assert!(html.contains("<tr class=\"ran\"><td>scene</td><td>ran</td><td class=\"num\">0.50</td><td>7 objects</td></tr>"));
+        assert!(html.contains("<tr class=\"skipped\"><td>radiosity</td><td>skipped</td><td class=\"num\">0.00</td><td><b>the scene has no projector &lt; 1</b> </td></tr>"));
     }
 
     #[test]
