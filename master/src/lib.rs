@@ -1,6 +1,7 @@
 //! Showcase's master: scene files, device calibration, offline jobs, the
 //! cluster server and the command line behind `showcase-master`.
 
+pub mod bench_report;
 pub mod calibrate;
 pub mod capture;
 pub mod certs;

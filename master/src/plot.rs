@@ -1,10 +1,14 @@
-//! Log-log scatter plots as SVG: the one writer behind the figures of the
-//! bench reports (calibration, reflectance capture, radiosity), written by
-//! hand so that no plotting crate has to be built.
+//! Scatter and line plots as SVG: the one writer behind the figures of the
+//! bench reports (calibration, reflectance capture, radiosity, render) and
+//! the demo's page, written by hand so that no plotting crate has to be
+//! built.
 //!
-//! Both axes are logarithmic and span whole decades, with a grid line and a
-//! `1eN` label at each. Points that are not positive and finite cannot sit
-//! on a log axis and are left out, from the markers and from the lines.
+//! Each axis is logarithmic or linear ([`Scale`]). A log axis spans whole
+//! decades, with a grid line and a `1eN` label at each; points that are not
+//! positive and finite cannot sit on it and are left out, from the markers
+//! and from the lines. A linear axis spans whole steps of 1, 2 or 5 times a
+//! power of ten, about five of them, with a grid line and a label at each;
+//! points that are not finite are left out.
 
 use std::fmt::Write as _;
 
@@ -36,12 +40,91 @@ pub enum Marker {
     Square,
 }
 
+/// How an axis maps values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Scale {
+    /// Whole decades, for values over several orders of magnitude.
+    #[default]
+    Log,
+    /// Evenly spaced "nice" steps.
+    Linear,
+}
+
+impl Scale {
+    /// Whether `v` can be drawn on this axis.
+    fn holds(self, v: f64) -> bool {
+        match self {
+            Scale::Log => v > 0.0 && v.is_finite(),
+            Scale::Linear => v.is_finite(),
+        }
+    }
+
+    /// The axis that holds `values` (all drawable): its ends in axis units
+    /// (exponents on a log axis) and its ticks as `(value, label)`.
+    fn axis(self, values: impl Iterator<Item = f64>) -> Axis {
+        match self {
+            Scale::Log => {
+                let (lo, hi) = decades(values);
+                Axis {
+                    scale: self,
+                    lo,
+                    hi,
+                    ticks: (lo as i32..=hi as i32)
+                        .map(|d| (10f64.powi(d), format!("1e{d}")))
+                        .collect(),
+                }
+            }
+            Scale::Linear => {
+                let (lo, hi, step) = linear_steps(values);
+                let n = ((hi - lo) / step).round() as i64;
+                let decimals = (-step.log10().floor()).max(0.0) as usize;
+                Axis {
+                    scale: self,
+                    lo,
+                    hi,
+                    ticks: (0..=n)
+                        .map(|i| {
+                            let v = lo + i as f64 * step;
+                            // -0.0 prints as "-0".
+                            let v = if v.abs() < step * 1e-9 { 0.0 } else { v };
+                            (v, format!("{v:.decimals$}"))
+                        })
+                        .collect(),
+                }
+            }
+        }
+    }
+}
+
+/// One axis of a drawn plot.
+struct Axis {
+    scale: Scale,
+    /// Its ends, in axis units (log10 of the value on a log axis).
+    lo: f64,
+    hi: f64,
+    /// Grid lines: value and label.
+    ticks: Vec<(f64, String)>,
+}
+
+impl Axis {
+    /// Where `v` falls between the ends, 0 to 1.
+    fn fraction(&self, v: f64) -> f64 {
+        let u = match self.scale {
+            Scale::Log => v.log10(),
+            Scale::Linear => v,
+        };
+        (u - self.lo) / (self.hi - self.lo)
+    }
+}
+
 /// One point of a [`Series`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Point {
-    /// Horizontal value (must be positive and finite to be drawn).
+    /// Horizontal value (must be finite, and positive on a log axis, to be
+    /// drawn).
     pub x: f64,
-    /// Vertical value (must be positive and finite to be drawn).
+    /// Vertical value (must be finite, and positive on a log axis, to be
+    /// drawn).
     pub y: f64,
     /// Its shape.
     pub marker: Marker,
@@ -75,15 +158,19 @@ pub struct Series {
     pub points: Vec<Point>,
 }
 
-/// A scatter plot on log-log axes.
+/// A scatter or line plot.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct LogLogPlot {
+pub struct Plot {
     /// Heading above the plot; empty for none.
     pub title: String,
     /// Horizontal axis label.
     pub x_label: String,
     /// Vertical axis label.
     pub y_label: String,
+    /// Horizontal axis scale.
+    pub x_scale: Scale,
+    /// Vertical axis scale.
+    pub y_scale: Scale,
     /// The data, drawn in order.
     pub series: Vec<Series>,
     /// A line of text under the legend (what the markers mean); empty for
@@ -91,20 +178,20 @@ pub struct LogLogPlot {
     pub note: String,
 }
 
-impl LogLogPlot {
+impl Plot {
     /// The plot as a standalone SVG document.
     pub fn to_svg(&self) -> String {
         let (w, h, m) = (WIDTH, HEIGHT, MARGIN);
-        let drawn = |p: &&Point| p.x > 0.0 && p.y > 0.0 && p.x.is_finite() && p.y.is_finite();
+        let drawn = |p: &&Point| self.x_scale.holds(p.x) && self.y_scale.holds(p.y);
         let all = || {
             self.series
                 .iter()
                 .flat_map(|s| s.points.iter().filter(drawn))
         };
-        let (x0, x1) = decades(all().map(|p| p.x));
-        let (y0, y1) = decades(all().map(|p| p.y));
-        let sx = |x: f64| m + (x.log10() - x0) / (x1 - x0) * (w - 2.0 * m);
-        let sy = |y: f64| h - m - (y.log10() - y0) / (y1 - y0) * (h - 2.0 * m);
+        let x_axis = self.x_scale.axis(all().map(|p| p.x));
+        let y_axis = self.y_scale.axis(all().map(|p| p.y));
+        let sx = |x: f64| m + x_axis.fraction(x) * (w - 2.0 * m);
+        let sy = |y: f64| h - m - y_axis.fraction(y) * (h - 2.0 * m);
         let mut s = String::new();
         let _ = writeln!(
             s,
@@ -125,20 +212,20 @@ impl LogLogPlot {
             w - 2.0 * m,
             h - 2.0 * m
         );
-        for d in x0 as i32..=x1 as i32 {
-            let x = sx(10f64.powi(d));
+        for (v, label) in &x_axis.ticks {
+            let x = sx(*v);
             let _ = writeln!(
                 s,
-                r##"<line x1="{x:.1}" y1="{m}" x2="{x:.1}" y2="{}" stroke="#ddd"/><text x="{x:.1}" y="{}" text-anchor="middle">1e{d}</text>"##,
+                r##"<line x1="{x:.1}" y1="{m}" x2="{x:.1}" y2="{}" stroke="#ddd"/><text x="{x:.1}" y="{}" text-anchor="middle">{label}</text>"##,
                 h - m,
                 h - m + 16.0
             );
         }
-        for d in y0 as i32..=y1 as i32 {
-            let y = sy(10f64.powi(d));
+        for (v, label) in &y_axis.ticks {
+            let y = sy(*v);
             let _ = writeln!(
                 s,
-                r##"<line x1="{m}" y1="{y:.1}" x2="{}" y2="{y:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" text-anchor="end">1e{d}</text>"##,
+                r##"<line x1="{m}" y1="{y:.1}" x2="{}" y2="{y:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" text-anchor="end">{label}</text>"##,
                 w - m,
                 m - 4.0,
                 y + 4.0
@@ -255,8 +342,40 @@ fn decades(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-/// `text` with the characters that XML gives a meaning escaped.
-fn escape(text: &str) -> String {
+/// A linear axis for `values` (all finite): its ends and its step, a 1, 2
+/// or 5 times a power of ten that cuts the span into at most about five
+/// steps, the ends whole steps; a single value gets a step either side and
+/// no values `(0, 1, 0.2)`.
+fn linear_steps(values: impl Iterator<Item = f64>) -> (f64, f64, f64) {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    });
+    if !lo.is_finite() {
+        return (0.0, 1.0, 0.2);
+    }
+    let span = if hi > lo {
+        hi - lo
+    } else {
+        lo.abs().max(1e-300)
+    };
+    let raw = span / 5.0;
+    let decade = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|k| k * decade)
+        .find(|s| *s >= raw * (1.0 - 1e-12))
+        .unwrap_or(10.0 * decade);
+    let (mut a, mut b) = ((lo / step).floor() * step, (hi / step).ceil() * step);
+    if b <= a {
+        a -= step;
+        b += step;
+    }
+    (a, b, step)
+}
+
+/// `text` with the characters that XML and HTML give a meaning escaped:
+/// the one escaper of the SVG plots and the report pages.
+pub(crate) fn escape(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         match c {
@@ -290,7 +409,7 @@ mod tests {
 
     #[test]
     fn bad_points_are_left_out_and_text_is_escaped() {
-        let plot = LogLogPlot {
+        let plot = Plot {
             title: "a < b & c".into(),
             series: vec![Series {
                 name: "s".into(),
@@ -308,7 +427,7 @@ mod tests {
                     },
                 ],
             }],
-            ..LogLogPlot::default()
+            ..Plot::default()
         };
         let svg = plot.to_svg();
         assert_eq!(svg.matches("<circle").count(), 1);
@@ -320,5 +439,50 @@ mod tests {
         assert!(svg.contains("a &lt; b &amp; c"));
         assert!(!svg.contains("NaN") && !svg.contains("inf"));
         assert!(svg.starts_with("<svg") && svg.ends_with("</svg>\n"));
+    }
+
+    #[test]
+    fn linear_axes_take_nice_whole_steps() {
+        assert_eq!(linear_steps([].into_iter()), (0.0, 1.0, 0.2));
+        assert_eq!(linear_steps([0.0, 10.0].into_iter()), (0.0, 10.0, 2.0));
+        assert_eq!(linear_steps([0.13, 0.87].into_iter()), (0.0, 1.0, 0.2));
+        assert_eq!(linear_steps([1.0, 240.0].into_iter()), (0.0, 250.0, 50.0));
+        let (a, b, step) = linear_steps([-3.0, 2.0].into_iter());
+        assert_eq!((a, b, step), (-3.0, 2.0, 1.0));
+        // One value: a step either side of it.
+        let (a, b, step) = linear_steps([4.0].into_iter());
+        assert!(a < 4.0 && b > 4.0 && step > 0.0, "{a} {b} {step}");
+    }
+
+    #[test]
+    fn a_linear_axis_draws_zero_and_negative_points_with_plain_labels() {
+        let plot = Plot {
+            x_scale: Scale::Linear,
+            y_scale: Scale::Linear,
+            series: vec![Series {
+                colour: series_colour(1).into(),
+                joined: true,
+                points: vec![
+                    Point::at(0.0, 0.0),
+                    Point::at(1.0, -0.5),
+                    Point::at(2.0, f64::NAN),
+                    Point::at(3.0, 1.0),
+                ],
+                ..Series::default()
+            }],
+            ..Plot::default()
+        };
+        let svg = plot.to_svg();
+        // The NaN point alone is left out; zero and negatives are drawn.
+        assert_eq!(svg.matches("<circle").count(), 3);
+        assert!(svg.contains(">-0.5</text>") && svg.contains(">0.0</text>"));
+        assert!(!svg.contains(">1e") && !svg.contains("NaN") && !svg.contains(">-0.0<"));
+        // On log axes the same points would lose all but one.
+        let log = Plot {
+            x_scale: Scale::Log,
+            y_scale: Scale::Log,
+            ..plot
+        };
+        assert_eq!(log.to_svg().matches("<circle").count(), 1);
     }
 }

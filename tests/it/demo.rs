@@ -101,6 +101,7 @@ fn short_demo_from_a_copied_binary_writes_an_honest_report() {
         assert_eq!(&bytes[1..4], b"PNG", "{file}");
         assert!(html.contains(file), "index.html does not show {file}");
     }
+    crate::report_page::check_report_page(&out, &report);
     std::fs::remove_dir_all(&dir).unwrap();
     // Three frames: two projectors' values, two faces' two eyes, per
     // observer its target, composite, mirror part and heat map, and the

@@ -15,6 +15,7 @@ mod light;
 mod observer;
 mod radiosity;
 mod render;
+mod report_page;
 mod scene_files;
 mod session;
 mod shutdown;

@@ -7,7 +7,7 @@ use super::simulate::{fiducial_plate, fiducial_rig, projector_in_showcase, simul
 use super::{
     CalibrateOptions, Calibration, CalibrationInput, Correspondence, Intrinsics, Method, calibrate,
 };
-use crate::plot::{LogLogPlot, Marker, Point, Series};
+use crate::plot::{Marker, Plot, Point, Series};
 use glam::{DMat3, DVec3};
 use serde::Serialize;
 use showcase_light::metrics::percentile;
@@ -313,7 +313,7 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
             })
             .collect(),
     };
-    LogLogPlot {
+    Plot {
         title: "Calibration: held-out error against solve time".into(),
         x_label: "solve time (s)".into(),
         y_label: "held-out RMS (px)".into(),
@@ -322,6 +322,7 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
             series(Method::Powell, "Powell", "#d62728"),
         ],
         note: "circle: rig, square: coplanar (known K)".into(),
+        ..Plot::default()
     }
     .to_svg()
 }

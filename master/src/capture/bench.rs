@@ -14,7 +14,7 @@ use super::pipeline::{
     capture_map,
 };
 use super::scenes;
-use crate::plot::{LogLogPlot, Point, Series, series_colour};
+use crate::plot::{Plot, Point, Series, series_colour};
 use glam::Vec3;
 use serde::Serialize;
 use showcase_light::hardware::ProjectorDevice;
@@ -336,12 +336,13 @@ pub fn svg_plot(records: &[Record]) -> String {
             }),
         }
     }
-    LogLogPlot {
+    Plot {
         title: "Reflectance error against capture time".into(),
         x_label: "seconds".into(),
         y_label: "rel_rmse".into(),
         series,
         note: String::new(),
+        ..Plot::default()
     }
     .to_svg()
 }

@@ -150,6 +150,13 @@ fn emit_bench<T: serde::Serialize>(
             .join(format!("{:?}.json", args.target).to_lowercase());
         std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
         eprintln!("wrote {}", path.display());
+        let index = crate::bench_report::write_index(
+            &args.out,
+            &format!("showcase-master bench {:?}", args.target).to_lowercase(),
+            &machine(),
+        )
+        .with_context(|| format!("cannot write the index of {}", args.out.display()))?;
+        eprintln!("wrote {}", index.display());
     }
     Ok(())
 }
@@ -233,7 +240,18 @@ fn render(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     if args.floor {
         return emit_bench(args, pb, &bench_floor(&ctx, &scene, &opts)?);
     }
-    emit_bench(args, pb, &bench_render(&ctx, &scene, &opts)?)
+    let records = bench_render(&ctx, &scene, &opts)?;
+    if !args.json {
+        let plot = crate::render_bench::error_vs_time_plot(&records);
+        if !plot.series.is_empty() {
+            std::fs::create_dir_all(&args.out)
+                .with_context(|| format!("cannot create {}", args.out.display()))?;
+            let path = args.out.join("render.svg");
+            std::fs::write(&path, plot.to_svg())
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
+    }
+    emit_bench(args, pb, &records)
 }
 
 fn cluster(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {

@@ -3,6 +3,7 @@
 //! interactive cluster, rendering), with `report.json` and `index.html`.
 //! A phase that fails stops the demo with its error and no report.
 
+mod page;
 mod rendering;
 mod views;
 
@@ -56,6 +57,8 @@ pub struct Report {
     pub figures: serde_json::Map<String, serde_json::Value>,
     /// Images written, in rows, for `index.html`.
     pub gallery: Vec<GalleryRow>,
+    /// What the page plots beside the figures.
+    pub histories: page::Histories,
 }
 
 /// A row of images in `index.html`.
@@ -211,7 +214,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         let t = Instant::now();
         let n = (scene.projectors.len() + scene.cameras.len()) as u64;
         let pb = progress("calibration", Some(n));
-        let calibration = calibration_stage(&mut scene, &pb)?;
+        let calibration = calibration_stage(&mut scene, &pb, &mut report.histories)?;
         pb.finish_and_clear();
         report.ran("calibration", t, calibration.detail);
         report.figures.extend(calibration.figures);
@@ -265,7 +268,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
 
     report.complete =
         report.phases.len() == PHASES.len() && report.phases.iter().all(|p| p.status == "ran");
-    write_report(&opts.out, &report)?;
+    page::write_report(&opts.out, &report)?;
     let skipped: Vec<String> = report
         .phases
         .iter()
@@ -474,10 +477,12 @@ fn figure3_stage(out: &Path, pb: &indicatif::ProgressBar) -> Result<StageOutcome
 /// Calibrate every projector and camera from simulated fiducial marks
 /// (0.5 px noise) on a rig in the cabinet, and put the calibrated devices
 /// in the scene in place of the true ones for everything that follows;
-/// `pb` counts the devices.
+/// `pb` counts the devices, and each device's residuals go to `histories`
+/// for the page's plot.
 fn calibration_stage(
     scene: &mut showcase_proto::Showcase,
     pb: &indicatif::ProgressBar,
+    histories: &mut page::Histories,
 ) -> Result<StageOutcome> {
     use crate::calibrate::{CalibrateOptions, calibrate, fiducial_rig, simulate_fiducials};
     const NOISE_PX: f64 = 0.5;
@@ -518,6 +523,9 @@ fn calibration_stage(
             cal.rms_px,
             centre_error * 1e3
         ));
+        histories
+            .calibration
+            .push(page::DeviceResiduals::new(&name, &cal));
         *device = calibrated;
         pb.inc(1);
     }
@@ -634,60 +642,4 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         ),
         figures,
     })
-}
-
-fn write_report(out: &Path, report: &Report) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let json = serde_json::to_string_pretty(report)?;
-    let path = out.join("report.json");
-    std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
-    let mut rows = String::new();
-    for p in &report.phases {
-        rows.push_str(&format!(
-            "<tr class=\"{}\"><td>{}</td><td>{}</td><td>{:.2}</td><td>{}</td></tr>\n",
-            p.status,
-            html_escape(&p.name),
-            p.status,
-            p.seconds,
-            html_escape(&p.detail)
-        ));
-    }
-    let mut gallery = String::new();
-    if !report.gallery.is_empty() {
-        gallery.push_str("<h2>Images</h2>\n");
-    }
-    for row in &report.gallery {
-        gallery.push_str(&format!(
-            "<h3>{}</h3><div class=\"row\">\n",
-            html_escape(&row.title)
-        ));
-        for (caption, file) in &row.images {
-            gallery.push_str(&format!(
-                "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>\n",
-                html_escape(file),
-                html_escape(caption)
-            ));
-        }
-        gallery.push_str("</div>\n");
-    }
-    let html = format!(
-        "<!doctype html><meta charset=\"utf-8\"><title>Showcase demo</title>\n\
-         <style>body{{font-family:sans-serif;margin:2em}}td,th{{padding:4px 10px;border-bottom:1px solid #ddd}}\
-         tr.skipped{{color:#a00}}.row{{display:flex;flex-wrap:wrap;gap:8px}}figure{{margin:0}}\
-         figcaption{{font-size:small;max-width:320px}}img{{image-rendering:pixelated;max-width:400px}}</style>\n<h1>Showcase demo</h1>\n<p>Complete: <b>{}</b></p>\n\
-         <table><tr><th>phase</th><th>status</th><th>seconds</th><th>detail</th></tr>\n{rows}</table>\n\
-         <h2>Figures</h2><pre>{}</pre>\n{gallery}",
-        report.complete,
-        html_escape(&serde_json::to_string_pretty(&report.figures).unwrap_or_default())
-    );
-    let path = out.join("index.html");
-    std::fs::write(&path, html).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
-}
-
-fn html_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }

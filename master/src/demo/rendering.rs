@@ -89,7 +89,7 @@ pub(super) fn rendering_stage(
                 views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
                 images.push((format!("{name}: {what}"), file));
             }
-            let file = format!("{dir_name}/{name}-delta-e.png");
+            let file = format!("{dir_name}/{name}{}", views::HEAT_MAP_SUFFIX);
             views::write_heat_map(
                 &opts.out.join(&file),
                 r.view.target.width,
@@ -97,10 +97,7 @@ pub(super) fn rendering_stage(
                 &r.delta_e,
             )?;
             let median = percentile(&r.delta_e, 50.0).unwrap_or(f64::NAN);
-            images.push((
-                format!("{name}: CIEDE2000 (median {median:.2}; black 0, red >= 10)"),
-                file,
-            ));
+            images.push((format!("{name}: CIEDE2000 (median {median:.2})"), file));
             rows.push(GalleryRow {
                 title: format!("frame {}: {name} (rel RMSE {:.3})", state.frame, r.rel_rmse),
                 images,

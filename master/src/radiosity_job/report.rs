@@ -3,7 +3,7 @@
 //! Markdown summary.
 
 use super::bench::BenchRecord;
-use crate::plot::{LogLogPlot, Point, Series};
+use crate::plot::{Plot, Point, Series};
 use anyhow::Context;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -16,7 +16,7 @@ pub fn scatter_svg(
     y_label: &str,
     points: &[(f64, f64, String)],
 ) -> String {
-    LogLogPlot {
+    Plot {
         title: title.into(),
         x_label: x_label.into(),
         y_label: y_label.into(),
@@ -33,6 +33,7 @@ pub fn scatter_svg(
                 .collect(),
         }],
         note: String::new(),
+        ..Plot::default()
     }
     .to_svg()
 }

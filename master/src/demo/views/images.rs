@@ -50,25 +50,41 @@ pub(in crate::demo) fn write_values(path: &Path, image: &RgbImage) -> Result<()>
     })
 }
 
-/// A CIEDE2000 heat map: black (0) through blue, green and yellow to red
-/// (10 and above); uncovered pixels dark grey.
+/// The CIEDE2000 heat maps' colour scale: ΔE00 and its colour (linear
+/// 0 to 1 per channel, interpolated between stops; 10 and above red).
+pub(in crate::demo) const HEAT_STOPS: [(f64, [f64; 3]); 5] = [
+    (0.0, [0.0, 0.0, 0.0]),
+    (2.5, [0.0, 0.2, 1.0]),
+    (5.0, [0.0, 0.85, 0.3]),
+    (7.5, [1.0, 0.9, 0.0]),
+    (10.0, [1.0, 0.0, 0.0]),
+];
+
+/// The colour of pixels no eye covers in a heat map.
+pub(in crate::demo) const HEAT_UNCOVERED: [u8; 3] = [40, 40, 40];
+
+/// How a heat map's file name ends, so the page can set its colour bar
+/// beside it.
+pub(in crate::demo) const HEAT_MAP_SUFFIX: &str = "-delta-e.png";
+
+/// A stop's colour as 8-bit values.
+pub(in crate::demo) fn heat_stop_rgb(c: [f64; 3]) -> [u8; 3] {
+    c.map(|v| (v * 255.0 + 0.5) as u8)
+}
+
+/// A CIEDE2000 heat map on the [`HEAT_STOPS`] scale; uncovered pixels
+/// [`HEAT_UNCOVERED`].
 pub(in crate::demo) fn write_heat_map(
     path: &Path,
     width: u32,
     height: u32,
     delta_e: &[f64],
 ) -> Result<()> {
-    const STOPS: [(f64, [f64; 3]); 5] = [
-        (0.0, [0.0, 0.0, 0.0]),
-        (2.5, [0.0, 0.2, 1.0]),
-        (5.0, [0.0, 0.85, 0.3]),
-        (7.5, [1.0, 0.9, 0.0]),
-        (10.0, [1.0, 0.0, 0.0]),
-    ];
+    const STOPS: [(f64, [f64; 3]); 5] = HEAT_STOPS;
     write_png(path, width, height, |x, y| {
         let d = delta_e[(y * width + x) as usize];
         if !d.is_finite() {
-            return [40, 40, 40];
+            return HEAT_UNCOVERED;
         }
         let d = d.clamp(0.0, 10.0);
         let i = STOPS

@@ -32,7 +32,10 @@ mod camera;
 mod images;
 
 pub(super) use camera::{CameraConsistency, camera_consistency};
-pub(super) use images::{write_heat_map, write_radiance, write_values};
+pub(super) use images::{
+    HEAT_MAP_SUFFIX, HEAT_STOPS, HEAT_UNCOVERED, heat_stop_rgb, write_heat_map, write_radiance,
+    write_values,
+};
 
 /// Demo rendering resolutions: a quarter of the pixels of the cabinet's
 /// projectors, a CRT face of 320x256 per eye, 320x240 eye views.

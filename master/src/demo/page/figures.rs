@@ -1,0 +1,422 @@
+//! What the demo's figures mean: the one home of each figure's label, unit,
+//! target and one-line meaning, and of how the page writes numbers and
+//! marks a figure pass or miss. `report.json` keeps the raw numbers.
+//!
+//! Targets are only those the project states: the issues' and the demo
+//! test's bounds (README, ARCHITECTURE, `tests/it/demo.rs`). A figure with
+//! none shows "—", never an invented one.
+
+/// How a value is held to its target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::demo) enum Target {
+    /// At most this value.
+    AtMost(f64),
+    /// Exactly this value.
+    Equal(f64),
+}
+
+impl Target {
+    /// Whether `v` meets the target (`None` when `v` is not a finite
+    /// number: no mark).
+    pub(in crate::demo) fn met_by(self, v: f64) -> Option<bool> {
+        if !v.is_finite() {
+            return None;
+        }
+        Some(match self {
+            Target::AtMost(t) => v <= t,
+            Target::Equal(t) => v == t,
+        })
+    }
+
+    /// The bound itself: what a plot draws as the target line.
+    pub(in crate::demo) fn value(self) -> f64 {
+        match self {
+            Target::AtMost(t) | Target::Equal(t) => t,
+        }
+    }
+
+    /// "≤ 1 ms" and the like.
+    fn text(self, unit: &str) -> String {
+        let (op, t) = match self {
+            Target::AtMost(t) => ("≤", t),
+            Target::Equal(t) => ("=", t),
+        };
+        // Targets are round numbers: their shortest form.
+        with_unit(&format!("{op} {t}"), unit)
+    }
+}
+
+/// What the page says about one figure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::demo) struct Figure {
+    /// Short human name.
+    pub label: &'static str,
+    /// Unit of the numbers ("ratio" for a plain ratio, "text" for words).
+    pub unit: &'static str,
+    /// The stated target, if any.
+    pub target: Option<Target>,
+    /// What it measures, in one line.
+    pub meaning: &'static str,
+}
+
+const fn fig(
+    label: &'static str,
+    unit: &'static str,
+    target: Option<Target>,
+    meaning: &'static str,
+) -> Figure {
+    Figure {
+        label,
+        unit,
+        target,
+        meaning,
+    }
+}
+
+/// Every figure the demo writes, in the page's order.
+const FIGURES: &[(&str, Figure)] = &[
+    (
+        "calibration_rms_px",
+        fig(
+            "Calibration reprojection error",
+            "px",
+            Some(Target::AtMost(1.0)),
+            "worst device's RMS distance between the fiducial marks (0.5 px noise) and their calibrated projections",
+        ),
+    ),
+    (
+        "calibration_center_error_m",
+        fig(
+            "Calibrated device position error",
+            "m",
+            None,
+            "worst distance between a calibrated device's centre and the true one",
+        ),
+    ),
+    (
+        "reflectance_rel_rmse",
+        fig(
+            "Reflectance map error",
+            "ratio",
+            Some(Target::AtMost(0.02)),
+            "relative RMSE of the captured reflectance against the sim's true albedo",
+        ),
+    ),
+    (
+        "reflectance_coverage",
+        fig(
+            "Reflectance coverage",
+            "ratio",
+            None,
+            "fraction of the visible object pixels that got a reflectance (I_int above its floor, phi ≤ 60°)",
+        ),
+    ),
+    (
+        "reflectance_eta_rel_error",
+        fig(
+            "Projector eta error",
+            "ratio",
+            Some(Target::AtMost(0.01)),
+            "relative error of the projector efficiency eta fitted by Brent on the board",
+        ),
+    ),
+    (
+        "radiosity_elements",
+        fig(
+            "Radiosity elements",
+            "elements",
+            None,
+            "elements of the demo scene's radiosity solution, after refinement",
+        ),
+    ),
+    (
+        "radiosity_shots",
+        fig(
+            "Radiosity shots",
+            "shots",
+            None,
+            "progressive-refinement shots to reach the unshot-energy threshold",
+        ),
+    ),
+    (
+        "radiosity_unshot_fraction",
+        fig(
+            "Radiosity unshot energy",
+            "ratio",
+            None,
+            "energy left unshot when the solver stopped, as a fraction of the emitted",
+        ),
+    ),
+    (
+        "radiosity_b3_b0_deviation_rgb",
+        fig(
+            "Radiosity B3 against B0",
+            "ratio",
+            None,
+            "relative mean |B3 - B0| per RGB channel, on the demo scene",
+        ),
+    ),
+    (
+        "radiosity_clipped_fractions",
+        fig(
+            "Projector clipping",
+            "ratio",
+            None,
+            "fraction of each projector's valid pixels clamped to the device range, on the demo scene",
+        ),
+    ),
+    (
+        "radiosity_figure3_consistency_rel_rmse",
+        fig(
+            "Figure 3: radiosity consistency",
+            "ratio",
+            Some(Target::AtMost(0.03)),
+            "projectors' irradiance maps through the sim onto the real walls, against B0 (B2 gathered at the vertices)",
+        ),
+    ),
+    (
+        "radiosity_figure3_paper_consistency_rel_rmse",
+        fig(
+            "Figure 3: radiosity consistency, paper's B1",
+            "ratio",
+            None,
+            "the same with the paper's converged B1, reported beside the headline",
+        ),
+    ),
+    (
+        "radiosity_figure3_b3_b0_deviation_rgb",
+        fig(
+            "Figure 3: B3 against B0",
+            "ratio",
+            None,
+            "relative mean |B3 - B0| per RGB channel",
+        ),
+    ),
+    (
+        "radiosity_figure3_clipped_fractions",
+        fig(
+            "Figure 3: projector clipping",
+            "ratio",
+            None,
+            "fraction of each projector's valid pixels clamped to the device range",
+        ),
+    ),
+    (
+        "frame_rate_hz",
+        fig(
+            "Frame rate",
+            "Hz",
+            None,
+            "frames presented per second of running frame clock (the clock ticks at 60 Hz)",
+        ),
+    ),
+    (
+        "swap_skew_ms_p99",
+        fig(
+            "Swap skew, p99",
+            "ms",
+            Some(Target::AtMost(1.0)),
+            "spread of the nodes' present times per frame, clock offsets estimated NTP-style",
+        ),
+    ),
+    (
+        "tracking_to_swap_ms_p99",
+        fig(
+            "Tracking to swap, p99",
+            "ms",
+            None,
+            "from the newest tracking sample to the frame's swap",
+        ),
+    ),
+    (
+        "dropped_frames",
+        fig(
+            "Dropped frames",
+            "frames",
+            Some(Target::Equal(0.0)),
+            "frame-clock ticks with no frame sent",
+        ),
+    ),
+    (
+        "interactive_consistency_rel_rmse",
+        fig(
+            "Consistency (camera)",
+            "ratio",
+            Some(Target::AtMost(0.01)),
+            "both projectors' values through the simulated projectors, seen by the cabinet's camera, against the target",
+        ),
+    ),
+    (
+        "interactive_compared_fraction",
+        fig(
+            "Camera pixels compared",
+            "ratio",
+            None,
+            "fraction of the camera's real pixels the consistency check compares",
+        ),
+    ),
+    (
+        "interactive_consistency_rel_rmse_per_object",
+        fig(
+            "Consistency (camera) per object",
+            "ratio",
+            None,
+            "the camera's consistency figure per real object",
+        ),
+    ),
+    (
+        "observer_consistency_rel_rmse",
+        fig(
+            "Consistency (observers)",
+            "ratio",
+            None,
+            "worst observer's whole view against its target, CRT image through the mirror included",
+        ),
+    ),
+    (
+        "observer_consistency_rel_rmse_real_comparable",
+        fig(
+            "Consistency (observers, real surfaces)",
+            "ratio",
+            Some(Target::AtMost(0.01)),
+            "observers' real surfaces where the method can be right by design",
+        ),
+    ),
+    (
+        "delta_e2000_median",
+        fig(
+            "CIEDE2000, median",
+            "ΔE00",
+            None,
+            "perceived colour difference of the observers' views against their targets",
+        ),
+    ),
+    (
+        "delta_e2000_p95",
+        fig(
+            "CIEDE2000, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "observers",
+        fig(
+            "Per observer",
+            "ratio",
+            None,
+            "each observer's figures (ΔE00 and relative RMSE)",
+        ),
+    ),
+    (
+        "renderer",
+        fig(
+            "Renderer",
+            "text",
+            None,
+            "the adapter the node renderers ran on",
+        ),
+    ),
+];
+
+/// The page's knowledge of figure `name`, if it has any.
+pub(in crate::demo) fn figure(name: &str) -> Option<&'static Figure> {
+    FIGURES.iter().find(|(n, _)| *n == name).map(|(_, f)| f)
+}
+
+/// Position of `name` in the page's order (unknown names last).
+pub(in crate::demo) fn order(name: &str) -> usize {
+    FIGURES
+        .iter()
+        .position(|(n, _)| *n == name)
+        .unwrap_or(FIGURES.len())
+}
+
+/// The target as text, "—" for none.
+pub(in crate::demo) fn target_text(f: &Figure) -> String {
+    f.target.map_or("—".into(), |t| t.text(f.unit))
+}
+
+/// `v` to three significant digits: integers as they are, very large or
+/// small magnitudes in scientific notation, "n/a" when not finite.
+pub(in crate::demo) fn format_number(v: f64) -> String {
+    if !v.is_finite() {
+        return "n/a".into();
+    }
+    if v == v.trunc() && v.abs() < 1e15 {
+        return format!("{v:.0}");
+    }
+    let magnitude = v.abs().log10().floor();
+    if !(-3.0..5.0).contains(&magnitude) {
+        return format!("{v:.2e}");
+    }
+    let decimals = (2.0 - magnitude).max(0.0) as usize;
+    format!("{v:.decimals$}")
+}
+
+/// `text` followed by `unit`, except for plain ratios and text.
+fn with_unit(text: &str, unit: &str) -> String {
+    match unit {
+        "ratio" | "text" | "" => text.into(),
+        u => format!("{text} {u}"),
+    }
+}
+
+/// A number with its unit, as the page shows it.
+pub(in crate::demo) fn format_value(v: f64, unit: &str) -> String {
+    with_unit(&format_number(v), unit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[track_caller]
+    fn check(v: f64, expected: &str) {
+        assert_eq!(format_number(v), expected);
+    }
+
+    #[test]
+    fn numbers_get_three_significant_digits() {
+        check(0.007_123_456_789, "0.00712");
+        check(59.987_654_321, "60.0");
+        check(0.25, "0.250");
+        check(1234.4, "1234");
+        check(3.0, "3");
+        check(0.0, "0");
+        check(-0.5, "-0.500");
+        check(1.234e-5, "1.23e-5");
+        check(123_456.7, "1.23e5");
+        check(f64::NAN, "n/a");
+        check(f64::INFINITY, "n/a");
+        assert_eq!(format_value(0.2, "ms"), "0.200 ms");
+        assert_eq!(format_value(0.2, "ratio"), "0.200");
+    }
+
+    #[test]
+    fn targets_mark_pass_or_miss() {
+        assert_eq!(Target::AtMost(1.0).met_by(1.0), Some(true));
+        assert_eq!(Target::AtMost(1.0).met_by(1.01), Some(false));
+        assert_eq!(Target::Equal(0.0).met_by(0.0), Some(true));
+        assert_eq!(Target::Equal(0.0).met_by(1.0), Some(false));
+        assert_eq!(Target::AtMost(1.0).met_by(f64::NAN), None);
+        let skew = figure("swap_skew_ms_p99").unwrap();
+        assert_eq!(target_text(skew), "≤ 1 ms");
+        assert_eq!(target_text(figure("frame_rate_hz").unwrap()), "—");
+        assert_eq!(
+            target_text(figure("reflectance_rel_rmse").unwrap()),
+            "≤ 0.02"
+        );
+    }
+
+    #[test]
+    fn every_figure_is_named_once_with_a_unit() {
+        for (i, (name, f)) in FIGURES.iter().enumerate() {
+            assert_eq!(order(name), i, "{name} listed twice");
+            assert!(!f.unit.is_empty() && !f.meaning.is_empty(), "{name}");
+        }
+        assert!(figure("no_such_figure").is_none());
+        assert_eq!(order("no_such_figure"), FIGURES.len());
+    }
+}
