@@ -142,7 +142,7 @@ use error::Ctx;
 use schema::SceneDef;
 use showcase_proto::{Showcase, Validate, ValidationError};
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Largest scene file read, in bytes.
 pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
@@ -167,7 +167,7 @@ pub fn load_any(path: &Path) -> Result<Showcase, SceneError> {
 /// A scene path `scene` as written in a file in folder `base`: joined to
 /// `base`, unless it is a built-in name (`builtin:showcase`), which stays
 /// as it is.
-pub fn resolve(base: &Path, scene: &Path) -> std::path::PathBuf {
+pub fn resolve(base: &Path, scene: &Path) -> PathBuf {
     if is_builtin(scene) {
         scene.to_path_buf()
     } else {
@@ -178,14 +178,14 @@ pub fn resolve(base: &Path, scene: &Path) -> std::path::PathBuf {
 /// Load and validate the scene file at `path`. Relative paths inside it are
 /// resolved against its folder; errors name it as `path` is written.
 pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {
-    let (text, file) = read_scene_text(path)?;
-    let base_dir = path.parent().unwrap_or(Path::new(""));
-    load_scene_str(&text, base_dir, &file)
+    let (text, file, base_dir) = read_scene_text(path)?;
+    load_scene_str(&text, &base_dir, &file)
 }
 
 /// The text of the TOML scene file at `path` (at most
-/// [`MAX_SCENE_FILE_BYTES`]) and its label for errors.
-fn read_scene_text(path: &Path) -> Result<(String, String), SceneError> {
+/// [`MAX_SCENE_FILE_BYTES`]), its label for errors, and the folder its
+/// relative paths start from (a built-in scene's, under the embedded root).
+fn read_scene_text(path: &Path) -> Result<(String, String, PathBuf), SceneError> {
     let file = path.display().to_string();
     let read_err = |error| SceneError::Read {
         file: file.clone(),
@@ -201,8 +201,8 @@ fn read_scene_text(path: &Path) -> Result<(String, String), SceneError> {
             .unwrap_or_else(|| Err(std::io::ErrorKind::NotFound.into()))
             .and_then(|b| std::str::from_utf8(b).map_err(std::io::Error::other))
             .map_err(read_err)?;
-        let base_dir = resolved.parent().unwrap_or(Path::new(""));
-        return load_scene_str(text, base_dir, &file);
+        let base_dir = resolved.parent().unwrap_or(Path::new("")).to_path_buf();
+        return Ok((text.to_owned(), file, base_dir));
     }
     let meta = std::fs::metadata(path).map_err(read_err)?;
     if meta.len() > MAX_SCENE_FILE_BYTES {
@@ -216,7 +216,8 @@ fn read_scene_text(path: &Path) -> Result<(String, String), SceneError> {
         });
     }
     let text = std::fs::read_to_string(path).map_err(read_err)?;
-    Ok((text, file))
+    let base_dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    Ok((text, file, base_dir))
 }
 
 /// Load and validate a scene from `text`, resolving relative paths against

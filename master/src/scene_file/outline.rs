@@ -61,17 +61,16 @@ pub struct SceneOutline {
 /// mesh problem, each its own error. Fails only when the file cannot be
 /// read or is not a scene's TOML.
 pub fn outline(path: &Path) -> Result<SceneOutline, SceneError> {
-    let (text, file) = read_scene_text(path)?;
+    let (text, file, base_dir) = read_scene_text(path)?;
     let ctx = Ctx { file };
     let def: SceneDef = toml::from_str(&text).map_err(|e| ctx.syntax(&text, &e))?;
-    let base_dir = path.parent().unwrap_or(Path::new(""));
     let mut cache = MeshCache::new();
     let mesh_errors = def
         .objects
         .iter()
         .enumerate()
         .filter_map(|(i, o)| {
-            parts_of(&ctx, &label("object", i, &o.name), o, base_dir, &mut cache).err()
+            parts_of(&ctx, &label("object", i, &o.name), o, &base_dir, &mut cache).err()
         })
         .collect();
     Ok(SceneOutline {
