@@ -4,6 +4,7 @@
 pub mod commands;
 pub mod faults;
 pub mod identity;
+pub mod live;
 pub mod loopback;
 pub mod metrics;
 pub mod server;
