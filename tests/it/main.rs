@@ -7,6 +7,7 @@ mod calibration;
 mod capture;
 mod cluster;
 mod codec;
+mod dashboard;
 mod demo;
 mod gpu;
 mod hemicube;

@@ -17,16 +17,35 @@ use tokio_util::sync::CancellationToken;
 /// Holds the child's `showcase-master` arguments (a JSON array).
 const CHILD_ARGS: &str = "SHOWCASE_IT_CHILD_MASTER_ARGS";
 
-/// The child process of `sigterm_stops_a_master_cleanly`, not a test of
-/// its own: it runs `showcase-master` with the arguments in
-/// [`CHILD_ARGS`].
+/// The child process of `sigterm_stops_a_master_cleanly` (and of the
+/// dashboard's tests), not a test of its own: it runs `showcase-master`
+/// with the arguments in [`CHILD_ARGS`].
 #[test]
-#[ignore = "run as a child process by sigterm_stops_a_master_cleanly"]
+#[ignore = "run as a child process by spawn_master"]
 fn child_master() {
     let args = std::env::var(CHILD_ARGS)
         .expect("only sigterm_stops_a_master_cleanly runs this, with its arguments");
     let args: Vec<String> = serde_json::from_str(&args).unwrap();
     run(<Cli as clap::Parser>::try_parse_from(args).unwrap()).unwrap();
+}
+
+/// `showcase-master ARGS` as a child process (this test binary running
+/// only `child_master`), its stderr to `stderr`.
+pub(crate) fn spawn_master(args: &[&str], stderr: &std::path::Path) -> std::process::Child {
+    let mut all = vec!["showcase-master"];
+    all.extend_from_slice(args);
+    Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--ignored",
+            "--exact",
+            "shutdown::child_master",
+            "--nocapture",
+        ])
+        .env(CHILD_ARGS, serde_json::to_string(&all).unwrap())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(stderr).unwrap())
+        .spawn()
+        .unwrap()
 }
 
 fn lines_of(path: &std::path::Path) -> Vec<serde_json::Value> {
@@ -57,29 +76,18 @@ async fn sigterm_stops_a_master_cleanly() {
         dir.join("session.jsonl"),
         dir.join("master.log"),
     );
-    let args = serde_json::to_string(&[
-        "showcase-master",
-        "run",
-        "--config",
-        config.to_str().unwrap(),
-        "--metrics",
-        metrics.to_str().unwrap(),
-        "--record",
-        session.to_str().unwrap(),
-    ])
-    .unwrap();
-    let mut master = Command::new(std::env::current_exe().unwrap())
-        .args([
-            "--ignored",
-            "--exact",
-            "shutdown::child_master",
-            "--nocapture",
-        ])
-        .env(CHILD_ARGS, args)
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&stderr).unwrap())
-        .spawn()
-        .unwrap();
+    let mut master = spawn_master(
+        &[
+            "run",
+            "--config",
+            config.to_str().unwrap(),
+            "--metrics",
+            metrics.to_str().unwrap(),
+            "--record",
+            session.to_str().unwrap(),
+        ],
+        &stderr,
+    );
 
     let nodes: Vec<_> = names
         .iter()

@@ -2,6 +2,7 @@
 //! server around the sans-IO core, and per-frame metrics.
 
 pub mod commands;
+pub mod dashboard;
 pub mod faults;
 pub mod identity;
 pub mod live;
