@@ -177,9 +177,9 @@ pub async fn stop(task: JoinHandle<std::io::Result<()>>) {
 
 /// Whether a request carries the token (when there is one): in
 /// `Authorization: Bearer`, or as the `token` query parameter.
-fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), Response> {
+fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> bool {
     let Some(want) = app.token.as_deref() else {
-        return Ok(());
+        return true;
     };
     let bearer = headers
         .get(header::AUTHORIZATION)
@@ -188,9 +188,11 @@ fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), Response>
     let query = uri
         .query()
         .and_then(|q| q.split('&').find_map(|kv| kv.strip_prefix("token=")));
-    if bearer.into_iter().chain(query).any(|t| same(t, want)) {
-        return Ok(());
-    }
+    bearer.into_iter().chain(query).any(|t| same(t, want))
+}
+
+/// 401, saying how to send the token.
+fn unauthorized() -> Response {
     let mut r = (
         StatusCode::UNAUTHORIZED,
         "this dashboard needs its access token: send `Authorization: Bearer TOKEN` or add \
@@ -201,7 +203,7 @@ fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> Result<(), Response>
         header::WWW_AUTHENTICATE,
         HeaderValue::from_static("Bearer realm=\"showcase\""),
     );
-    Err(r)
+    r
 }
 
 /// Compare without stopping at the first difference, so the time taken
@@ -226,15 +228,15 @@ fn with_type(body: String, content_type: &'static str) -> Response {
 }
 
 async fn page(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if let Err(r) = authorized(&app, &headers, &uri) {
-        return r;
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
     }
     with_type(PAGE.to_owned(), "text/html; charset=utf-8")
 }
 
 async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if let Err(r) = authorized(&app, &headers, &uri) {
-        return r;
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
     }
     let snap = app.snapshot.borrow().clone();
     match serde_json::to_string(&*snap) {
@@ -244,8 +246,8 @@ async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response
 }
 
 async fn metrics(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if let Err(r) = authorized(&app, &headers, &uri) {
-        return r;
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
     }
     let snap = app.snapshot.borrow().clone();
     with_type(prometheus::render(&snap), prometheus::CONTENT_TYPE)
