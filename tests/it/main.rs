@@ -8,6 +8,7 @@ mod capture;
 mod check;
 mod cluster;
 mod codec;
+mod dashboard;
 mod demo;
 mod gpu;
 mod hemicube;

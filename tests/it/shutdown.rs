@@ -17,11 +17,11 @@ use tokio_util::sync::CancellationToken;
 /// Holds the child's `showcase-master` arguments (a JSON array).
 const CHILD_ARGS: &str = "SHOWCASE_IT_CHILD_MASTER_ARGS";
 
-/// The child process of `sigterm_stops_a_master_cleanly`, not a test of
-/// its own: it runs `showcase-master` with the arguments in
-/// [`CHILD_ARGS`].
+/// The child process of `sigterm_stops_a_master_cleanly` (and of the
+/// dashboard's tests), not a test of its own: it runs `showcase-master`
+/// with the arguments in [`CHILD_ARGS`].
 #[test]
-#[ignore = "run as a child process by sigterm_stops_a_master_cleanly"]
+#[ignore = "run as a child process by spawn_master"]
 fn child_master() {
     let args = std::env::var(CHILD_ARGS)
         .expect("only sigterm_stops_a_master_cleanly runs this, with its arguments");
@@ -49,6 +49,16 @@ pub(crate) fn master_process(args: &[&str]) -> Command {
     ])
     .env(CHILD_ARGS, args);
     cmd
+}
+
+/// `showcase-master ARGS` as a child process ([`master_process`]), its
+/// stdout dropped and its stderr to `stderr`.
+pub(crate) fn spawn_master(args: &[&str], stderr: &std::path::Path) -> std::process::Child {
+    master_process(args)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(stderr).unwrap())
+        .spawn()
+        .unwrap()
 }
 
 fn lines_of(path: &std::path::Path) -> Vec<serde_json::Value> {
@@ -87,19 +97,18 @@ async fn sigterm_stops_a_master_cleanly() {
         dir.join("session.jsonl"),
         dir.join("master.log"),
     );
-    let mut master = master_process(&[
-        "run",
-        "--config",
-        config.to_str().unwrap(),
-        "--metrics",
-        metrics.to_str().unwrap(),
-        "--record",
-        session.to_str().unwrap(),
-    ])
-    .stdout(Stdio::null())
-    .stderr(std::fs::File::create(&stderr).unwrap())
-    .spawn()
-    .unwrap();
+    let mut master = spawn_master(
+        &[
+            "run",
+            "--config",
+            config.to_str().unwrap(),
+            "--metrics",
+            metrics.to_str().unwrap(),
+            "--record",
+            session.to_str().unwrap(),
+        ],
+        &stderr,
+    );
 
     let nodes: Vec<_> = names
         .iter()

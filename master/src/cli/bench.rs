@@ -25,6 +25,9 @@ pub enum BenchTarget {
     Faults,
     /// Memory over a long run: 4 nodes at 120 Hz, RSS against frames.
     Soak,
+    /// The live dashboard's cost: master CPU with it off and on (4 node
+    /// processes at 120 Hz, alternated runs), and eviction to `/api/state`.
+    Dashboard,
 }
 
 /// Arguments of `bench`.
@@ -40,7 +43,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "showcase-bench")]
     pub out: PathBuf,
     /// Frames per configuration (default: 600 for cluster, 30 for render,
-    /// 12000 for soak).
+    /// 12000 for soak; dashboard: the measured window of each run, 1200
+    /// frames = 10 s at 120 Hz).
     #[arg(long)]
     pub frames: Option<u64>,
     /// Cluster only: node counts to run (default: 2,4,8).
@@ -77,14 +81,15 @@ pub struct BenchArgs {
     /// largest patch in m^2 (default: both at 0.02 and 0.005).
     #[arg(long, value_delimiter = ',')]
     pub object_records: Vec<String>,
-    /// Radiosity only: timed runs per `incremental_object` record
-    /// (default 5).
+    /// Radiosity: timed runs per `incremental_object` record (default 5);
+    /// dashboard: runs with it off, and as many on (default 3).
     #[arg(long)]
     pub repeats: Option<usize>,
-    /// Faults only: the `showcase-node` binary (default: beside this one).
+    /// Faults and dashboard: the `showcase-node` binary (default: beside
+    /// this one).
     #[arg(long)]
     pub node_bin: Option<PathBuf>,
-    /// Faults only: keep the work folder (config, logs, metrics).
+    /// Faults and dashboard: keep the work folder (config, logs, metrics).
     #[arg(long)]
     pub keep: bool,
 }
@@ -99,7 +104,9 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
     let name = format!("bench {:?}", args.target).to_lowercase();
     eprintln!("{name}: running (release builds only give meaningful times)...");
     let pb = match args.target {
-        BenchTarget::Faults | BenchTarget::Soak => indicatif::ProgressBar::hidden(),
+        BenchTarget::Faults | BenchTarget::Soak | BenchTarget::Dashboard => {
+            indicatif::ProgressBar::hidden()
+        }
         _ => crate::progress::spinner(name, None),
     };
     let result = match args.target {
@@ -110,6 +117,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
         BenchTarget::Cluster => cluster(args, &pb),
         BenchTarget::Faults => faults(args, &pb),
         BenchTarget::Soak => soak(args, &pb),
+        BenchTarget::Dashboard => dashboard(args, &pb),
     };
     pb.finish_and_clear();
     result
@@ -303,5 +311,27 @@ fn soak(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         "--frames {frames}: a soak needs at least 100 frames"
     );
     let record = runtime()?.block_on(crate::cluster::soak::bench_soak(&scene, frames))?;
+    emit_bench(args, pb, &[record])
+}
+
+fn dashboard(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
+    use crate::cluster::dashboard::bench::{DashboardBenchOptions, bench_dashboard};
+    let frames = args.frames.unwrap_or(1200);
+    anyhow::ensure!(
+        (120..=720_000).contains(&frames),
+        "--frames {frames}: the window must be 120 to 720000 frames (1 s to 100 min at 120 Hz)"
+    );
+    let runs = args.repeats.unwrap_or(3);
+    anyhow::ensure!(
+        (1..=50).contains(&runs),
+        "--repeats {runs}: 1 to 50 runs per side"
+    );
+    let record = bench_dashboard(&DashboardBenchOptions {
+        scene: crate::demo::default_scene(),
+        node_bin: args.node_bin.clone(),
+        runs,
+        window: std::time::Duration::from_secs_f64(frames as f64 / 120.0),
+        keep: args.keep,
+    })?;
     emit_bench(args, pb, &[record])
 }

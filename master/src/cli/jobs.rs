@@ -44,6 +44,33 @@ pub struct RunArgs {
     /// Record every tracking datagram to this session file.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Serve the live dashboard (page, /api/state, /metrics) on this
+    /// address, e.g. 127.0.0.1:8080 (port 0: any free port, printed).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub dashboard: Option<std::net::SocketAddr>,
+    /// Allow a dashboard address other than loopback; needs an access token.
+    #[arg(long, requires = "dashboard")]
+    pub dashboard_public: bool,
+    /// The dashboard's access token (at least 16 characters); better set in
+    /// $SHOWCASE_DASHBOARD_TOKEN, out of the process list. Every request
+    /// then needs `Authorization: Bearer TOKEN` or `?token=TOKEN`.
+    #[arg(long, requires = "dashboard", value_name = "TOKEN")]
+    pub dashboard_token: Option<String>,
+}
+
+impl RunArgs {
+    /// The dashboard's options, the token from the flag or the environment.
+    fn dashboard(&self) -> Option<crate::cluster::dashboard::DashboardOptions> {
+        use crate::cluster::dashboard::{DashboardOptions, TOKEN_ENV};
+        Some(DashboardOptions {
+            addr: self.dashboard?,
+            public: self.dashboard_public,
+            token: self
+                .dashboard_token
+                .clone()
+                .or_else(|| std::env::var(TOKEN_ENV).ok().filter(|t| !t.is_empty())),
+        })
+    }
 }
 
 /// `run`: the live master of a cluster.
@@ -52,6 +79,7 @@ pub(super) fn run_master(args: &RunArgs) -> Result<()> {
         &args.config,
         args.metrics.as_deref(),
         args.record.as_deref(),
+        args.dashboard().as_ref(),
     ))
 }
 

@@ -3,6 +3,8 @@
 //! `bench cluster`.
 
 use super::cluster_core_defaults;
+use super::dashboard::{Dashboard, DashboardOptions};
+use super::live::{LivePublisher, PUBLISH_EVERY};
 use super::loopback::{LoopbackPlan, LoopbackResult, RendererFactory, run_loopback};
 use super::server::{Server, ServerSettings};
 use super::show::{Show, Tracking};
@@ -279,12 +281,17 @@ pub async fn replay(
 
 /// `run --config FILE`: the live master of a cluster, until SIGINT or
 /// SIGTERM, which stop it cleanly (Bye to the nodes, whole files, a
-/// summary, exit 0).
+/// summary, exit 0); with `dashboard`, it serves the live dashboard too.
 pub async fn run_master(
     config: &Path,
     metrics: Option<&Path>,
     record: Option<&Path>,
+    dashboard: Option<&DashboardOptions>,
 ) -> Result<()> {
+    // Refuse a bad dashboard address before anything else starts.
+    if let Some(d) = dashboard {
+        d.check()?;
+    }
     let text = std::fs::read_to_string(config)
         .with_context(|| format!("cannot read cluster config {}", config.display()))?;
     let label = config.display().to_string();
@@ -363,12 +370,29 @@ pub async fn run_master(
         cfg.nodes.len()
     );
     let stop = CancellationToken::new();
+    let (server, page) = match dashboard {
+        Some(d) => {
+            let dash = Dashboard::bind(d)?;
+            // `bench dashboard` and the tests read the address from this line.
+            eprintln!("dashboard on http://{}/", dash.local_addr());
+            let (publisher, snapshots) = LivePublisher::new(PUBLISH_EVERY);
+            let task = dash.serve(snapshots, stop.child_token());
+            (server.publish_to(publisher), Some(task))
+        }
+        None => (server, None),
+    };
     showcase_render::node::cancel_on_stop_signal(stop.clone());
-    let run = server.run(scene, show, stop).await?;
+    let run = server.run(scene, show, stop.clone()).await;
+    stop.cancel();
+    if let Some(task) = page {
+        super::dashboard::stop(task).await;
+    }
+    let run = run?;
     eprintln!(
         "master stopped after {} frames ({} ticks dropped, {} evictions)",
         run.submitted, run.dropped_ticks, run.evictions
     );
+    eprintln!("{}", run.stats.line());
     Ok(())
 }
 

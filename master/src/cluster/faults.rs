@@ -156,7 +156,7 @@ fn read_metrics(path: &Path) -> Vec<Line> {
 }
 
 /// Poll `done` every 5 ms until it holds or `limit` passes.
-fn wait_for(limit: Duration, mut done: impl FnMut() -> bool) -> bool {
+pub(crate) fn wait_for(limit: Duration, mut done: impl FnMut() -> bool) -> bool {
     let t0 = Instant::now();
     while t0.elapsed() < limit {
         if done() {
@@ -167,7 +167,7 @@ fn wait_for(limit: Duration, mut done: impl FnMut() -> bool) -> bool {
     done()
 }
 
-fn free_port() -> Result<u16> {
+pub(crate) fn free_port() -> Result<u16> {
     Ok(UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
@@ -193,7 +193,7 @@ fn first_presented(lines: &[Line], node: &str, after: f64) -> Option<f64> {
 }
 
 /// Processes the bench started; killed when dropped.
-struct Procs(Vec<Child>);
+pub(crate) struct Procs(pub(crate) Vec<Child>);
 
 impl Drop for Procs {
     fn drop(&mut self) {
@@ -204,7 +204,7 @@ impl Drop for Procs {
     }
 }
 
-fn signal(child: &Child, sig: &str) -> Result<()> {
+pub(crate) fn signal(child: &Child, sig: &str) -> Result<()> {
     let ok = Command::new("kill")
         .args([sig, &child.id().to_string()])
         .status()
@@ -290,9 +290,20 @@ fn timer_lateness_ms() -> Result<f64> {
 /// drives the scene output of its name (a projector with the scene's
 /// calibration).
 pub fn loopback_config(port: u16, scene: &Path, tracking: &str, nodes: &[(&str, Role)]) -> String {
+    loopback_config_at(port, scene, tracking, nodes, HZ)
+}
+
+/// [`loopback_config`] at `hz` instead of 60 Hz (the deadline stays 50 ms).
+pub fn loopback_config_at(
+    port: u16,
+    scene: &Path,
+    tracking: &str,
+    nodes: &[(&str, Role)],
+    hz: f64,
+) -> String {
     let mut cfg = format!(
         "[master]\nhost = \"localhost\"\nlisten = \"127.0.0.1:{port}\"\nscene = {scene:?}\n\
-         certs = \"certs\"\ntarget_hz = {HZ}\ndeadline_ms = {DEADLINE_MS}\n\n\
+         certs = \"certs\"\ntarget_hz = {hz}\ndeadline_ms = {DEADLINE_MS}\n\n\
          [tracking]\n{tracking}\nbody = [{{ id = 0, target = \"observer:observer-0\" }}]\n"
     );
     for (name, role) in nodes {
@@ -323,12 +334,8 @@ pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
         );
     }
     // The config lies in another folder: a file must be absolute there.
-    let scene = if crate::scene_file::is_builtin(&opts.scene) {
-        opts.scene.clone()
-    } else {
-        std::fs::canonicalize(&opts.scene)
-            .with_context(|| format!("scene {}", opts.scene.display()))?
-    };
+    let scene = crate::scene_file::absolute(&opts.scene)
+        .with_context(|| format!("scene {}", opts.scene.display()))?;
     let dir = std::env::temp_dir().join(format!("showcase-faults-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let names: Vec<String> = NODES.iter().map(|(n, _)| (*n).to_owned()).collect();

@@ -53,6 +53,11 @@ impl Roster {
         Self::new(cfg.nodes.iter().map(|n| (n.name.clone(), n.role)))
     }
 
+    /// Every `(name, role)` entry, by name.
+    pub fn entries(&self) -> impl Iterator<Item = (&str, Role)> + '_ {
+        self.nodes.iter().map(|(n, r)| (n.as_str(), *r))
+    }
+
     /// Admit a Hello claiming `claimed` in `role` from a peer whose
     /// certificate is issued to `cert_names`; `cert_valid` says whether the
     /// certificate is valid for `claimed` (checked by webpki, which knows

@@ -3,8 +3,10 @@
 
 pub mod check;
 pub mod commands;
+pub mod dashboard;
 pub mod faults;
 pub mod identity;
+pub mod live;
 pub mod loopback;
 pub mod metrics;
 pub mod server;

@@ -6,6 +6,7 @@
 //! Every task it spawns lives in a `JoinSet` that ends with the run.
 
 use super::identity::Roster;
+use super::live::{LivePublisher, LiveStats, LiveSummary};
 use super::metrics::{FrameMetrics, frame_metrics};
 use super::show::Show;
 use super::timer::DeadlineTimer;
@@ -110,6 +111,9 @@ pub struct ClusterRun {
     pub started_ns: u64,
     /// Master-clock ns when the run loop ended.
     pub finished_ns: u64,
+    /// Swap skew and latency over the run, from the live histograms
+    /// (constant memory; kept whether or not `keep_frames` is set).
+    pub stats: LiveSummary,
 }
 
 enum Inbound {
@@ -130,6 +134,7 @@ pub struct Server {
     endpoint: quinn::Endpoint,
     udp: Option<tokio::net::UdpSocket>,
     settings: ServerSettings,
+    live: Option<LivePublisher>,
 }
 
 impl Server {
@@ -168,6 +173,7 @@ impl Server {
             endpoint,
             udp,
             settings,
+            live: None,
         })
     }
 
@@ -176,6 +182,12 @@ impl Server {
         self.endpoint
             .local_addr()
             .expect("a bound endpoint has an address")
+    }
+
+    /// Publish live snapshots (for the dashboard) through `publisher`.
+    pub fn publish_to(mut self, publisher: LivePublisher) -> Self {
+        self.live = Some(publisher);
+        self
     }
 
     /// The UDP address DTrack sends to.
@@ -194,6 +206,7 @@ impl Server {
             endpoint,
             udp,
             mut settings,
+            live: mut publisher,
         } = self;
         let start = Instant::now();
         let origin_unix_ms = super::metrics::unix_ms();
@@ -215,6 +228,7 @@ impl Server {
         let mut udp_buf = vec![0u8; 64 * 1024];
         let traffic = Arc::new(FrameTraffic::default());
         let roster = Arc::new(std::mem::take(&mut settings.roster));
+        let mut live = LiveStats::new(&roster, settings.core.target_hz, origin_unix_ms);
         let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
 
         'run: loop {
@@ -232,16 +246,18 @@ impl Server {
                     }
                     MasterOutput::Event(ev) => match ev {
                         MasterEvent::NodeJoined {
+                            conn,
                             node,
                             role,
                             current_frame,
-                            ..
                         } => {
                             info!(%node, %role, ?current_frame, "node joined");
+                            live.joined(&node, role, conn);
                             run.joins.push((node, now()));
                         }
-                        MasterEvent::NodeClosed { node, reason, .. } => {
+                        MasterEvent::NodeClosed { conn, node, reason } => {
                             info!(node = node.as_deref().unwrap_or("?"), %reason, "node closed");
+                            live.closed(node.as_deref(), conn, &reason);
                             if matches!(
                                 reason,
                                 showcase_proto::session::CloseReason::MissedDeadline { .. }
@@ -270,12 +286,18 @@ impl Server {
                                 w.flush().map_err(ServerError::Metrics)?;
                             }
                             run.presented += 1;
+                            live.presented(&swap, &p, state);
                             if settings.keep_frames {
                                 run.frames.push(m);
                             }
                         }
                     },
                 }
+            }
+            if let Some(p) = publisher.as_mut()
+                && p.due()
+            {
+                p.publish(live.snapshot(&run, core.scene(), core.scene_version(), now()));
             }
             if let Some(limit) = settings.frames {
                 let all_swapped = core.swapped_upto().is_some_and(|f| f + 1 >= limit);
@@ -340,6 +362,7 @@ impl Server {
                             .count();
                         if joined >= settings.wait_for_nodes || start.elapsed() >= settings.start_timeout {
                             started = true;
+                            live.started();
                             run.started_ns = now();
                             info!(nodes = joined, "frame clock started");
                         } else {
@@ -384,6 +407,10 @@ impl Server {
             }
         }
         run.finished_ns = now();
+        run.stats = live.summary();
+        if let Some(p) = publisher.as_mut() {
+            p.publish(live.snapshot(&run, core.scene(), core.scene_version(), now()));
+        }
         run.frame_bytes = traffic.bytes.load(Ordering::Relaxed);
         run.frame_messages = traffic.messages.load(Ordering::Relaxed);
         core.shutdown(now(), "the master is shutting down");

@@ -175,6 +175,16 @@ pub fn resolve(base: &Path, scene: &Path) -> PathBuf {
     }
 }
 
+/// `scene` as a config in another folder must name it: a built-in name as
+/// it is, a file by its absolute path.
+pub fn absolute(scene: &Path) -> std::io::Result<PathBuf> {
+    if is_builtin(scene) {
+        Ok(scene.to_path_buf())
+    } else {
+        std::fs::canonicalize(scene)
+    }
+}
+
 /// Load and validate the scene file at `path`. Relative paths inside it are
 /// resolved against its folder; errors name it as `path` is written.
 pub fn load_scene(path: &Path) -> Result<Showcase, SceneError> {

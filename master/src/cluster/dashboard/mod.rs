@@ -1,0 +1,308 @@
+//! The live dashboard `run --dashboard ADDR` serves: one page (`/`,
+//! self-contained, polling `/api/state`), the JSON snapshot (`/api/state`)
+//! and a Prometheus text endpoint (`/metrics`). It reads the snapshot the
+//! frame loop publishes a few times a second ([`LivePublisher`]) and never
+//! touches the loop itself. It binds loopback unless told otherwise: a
+//! non-loopback address needs `--dashboard-public` and an access token,
+//! and every request then carries it (`Authorization: Bearer TOKEN` or
+//! `?token=TOKEN`).
+//!
+//! [`LivePublisher`]: super::live::LivePublisher
+
+pub mod bench;
+pub mod prometheus;
+
+use super::live::LiveSnapshot;
+use axum::Router;
+use axum::extract::State;
+use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+use tokio::task::JoinHandle;
+use tokio_util::sync::CancellationToken;
+
+/// The page: HTML, CSS and JavaScript in one file, no outside resources.
+const PAGE: &str = include_str!("page.html");
+
+/// The environment variable that may hold the access token.
+pub const TOKEN_ENV: &str = "SHOWCASE_DASHBOARD_TOKEN";
+
+/// The shortest access token accepted.
+pub const MIN_TOKEN_LEN: usize = 16;
+
+/// Where and how to serve the dashboard.
+#[derive(Clone, Debug)]
+pub struct DashboardOptions {
+    /// Address to bind.
+    pub addr: SocketAddr,
+    /// Allow a non-loopback address.
+    pub public: bool,
+    /// Access token every request must carry (required with `public`).
+    pub token: Option<String>,
+}
+
+/// Why the dashboard cannot be served.
+#[derive(Debug, thiserror::Error)]
+pub enum DashboardError {
+    /// A non-loopback address without `--dashboard-public`.
+    #[error(
+        "--dashboard {0}: not a loopback address; the dashboard binds loopback (127.0.0.1, ::1) \
+         unless --dashboard-public is given, with an access token in --dashboard-token or \
+         ${TOKEN_ENV}"
+    )]
+    NotLoopback(SocketAddr),
+    /// `--dashboard-public` without a token.
+    #[error(
+        "--dashboard-public needs an access token: set ${TOKEN_ENV} (or --dashboard-token) to \
+         a secret of at least {MIN_TOKEN_LEN} characters"
+    )]
+    NoToken,
+    /// A token too short or with characters that do not survive a URL.
+    #[error(
+        "the dashboard access token must be at least {MIN_TOKEN_LEN} characters of A-Z, a-z, \
+         0-9, '-', '_', '.' or '~' (got {len} characters)"
+    )]
+    BadToken {
+        /// Its length.
+        len: usize,
+    },
+    /// The address could not be bound.
+    #[error("cannot serve the dashboard on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// The IO error.
+        source: std::io::Error,
+    },
+}
+
+impl DashboardOptions {
+    /// Check the address against the flag and the token.
+    pub fn check(&self) -> Result<(), DashboardError> {
+        if let Some(t) = &self.token {
+            let url_safe = t
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b"-_.~".contains(&b));
+            if t.len() < MIN_TOKEN_LEN || !url_safe {
+                return Err(DashboardError::BadToken { len: t.len() });
+            }
+        }
+        if !self.addr.ip().is_loopback() {
+            if !self.public {
+                return Err(DashboardError::NotLoopback(self.addr));
+            }
+            if self.token.is_none() {
+                return Err(DashboardError::NoToken);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A bound dashboard, ready to serve.
+pub struct Dashboard {
+    listener: tokio::net::TcpListener,
+    token: Option<Arc<str>>,
+}
+
+#[derive(Clone)]
+struct App {
+    snapshot: watch::Receiver<Arc<LiveSnapshot>>,
+    token: Option<Arc<str>>,
+}
+
+impl Dashboard {
+    /// Check the options and bind the address. Must be called inside a
+    /// tokio runtime.
+    pub fn bind(opts: &DashboardOptions) -> Result<Self, DashboardError> {
+        opts.check()?;
+        let bind = |source| DashboardError::Bind {
+            addr: opts.addr,
+            source,
+        };
+        let std = std::net::TcpListener::bind(opts.addr).map_err(bind)?;
+        std.set_nonblocking(true).map_err(bind)?;
+        Ok(Self {
+            listener: tokio::net::TcpListener::from_std(std).map_err(bind)?,
+            token: opts.token.as_deref().map(Arc::from),
+        })
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener
+            .local_addr()
+            .expect("a bound listener has an address")
+    }
+
+    /// Serve `snapshot` until `stop` is cancelled; the task is the caller's
+    /// to await (see [`stop`]).
+    pub fn serve(
+        self,
+        snapshot: watch::Receiver<Arc<LiveSnapshot>>,
+        stop: CancellationToken,
+    ) -> JoinHandle<std::io::Result<()>> {
+        let app = App {
+            snapshot,
+            token: self.token,
+        };
+        let router = Router::new()
+            .route("/", get(page))
+            .route("/api/state", get(state))
+            .route("/metrics", get(metrics))
+            .fallback(not_found)
+            .with_state(app);
+        tokio::spawn(
+            axum::serve(self.listener, router)
+                .with_graceful_shutdown(stop.cancelled_owned())
+                .into_future(),
+        )
+    }
+}
+
+/// Wait (at most 2 s) for a dashboard whose stop token was cancelled, then
+/// abort it: a browser holding a connection open does not hold the master.
+pub async fn stop(task: JoinHandle<std::io::Result<()>>) {
+    let abort = task.abort_handle();
+    match tokio::time::timeout(Duration::from_secs(2), task).await {
+        Ok(Ok(Err(e))) => tracing::warn!(error = %e, "dashboard"),
+        Ok(_) => {}
+        Err(_) => abort.abort(),
+    }
+}
+
+/// Whether a request carries the token (when there is one): in
+/// `Authorization: Bearer`, or as the `token` query parameter.
+fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> bool {
+    let Some(want) = app.token.as_deref() else {
+        return true;
+    };
+    let bearer = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "));
+    let query = uri
+        .query()
+        .and_then(|q| q.split('&').find_map(|kv| kv.strip_prefix("token=")));
+    bearer.into_iter().chain(query).any(|t| same(t, want))
+}
+
+/// 401, saying how to send the token.
+fn unauthorized() -> Response {
+    let mut r = (
+        StatusCode::UNAUTHORIZED,
+        "this dashboard needs its access token: send `Authorization: Bearer TOKEN` or add \
+         ?token=TOKEN to the URL\n",
+    )
+        .into_response();
+    r.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"showcase\""),
+    );
+    r
+}
+
+/// Compare without stopping at the first difference, so the time taken
+/// does not tell how much of a guess was right.
+fn same(a: &str, b: &str) -> bool {
+    a.len() == b.len()
+        && a.bytes()
+            .zip(b.bytes())
+            .fold(0u8, |acc, (x, y)| acc | (x ^ y))
+            == 0
+}
+
+fn with_type(body: String, content_type: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, content_type),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn page(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
+    }
+    with_type(PAGE.to_owned(), "text/html; charset=utf-8")
+}
+
+async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
+    }
+    let snap = app.snapshot.borrow().clone();
+    match serde_json::to_string(&*snap) {
+        Ok(json) => with_type(json, "application/json"),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+    }
+}
+
+async fn metrics(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
+    if !authorized(&app, &headers, &uri) {
+        return unauthorized();
+    }
+    let snap = app.snapshot.borrow().clone();
+    with_type(prometheus::render(&snap), prometheus::CONTENT_TYPE)
+}
+
+async fn not_found(uri: Uri) -> Response {
+    (
+        StatusCode::NOT_FOUND,
+        format!(
+            "not found: {}; the dashboard serves /, /api/state and /metrics\n",
+            uri.path()
+        ),
+    )
+        .into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts(addr: &str, public: bool, token: Option<&str>) -> DashboardOptions {
+        DashboardOptions {
+            addr: addr.parse().unwrap(),
+            public,
+            token: token.map(str::to_owned),
+        }
+    }
+
+    #[test]
+    fn only_loopback_without_the_flag_and_a_token() {
+        let good = "0123456789abcdef";
+        assert!(opts("127.0.0.1:0", false, None).check().is_ok());
+        assert!(opts("[::1]:0", false, None).check().is_ok());
+        assert!(matches!(
+            opts("0.0.0.0:8080", false, Some(good)).check(),
+            Err(DashboardError::NotLoopback(_))
+        ));
+        assert!(matches!(
+            opts("0.0.0.0:8080", true, None).check(),
+            Err(DashboardError::NoToken)
+        ));
+        assert!(opts("0.0.0.0:8080", true, Some(good)).check().is_ok());
+        for bad in ["short", "0123456789abcdef gh", "0123456789abcdef&x"] {
+            assert!(matches!(
+                opts("127.0.0.1:0", false, Some(bad)).check(),
+                Err(DashboardError::BadToken { .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn tokens_compare_whole() {
+        assert!(same("abc", "abc"));
+        assert!(!same("abc", "abd"));
+        assert!(!same("abc", "abcd"));
+        assert!(!same("", "a"));
+    }
+}
