@@ -191,6 +191,43 @@ fn authorized(app: &App, headers: &HeaderMap, uri: &Uri) -> bool {
     bearer.into_iter().chain(query).any(|t| same(t, want))
 }
 
+/// Whether a request may be served: with a token, it must carry it; without
+/// one (a loopback dashboard), its `Host` must name loopback, so that a web
+/// page the operator visits cannot read the dashboard by pointing a name of
+/// its own at 127.0.0.1 (DNS rebinding). `None`: serve it.
+fn refuse(app: &App, headers: &HeaderMap, uri: &Uri) -> Option<Response> {
+    if app.token.is_some() {
+        return (!authorized(app, headers, uri)).then(unauthorized);
+    }
+    let host = headers.get(header::HOST).and_then(|v| v.to_str().ok());
+    match host {
+        Some(h) if !loopback_host(h) => Some(
+            (
+                StatusCode::MISDIRECTED_REQUEST,
+                format!(
+                    "this dashboard answers only to a loopback host (localhost, 127.0.0.1, [::1]),                      not {:?}; to reach it by another name, run it with --dashboard-public and a token\n",
+                    h.chars().take(64).collect::<String>()
+                ),
+            )
+                .into_response(),
+        ),
+        _ => None,
+    }
+}
+
+/// Whether an HTTP `Host` value (`name[:port]`, `[v6][:port]`) names this
+/// machine's loopback.
+fn loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        Some(rest) => rest.split(']').next().unwrap_or(""),
+        None => host.rsplit_once(':').map_or(host, |(n, _)| n),
+    };
+    name.eq_ignore_ascii_case("localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
 /// 401, saying how to send the token.
 fn unauthorized() -> Response {
     let mut r = (
@@ -228,15 +265,15 @@ fn with_type(body: String, content_type: &'static str) -> Response {
 }
 
 async fn page(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if !authorized(&app, &headers, &uri) {
-        return unauthorized();
+    if let Some(r) = refuse(&app, &headers, &uri) {
+        return r;
     }
     with_type(PAGE.to_owned(), "text/html; charset=utf-8")
 }
 
 async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if !authorized(&app, &headers, &uri) {
-        return unauthorized();
+    if let Some(r) = refuse(&app, &headers, &uri) {
+        return r;
     }
     let snap = app.snapshot.borrow().clone();
     match serde_json::to_string(&*snap) {
@@ -246,8 +283,8 @@ async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response
 }
 
 async fn metrics(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response {
-    if !authorized(&app, &headers, &uri) {
-        return unauthorized();
+    if let Some(r) = refuse(&app, &headers, &uri) {
+        return r;
     }
     let snap = app.snapshot.borrow().clone();
     with_type(prometheus::render(&snap), prometheus::CONTENT_TYPE)
@@ -296,6 +333,43 @@ mod tests {
                 Err(DashboardError::BadToken { .. })
             ));
         }
+    }
+
+    #[test]
+    fn without_a_token_only_loopback_hosts_are_served() {
+        for ok in [
+            "localhost",
+            "localhost:8080",
+            "LOCALHOST:1",
+            "127.0.0.1:9",
+            "127.1.2.3",
+            "[::1]:8080",
+            "[::1]",
+        ] {
+            assert!(loopback_host(ok), "{ok}");
+        }
+        for bad in [
+            "evil.example:8080",
+            "localhost.evil.example",
+            "10.0.0.1:80",
+            "[::2]:80",
+            "",
+        ] {
+            assert!(!loopback_host(bad), "{bad}");
+        }
+        let (tx, rx) = watch::channel(Arc::new(LiveSnapshot::default()));
+        let app = App {
+            snapshot: rx,
+            token: None,
+        };
+        let uri: Uri = "/api/state".parse().unwrap();
+        let mut headers = HeaderMap::new();
+        headers.insert(header::HOST, HeaderValue::from_static("evil.example:8080"));
+        let r = refuse(&app, &headers, &uri).expect("a foreign Host is refused");
+        assert_eq!(r.status(), StatusCode::MISDIRECTED_REQUEST);
+        headers.insert(header::HOST, HeaderValue::from_static("127.0.0.1:8080"));
+        assert!(refuse(&app, &headers, &uri).is_none());
+        drop(tx);
     }
 
     #[test]
