@@ -30,7 +30,9 @@ fn cluster(
     let dir = std::env::temp_dir().join(format!("showcase-check-{test}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let scene_src = showcase_master::demo::default_scene();
+    // The demo cabinet's file in the source tree (the binary's built-in
+    // copy has no folder to copy next to).
+    let scene_src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
     let data = std::fs::canonicalize(scene_src.parent().unwrap().join("../../../shared/data"))
         .expect("the shared data folder (../shared/data)");
     let scene = std::fs::read_to_string(&scene_src)

@@ -371,6 +371,7 @@ fn child_node() {
             bind: "127.0.0.1:0".parse().unwrap(),
             capabilities: Default::default(),
             write_frames: None,
+            keep_presented: false,
         };
         let stop = CancellationToken::new();
         let s = stop.clone();
