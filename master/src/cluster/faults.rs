@@ -319,27 +319,64 @@ pub fn loopback_config_at(
     cfg
 }
 
+/// What a bench of real processes starts from: this binary (the master),
+/// the node binary, the scene as a config elsewhere names it, and a work
+/// folder holding the nodes' certificates.
+pub(crate) struct ProcessBench {
+    /// This binary.
+    pub exe: PathBuf,
+    /// `showcase-node`: `--node-bin`, else the one beside this binary.
+    pub node_bin: PathBuf,
+    /// The scene, absolute (or a built-in name).
+    pub scene: PathBuf,
+    /// `$TMP/showcase-{tag}-{pid}`, with `certs/` for `nodes`.
+    pub dir: PathBuf,
+}
+
+impl ProcessBench {
+    /// Find the binaries, name the scene and make the work folder and
+    /// certificates.
+    pub(crate) fn prepare(
+        node_bin: Option<&Path>,
+        scene: &Path,
+        tag: &str,
+        nodes: &[(&str, Role)],
+    ) -> Result<Self> {
+        let exe = std::env::current_exe().context("cannot find this binary")?;
+        let node_bin =
+            node_bin.map_or_else(|| exe.with_file_name("showcase-node"), Path::to_path_buf);
+        if !node_bin.is_file() {
+            bail!(
+                "{}: no showcase-node binary; build it beside showcase-master \
+                 (cargo build --release -p showcase-render) or pass --node-bin",
+                node_bin.display()
+            );
+        }
+        // The config lies in another folder: a file must be absolute there.
+        let scene = crate::scene_file::absolute(scene)
+            .with_context(|| format!("scene {}", scene.display()))?;
+        let dir = std::env::temp_dir().join(format!("showcase-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        let names: Vec<String> = nodes.iter().map(|(n, _)| (*n).to_owned()).collect();
+        crate::certs::write(&dir.join("certs"), &crate::certs::generate(&names)?)?;
+        Ok(Self {
+            exe,
+            node_bin,
+            scene,
+            dir,
+        })
+    }
+}
+
 /// Run the bench.
 pub fn bench_faults(opts: &FaultOptions) -> Result<FaultRecord> {
-    let exe = std::env::current_exe().context("cannot find this binary")?;
-    let node_bin = opts
-        .node_bin
-        .clone()
-        .unwrap_or_else(|| exe.with_file_name("showcase-node"));
-    if !node_bin.is_file() {
-        bail!(
-            "{}: no showcase-node binary; build it beside showcase-master \
-             (cargo build --release -p showcase-render) or pass --node-bin",
-            node_bin.display()
-        );
-    }
-    // The config lies in another folder: a file must be absolute there.
-    let scene = crate::scene_file::absolute(&opts.scene)
-        .with_context(|| format!("scene {}", opts.scene.display()))?;
-    let dir = std::env::temp_dir().join(format!("showcase-faults-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let names: Vec<String> = NODES.iter().map(|(n, _)| (*n).to_owned()).collect();
-    crate::certs::write(&dir.join("certs"), &crate::certs::generate(&names)?)?;
+    let ProcessBench {
+        exe,
+        node_bin,
+        scene,
+        dir,
+    } = ProcessBench::prepare(opts.node_bin.as_deref(), &opts.scene, "faults", &NODES)?;
     let (quic, dtrack) = (free_port()?, free_port()?);
     let cfg = loopback_config(
         quic,

@@ -10,7 +10,7 @@
 //! the node evicted. Every wait is bounded; the processes are killed on
 //! return.
 
-use super::super::faults::{Procs, free_port, loopback_config_at, signal, wait_for};
+use super::super::faults::{ProcessBench, Procs, free_port, loopback_config_at, signal, wait_for};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use showcase_light::metrics::percentile;
@@ -292,24 +292,12 @@ fn median(v: &[f64]) -> f64 {
 /// Run the bench.
 pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRecord> {
     anyhow::ensure!(opts.runs >= 1, "the bench needs at least one run per side");
-    let exe = std::env::current_exe().context("cannot find this binary")?;
-    let node_bin = opts
-        .node_bin
-        .clone()
-        .unwrap_or_else(|| exe.with_file_name("showcase-node"));
-    if !node_bin.is_file() {
-        bail!(
-            "{}: no showcase-node binary; build it beside showcase-master \
-             (cargo build --release -p showcase-render) or pass --node-bin",
-            node_bin.display()
-        );
-    }
-    let scene = crate::scene_file::absolute(&opts.scene)
-        .with_context(|| format!("scene {}", opts.scene.display()))?;
-    let dir = std::env::temp_dir().join(format!("showcase-dashboard-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let names: Vec<String> = NODES.iter().map(|(n, _)| (*n).to_owned()).collect();
-    crate::certs::write(&dir.join("certs"), &crate::certs::generate(&names)?)?;
+    let ProcessBench {
+        exe,
+        node_bin,
+        scene,
+        dir,
+    } = ProcessBench::prepare(opts.node_bin.as_deref(), &opts.scene, "dashboard", &NODES)?;
     let (mut off, mut on, mut evictions) = (Vec::new(), Vec::new(), Vec::new());
     let mut paired = Vec::new();
     for pair in 0..opts.runs {
