@@ -122,6 +122,13 @@ fn short_demo_from_a_copied_binary_writes_an_honest_report() {
                 reason.contains("elements") && reason.contains("#23"),
                 "{reason}"
             );
+            // Said once, as the reason, not again as what it did.
+            assert_eq!(p["detail"], "", "{p}");
+            assert_eq!(
+                html.matches("#23").count(),
+                1,
+                "the reason twice in index.html"
+            );
         } else {
             assert_eq!(p["status"], "ran", "{p}");
             assert!(p.get("reason").is_none(), "{p}");
