@@ -276,20 +276,25 @@ impl Server {
                             else {
                                 continue;
                             };
-                            let m = frame_metrics(&state, &swap, &p, origin_unix_ms);
-                            if let Some(w) = settings.metrics.as_mut() {
-                                serde_json::to_writer(&mut *w, &m)
-                                    .map_err(|e| ServerError::Metrics(e.into()))?;
-                                // Whole lines, at once: the file is read live
-                                // (`tail -f`, the fault bench).
-                                w.write_all(b"\n").map_err(ServerError::Metrics)?;
-                                w.flush().map_err(ServerError::Metrics)?;
+                            // A frame's record is built only for a file or
+                            // a run that keeps it: a live show without
+                            // `--metrics` spends nothing on it.
+                            if settings.metrics.is_some() || settings.keep_frames {
+                                let m = frame_metrics(&state, &swap, &p, origin_unix_ms);
+                                if let Some(w) = settings.metrics.as_mut() {
+                                    serde_json::to_writer(&mut *w, &m)
+                                        .map_err(|e| ServerError::Metrics(e.into()))?;
+                                    // Whole lines, at once: the file is read
+                                    // live (`tail -f`, the fault bench).
+                                    w.write_all(b"\n").map_err(ServerError::Metrics)?;
+                                    w.flush().map_err(ServerError::Metrics)?;
+                                }
+                                if settings.keep_frames {
+                                    run.frames.push(m);
+                                }
                             }
                             run.presented += 1;
                             live.presented(&swap, &p, state);
-                            if settings.keep_frames {
-                                run.frames.push(m);
-                            }
                         }
                     },
                 }

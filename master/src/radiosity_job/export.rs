@@ -58,6 +58,20 @@ pub enum PlyError {
     },
 }
 
+/// The whitespace-separated numbers of body line `i` (0-based).
+fn numbers<T: std::str::FromStr>(i: usize, line: &str) -> Result<Vec<T>, PlyError>
+where
+    T::Err: std::fmt::Display,
+{
+    line.split_whitespace()
+        .map(str::parse::<T>)
+        .collect::<Result<_, _>>()
+        .map_err(|e| PlyError::Body {
+            line: i + 1,
+            what: e.to_string(),
+        })
+}
+
 /// Read a PLY written by [`ply_ascii`] back into a mesh; a face index
 /// outside the vertices is an error.
 pub fn parse_ply_ascii(text: &str) -> Result<VertexMesh, PlyError> {
@@ -90,14 +104,7 @@ pub fn parse_ply_ascii(text: &str) -> Result<VertexMesh, PlyError> {
     };
     for _ in 0..vertices {
         let (i, line) = next("vertex")?;
-        let v: Vec<f64> = line
-            .split_whitespace()
-            .map(str::parse::<f64>)
-            .collect::<Result<_, _>>()
-            .map_err(|e| PlyError::Body {
-                line: i + 1,
-                what: e.to_string(),
-            })?;
+        let v: Vec<f64> = numbers(i, line)?;
         if v.len() != 9 || v.iter().any(|x| !x.is_finite()) {
             return Err(PlyError::Body {
                 line: i + 1,
@@ -110,14 +117,7 @@ pub fn parse_ply_ascii(text: &str) -> Result<VertexMesh, PlyError> {
     }
     for _ in 0..faces {
         let (i, line) = next("face")?;
-        let f: Vec<u32> = line
-            .split_whitespace()
-            .map(str::parse::<u32>)
-            .collect::<Result<_, _>>()
-            .map_err(|e| PlyError::Body {
-                line: i + 1,
-                what: e.to_string(),
-            })?;
+        let f: Vec<u32> = numbers(i, line)?;
         match f[..] {
             [3, a, b, c] if [a, b, c].iter().all(|&k| (k as usize) < vertices) => {
                 mesh.triangles.push([a, b, c]);
