@@ -39,6 +39,7 @@ pub mod augmented;
 mod augmented_tests;
 pub mod gather;
 pub mod hemicube;
+pub mod hierarchy;
 pub mod mesh;
 pub mod shooting;
 pub mod sources;
@@ -51,6 +52,10 @@ pub use gather::{
     GatherOptions, VertexGather, gather_adaptive, gather_vertices, refine_by_vertices,
 };
 pub use hemicube::{HemiCube, HemiCubeError};
+pub use hierarchy::{
+    Hierarchy, HierarchyError, HierarchyOptions, HierarchyPoint, HierarchyProgress,
+    HierarchySolution, solve_hierarchical,
+};
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{
     ConvergencePoint, FormFactorMethod, MoveError, MoveStats, Shooter, ShotProgress, SolveError,

@@ -63,7 +63,7 @@ fn emitter(radiance: f32) -> Material {
 
 /// A closed unit cube with inward faces; the top face emits `radiance`,
 /// every face has albedo `rho`.
-fn closed_box(rho: f32, radiance: f32) -> Showcase {
+pub(super) fn closed_box(rho: f32, radiance: f32) -> Showcase {
     let mut s = Showcase::default();
     let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
     let mut top = emitter(radiance);
@@ -79,7 +79,7 @@ fn closed_box(rho: f32, radiance: f32) -> Showcase {
     s
 }
 
-fn mesh_of(s: &Showcase, area: f64, depth: u32) -> (RadiosityMesh, SceneGeometry) {
+pub(super) fn mesh_of(s: &Showcase, area: f64, depth: u32) -> (RadiosityMesh, SceneGeometry) {
     let g = SceneGeometry::build(s, &ObjectFilter::All).unwrap();
     let m = RadiosityMesh::build(
         s,
@@ -94,7 +94,7 @@ fn mesh_of(s: &Showcase, area: f64, depth: u32) -> (RadiosityMesh, SceneGeometry
     (m, g)
 }
 
-fn options(method: FormFactorMethod, hemicube: u32, threshold: f64) -> SolveOptions {
+pub(super) fn options(method: FormFactorMethod, hemicube: u32, threshold: f64) -> SolveOptions {
     SolveOptions {
         hemicube,
         threshold,
@@ -415,7 +415,7 @@ fn cached_form_factor_rows_give_the_same_solve_as_recomputed_ones() {
 
 /// A closed unit cube whose six inward faces all emit radiance 1 with
 /// albedo `rho`: B = pi / (1 - rho) everywhere (the furnace).
-fn furnace(rho: f32) -> Showcase {
+pub(super) fn furnace(rho: f32) -> Showcase {
     let mut s = closed_box(rho, 1.0);
     let mut m = emitter(1.0);
     m.albedo = Vec3::splat(rho);
@@ -457,7 +457,7 @@ fn gathered_vertices_match_the_furnace_closed_form_at_corners_too() {
 /// A 1 m floor at y = 0 facing up under a 0.2 m square emitter at
 /// `height`, facing down, and optionally a closed box (no bottom) on the
 /// floor.
-fn lamp_over_floor(height: f32, with_box: bool) -> Showcase {
+pub(super) fn lamp_over_floor(height: f32, with_box: bool) -> Showcase {
     let mut s = Showcase::default();
     let k = ObjectKind::Real;
     let white = Material::diffuse(Vec3::splat(0.5));

@@ -1,0 +1,413 @@
+//! Links: the refinement that decides at which level two nodes exchange
+//! light, the link's coefficient and visibility, and the exitance moments
+//! a source radiates with (see the module docs of [`super`]).
+
+use super::{Hierarchy, HierarchyError, LINK_BYTES, element_point};
+use crate::finite::finite_or_zero;
+use crate::form_factor_point_polygon;
+use crate::radiosity::mesh::sub_centroids;
+use crate::sampling::{hash64, triangle_sample, unit};
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Pairs of nodes closer than this many times the sum of their radii are
+/// not "separated": the point-to-disk estimate does not hold for them.
+const SEPARATION: f64 = 1.0;
+/// Relative error of a volume cluster's intensity or received harmonics.
+const CLUSTER_ERROR: f64 = 0.25;
+/// Leaves closer than this many times the sum of their radii get the
+/// precise form factor.
+const PRECISE: f64 = 4.0;
+
+/// One link: `receiver` gathers from `source`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Link {
+    pub(super) source: u32,
+    pub(super) receiver: u32,
+    /// Precise (`dir` zero): the visible form factor, times the source's
+    /// B. Otherwise the visible `cos_r / (r^2 + A_s / pi)` (without the
+    /// cosine for a volume receiver), times the source's intensity.
+    pub(super) coef: f64,
+    /// Unit direction from the source's centre to the receiver's; zero for
+    /// a precise link.
+    pub(super) dir: DVec3,
+    /// For a flat receiver: the gradient of the irradiance over the
+    /// receiver's plane relative to its value at the centroid (1/m), so
+    /// that its members take `E (1 + slope . (x - c))`.
+    pub(super) slope: DVec3,
+}
+
+/// Exitance moments of a node, per RGB channel (see the module docs).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Moments {
+    q: DVec3,
+    p: [DVec3; 3],
+    /// `M` as `[xx, yy, zz, xy, xz, yz]` per channel.
+    m: [[f64; 6]; 3],
+}
+
+impl Moments {
+    pub(super) fn leaf(b: DVec3, area: f64, n: DVec3) -> Self {
+        let q = b * area;
+        let nn = [
+            n.x * n.x,
+            n.y * n.y,
+            n.z * n.z,
+            n.x * n.y,
+            n.x * n.z,
+            n.y * n.z,
+        ];
+        Self {
+            q,
+            p: [n * q.x, n * q.y, n * q.z],
+            m: [0, 1, 2].map(|c| nn.map(|v| v * q[c])),
+        }
+    }
+
+    pub(super) fn add(&mut self, o: &Self) {
+        self.q += o.q;
+        for c in 0..3 {
+            self.p[c] += o.p[c];
+            for k in 0..6 {
+                self.m[c][k] += o.m[c][k];
+            }
+        }
+    }
+
+    /// Radiant intensity (W/sr per channel) towards unit direction `w`.
+    pub(super) fn intensity(&self, w: DVec3) -> DVec3 {
+        let ww = [
+            w.x * w.x,
+            w.y * w.y,
+            w.z * w.z,
+            2.0 * w.x * w.y,
+            2.0 * w.x * w.z,
+            2.0 * w.y * w.z,
+        ];
+        let mut out = DVec3::ZERO;
+        for c in 0..3 {
+            let wmw: f64 = self.m[c].iter().zip(&ww).map(|(a, b)| a * b).sum();
+            let v = 0.5 * (self.p[c].dot(w) + (self.q[c] * wmw).max(0.0).sqrt()) / PI;
+            out[c] = v.max(0.0);
+        }
+        out
+    }
+}
+
+impl Hierarchy<'_> {
+    /// Power node `r` may receive from node `s` when `s` has moments `m`
+    /// (max channel, W), for the refinement test.
+    pub(super) fn transfer_estimate(&self, r: u32, s: u32, m: &Moments) -> f64 {
+        let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        let d = rn.center - sn.center;
+        let dist2 = d.length_squared();
+        let w = d / dist2.sqrt();
+        let spread = ((rn.radius + sn.radius) / dist2.sqrt()).min(1.0);
+        let cos_r = if rn.flat {
+            (rn.normal.dot(-w) + spread).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        // The source's intensity within the spread of directions: its
+        // peak over w and the node's normal cone is bounded by Q / pi.
+        let i = m.intensity(w).max_element() + spread * m.q.max_element() / PI;
+        rn.rho_max * rn.area * cos_r * i / (dist2 + sn.area / PI)
+    }
+
+    /// Whether the pair must be split further: not separated, or its
+    /// estimated error above epsilon of the reference power. The error is
+    /// the power the link may carry times its relative error: second order
+    /// in each node's size over the distance, `(r_r / d)^2 + (r_s / d)^2`
+    /// (the source by the centroid rule, the receiver by the linear
+    /// irradiance it pushes down), plus [`CLUSTER_ERROR`] for each volume
+    /// cluster.
+    pub(super) fn must_refine(&self, r: u32, s: u32, moments: &[Moments]) -> bool {
+        let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        if rn.is_leaf() && sn.is_leaf() {
+            return false;
+        }
+        let dist = (rn.center - sn.center).length();
+        if dist <= SEPARATION * (rn.radius + sn.radius) {
+            return true;
+        }
+        let mut relative = (rn.radius / dist).powi(2) + (sn.radius / dist).powi(2);
+        for node in [rn, sn] {
+            if !node.flat {
+                relative += CLUSTER_ERROR;
+            }
+        }
+        self.transfer_estimate(r, s, &moments[s as usize]) * relative
+            > self.options.epsilon * self.reference_power
+    }
+
+    /// True when the two nodes cannot exchange light: one lies wholly
+    /// behind the other's plane (flat nodes only).
+    pub(super) fn culled(&self, r: u32, s: u32) -> bool {
+        let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        (rn.flat && rn.normal.dot(sn.center - rn.center) <= -sn.radius)
+            || (sn.flat && sn.normal.dot(rn.center - sn.center) <= -rn.radius)
+    }
+
+    /// The links of pair `(r, s)` and below, depth first, into `out`.
+    pub(super) fn refine_pair(&self, r: u32, s: u32, moments: &[Moments], out: &mut Vec<Link>) {
+        let mut stack = vec![(r, s)];
+        while let Some((r, s)) = stack.pop() {
+            if r == s {
+                let node = &self.tree.nodes[r as usize];
+                if !node.is_leaf() && !node.flat {
+                    let [a, b] = node.children;
+                    stack.extend([(a, a), (a, b), (b, a), (b, b)]);
+                }
+                continue;
+            }
+            if self.culled(r, s) {
+                continue;
+            }
+            if !self.must_refine(r, s, moments) {
+                if let Some(l) = self.make_link(r, s) {
+                    out.push(l);
+                }
+                continue;
+            }
+            let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+            let split_r = !rn.is_leaf()
+                && (sn.is_leaf()
+                    || rn.radius * rn.radius * rn.area.sqrt()
+                        >= sn.radius * sn.radius * sn.area.sqrt());
+            if split_r {
+                for c in rn.children {
+                    stack.push((c, s));
+                }
+            } else {
+                for c in sn.children {
+                    stack.push((r, c));
+                }
+            }
+        }
+    }
+
+    /// Make the links from scratch for exitance `b` (per element): each
+    /// pair of nodes at the coarsest level where its estimated error is
+    /// below epsilon of the power of `b`. [`Self::solve`] does this when
+    /// there are no links yet and refines the links it has otherwise.
+    pub fn link(&mut self, b: &[DVec3]) -> Result<(), HierarchyError> {
+        self.reference_power = self
+            .tree
+            .order
+            .iter()
+            .map(|&e| b[e as usize].max_element() * self.mesh.elements[e as usize].area)
+            .sum();
+        let moments = self.pull(b);
+        // Split the root pair breadth-first into enough independent pairs
+        // to share among the threads.
+        let mut frontier = vec![(0u32, 0u32)];
+        let mut links = Vec::new();
+        while frontier.len() < 256 {
+            let mut next = Vec::new();
+            let mut split_any = false;
+            for (r, s) in frontier {
+                if r == s {
+                    let node = &self.tree.nodes[r as usize];
+                    if !node.is_leaf() && !node.flat {
+                        let [a, c] = node.children;
+                        next.extend([(a, a), (a, c), (c, a), (c, c)]);
+                        split_any = true;
+                    }
+                } else {
+                    next.push((r, s));
+                }
+            }
+            frontier = next;
+            if !split_any {
+                break;
+            }
+        }
+        let parts: Vec<Vec<Link>> = frontier
+            .par_iter()
+            .map(|&(r, s)| {
+                let mut out = Vec::new();
+                self.refine_pair(r, s, &moments, &mut out);
+                out
+            })
+            .collect();
+        for p in parts {
+            links.extend(p);
+        }
+        self.set_links(links)
+    }
+
+    /// Check every link against exitance `b` and refine those that now
+    /// carry too much; returns how many were refined.
+    pub(super) fn refine_again(&mut self, b: &[DVec3]) -> Result<usize, HierarchyError> {
+        let moments = self.pull(b);
+        let old = std::mem::take(&mut self.links);
+        let parts: Vec<(Vec<Link>, usize)> = old
+            .par_chunks(4096)
+            .map(|chunk| {
+                let mut out = Vec::with_capacity(chunk.len());
+                let mut refined = 0;
+                for l in chunk {
+                    if self.must_refine(l.receiver, l.source, &moments) {
+                        refined += 1;
+                        let (rn, sn) = (
+                            &self.tree.nodes[l.receiver as usize],
+                            &self.tree.nodes[l.source as usize],
+                        );
+                        let split_r = !rn.is_leaf()
+                            && (sn.is_leaf()
+                                || rn.radius * rn.radius * rn.area.sqrt()
+                                    >= sn.radius * sn.radius * sn.area.sqrt());
+                        let pairs = if split_r {
+                            rn.children.map(|c| (c, l.source))
+                        } else {
+                            sn.children.map(|c| (l.receiver, c))
+                        };
+                        for (r, s) in pairs {
+                            self.refine_pair(r, s, &moments, &mut out);
+                        }
+                    } else {
+                        out.push(*l);
+                    }
+                }
+                (out, refined)
+            })
+            .collect();
+        let mut links = Vec::new();
+        let mut refined = 0;
+        for (p, n) in parts {
+            links.extend(p);
+            refined += n;
+        }
+        self.set_links(links)?;
+        Ok(refined)
+    }
+
+    pub(super) fn set_links(&mut self, mut links: Vec<Link>) -> Result<(), HierarchyError> {
+        if links.len() > self.options.max_links {
+            return Err(HierarchyError::TooManyLinks {
+                limit: self.options.max_links,
+                bytes: self.options.max_links * LINK_BYTES,
+                epsilon: self.options.epsilon,
+            });
+        }
+        links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
+        let mut offsets = vec![0u32; self.tree.nodes.len() + 1];
+        for l in &links {
+            offsets[l.receiver as usize + 1] += 1;
+        }
+        for n in 0..self.tree.nodes.len() {
+            offsets[n + 1] += offsets[n];
+        }
+        self.links = links;
+        self.offsets = offsets;
+        Ok(())
+    }
+
+    /// The link from `s` to `r`, with its visibility; `None` when no ray
+    /// gets through or nothing can arrive.
+    pub(super) fn make_link(&self, r: u32, s: u32) -> Option<Link> {
+        let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        let visible = self.visibility(r, s);
+        if !(visible > 0.0) {
+            return None;
+        }
+        let d = rn.center - sn.center;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            return None;
+        }
+        if rn.is_leaf() && sn.is_leaf() && dist2 < (PRECISE * (rn.radius + sn.radius)).powi(2) {
+            let re = &self.mesh.elements[rn.element as usize];
+            let se = &self.mesh.elements[sn.element as usize];
+            let points = sub_centroids(2);
+            let f: f64 = points
+                .iter()
+                .map(|b| {
+                    let x = element_point(&re.vertices, *b);
+                    form_factor_point_polygon(x, re.normal, &se.vertices).unwrap_or(0.0)
+                })
+                .sum::<f64>()
+                / points.len() as f64;
+            let coef = f * visible;
+            return (coef > 0.0).then_some(Link {
+                source: s,
+                receiver: r,
+                coef,
+                dir: DVec3::ZERO,
+                slope: DVec3::ZERO,
+            });
+        }
+        let w = d / dist2.sqrt();
+        let cos_r = if rn.flat {
+            rn.normal.dot(-w).max(0.0)
+        } else {
+            1.0
+        };
+        let coef = visible * cos_r / (dist2 + sn.area / PI);
+        let slope = if rn.flat && !rn.is_leaf() {
+            relative_gradient(
+                rn.center,
+                rn.normal,
+                sn.center,
+                sn.flat.then_some(sn.normal),
+            )
+        } else {
+            DVec3::ZERO
+        };
+        (coef > 0.0).then_some(Link {
+            source: s,
+            receiver: r,
+            coef,
+            dir: w,
+            slope,
+        })
+    }
+
+    /// The visible fraction of rays between random points of two nodes.
+    pub(super) fn visibility(&self, r: u32, s: u32) -> f64 {
+        let rays = self.options.visibility_rays;
+        let key = hash64(self.options.seed ^ (u64::from(r) << 32 | u64::from(s)));
+        let mut seen = 0;
+        for k in 0..u64::from(rays) {
+            let (a, na) = self.random_point(r, hash64(key ^ (2 * k + 1)));
+            let (b, _) = self.random_point(s, hash64(key ^ (2 * k + 2)));
+            if self.geometry.visible(a, na, b, true) {
+                seen += 1;
+            }
+        }
+        f64::from(seen) / f64::from(rays)
+    }
+
+    /// A point of a random member of node `n`, and its normal.
+    pub(super) fn random_point(&self, n: u32, key: u64) -> (DVec3, DVec3) {
+        let members = self.tree.members(n);
+        let e = members[(key % members.len() as u64) as usize];
+        let el = &self.mesh.elements[e as usize];
+        let s = DVec2::new(unit(key ^ 0x9e37), unit(key ^ 0x7f4a));
+        (triangle_sample(&el.vertices, s), el.normal)
+    }
+}
+
+/// The gradient over the receiver's plane of the kernel
+/// `K(x) = cos_r cos_s / d^2` (the source's cosine 1 for a volume
+/// cluster) at receiver point `x` with normal `nr`, from source point `y`,
+/// relative to `K(x)`; zero where `K(x)` is zero.
+fn relative_gradient(x: DVec3, nr: DVec3, y: DVec3, ns: Option<DVec3>) -> DVec3 {
+    let v = y - x;
+    let d2 = v.length_squared();
+    let a = nr.dot(v);
+    let (b, grad_b) = match ns {
+        Some(n) => (-n.dot(v), n),
+        None => (d2.sqrt(), -v / d2.sqrt()),
+    };
+    if !(a > 0.0 && b > 0.0 && d2 > 0.0) {
+        return DVec3::ZERO;
+    }
+    // K = a b / d^4 (with b = d for a cluster, giving cos_r / d^2).
+    // grad a = -nr, grad d^2 = -2 v.
+    let g = -nr / a + grad_b / b + 4.0 * v / d2;
+    // In the plane only: the members all lie in it.
+    let g = g - nr * nr.dot(g);
+    finite_or_zero(g)
+}
