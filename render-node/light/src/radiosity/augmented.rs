@@ -27,6 +27,7 @@
 //! (before the device's gamma) and clamped to `[0, 1]`.
 
 use super::gather::{GatherOptions, gather_vertices};
+use super::hierarchy::{Hierarchy, HierarchyError, HierarchyOptions};
 use super::mesh::RadiosityMesh;
 use super::shooting::{Shooter, SolveError, SolveOptions};
 use crate::finite::finite_or_zero;
@@ -121,13 +122,6 @@ pub fn augmented_radiosity_with(
     s0.run();
     let b0 = s0.radiosity().to_vec();
     let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
-    let real_only = |values: &[DVec3]| -> Vec<DVec3> {
-        values
-            .iter()
-            .zip(&mask)
-            .map(|(v, &m)| if m { *v } else { DVec3::ZERO })
-            .collect()
-    };
     let pass = |emission: &[DVec3], rule: B1Pass| -> Result<(Vec<DVec3>, usize), SolveError> {
         let mut s = Shooter::new(mesh, real, Some(mask.clone()), options)?;
         s.add_emission(emission, 1.0);
@@ -140,7 +134,30 @@ pub fn augmented_radiosity_with(
         }
         Ok((s.radiosity().to_vec(), s.shots()))
     };
-    let (b1, shots1) = pass(&real_only(&b0), b1_pass)?;
+    let shots0 = s0.shots();
+    passes_from_b0(mesh, b0, shots0, |emission, first| {
+        pass(emission, if first { b1_pass } else { B1Pass::Converged })
+    })
+}
+
+/// B1, B2 and B3 from `b0`: `pass(emission, true)` is the B1 pass and
+/// `pass(emission, false)` the converged B3 pass over the real surfaces,
+/// each returning B and its work (shots or gathers).
+fn passes_from_b0<E>(
+    mesh: &RadiosityMesh,
+    b0: Vec<DVec3>,
+    work0: usize,
+    mut pass: impl FnMut(&[DVec3], bool) -> Result<(Vec<DVec3>, usize), E>,
+) -> Result<AugmentedSolution, E> {
+    let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
+    let real_only = |values: &[DVec3]| -> Vec<DVec3> {
+        values
+            .iter()
+            .zip(&mask)
+            .map(|(v, &m)| if m { *v } else { DVec3::ZERO })
+            .collect()
+    };
+    let (b1, shots1) = pass(&real_only(&b0), true)?;
     let mut clipped_elements = 0;
     let b2: Vec<DVec3> = b0
         .iter()
@@ -157,7 +174,7 @@ pub fn augmented_radiosity_with(
             v.max(DVec3::ZERO)
         })
         .collect();
-    let (b3, shots3) = pass(&b2, B1Pass::Converged)?;
+    let (b3, shots3) = pass(&b2, false)?;
     let deviation = |b: &[DVec3]| -> [f64; 3] {
         let (mut dev, mut sum) = (DVec3::ZERO, DVec3::ZERO);
         for ((e, x), r) in mesh.elements.iter().zip(b).zip(&b0) {
@@ -177,8 +194,69 @@ pub fn augmented_radiosity_with(
         b2,
         b3,
         clipped_elements,
-        shots: [s0.shots(), shots1, shots3],
+        shots: [work0, shots1, shots3],
     })
+}
+
+/// [`augmented_radiosity_with`] on the hierarchical solver: B0 over all
+/// objects, then B1 (by `b1_pass`) and B3 over the real ones, each a
+/// [`Hierarchy`] of its own (the real passes share one: the links made for
+/// B0's exitance serve B2's). `shots` holds gathers, not shots.
+pub fn augmented_radiosity_hierarchical(
+    mesh: &RadiosityMesh,
+    all: &SceneGeometry,
+    real: &SceneGeometry,
+    lights: &[Light],
+    options: &HierarchyOptions,
+    b1_pass: B1Pass,
+) -> Result<AugmentedSolution, HierarchyError> {
+    let mut h0 = Hierarchy::new(mesh, all, None, options)?;
+    let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
+    let direct = h0.direct(lights);
+    let s0 = h0.solve(&emission, &direct)?;
+    drop(h0);
+    let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
+    let mut h = Hierarchy::new(mesh, real, Some(&mask), options)?;
+    passes_from_b0(
+        mesh,
+        s0.radiosity,
+        s0.iterations as usize,
+        |emission, first| {
+            if !first || b1_pass == B1Pass::Converged {
+                let s = h.solve(emission, &[])?;
+                return Ok((s.radiosity, s.iterations as usize));
+            }
+            if h.links() == 0 {
+                h.link(emission)?;
+            }
+            if b1_pass == B1Pass::OneBounce {
+                return Ok((h.gather_step(emission, emission), 1));
+            }
+            // Clip-compensated: B* = max(B0, K B*) from B* = B0.
+            let scale = emission.iter().map(|b| b.max_element()).fold(0.0, f64::max);
+            let mut b = emission.to_vec();
+            let mut kb = h.reflect(&b);
+            let mut gathers = 1;
+            for _ in 0..CLIP_ITERATIONS {
+                let next: Vec<DVec3> = emission.iter().zip(&kb).map(|(e, k)| e.max(*k)).collect();
+                let change = next
+                    .iter()
+                    .zip(&b)
+                    .map(|(n, b)| (*n - *b).abs().max_element())
+                    .fold(0.0, f64::max);
+                b = next;
+                kb = h.reflect(&b);
+                gathers += 1;
+                if !(change > 1e-6 * scale) {
+                    break;
+                }
+            }
+            Ok((
+                emission.iter().zip(&kb).map(|(e, k)| *e + *k).collect(),
+                gathers,
+            ))
+        },
+    )
 }
 
 /// One bounce of the real transport: `K x` for exitance `x` per element,

@@ -45,8 +45,9 @@ pub mod shooting;
 pub mod sources;
 
 pub use augmented::{
-    AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity, augmented_radiosity_with,
-    gathered_b2_vertices, irradiance_map,
+    AugmentedSolution, B1Pass, IrradianceMap, augmented_radiosity,
+    augmented_radiosity_hierarchical, augmented_radiosity_with, gathered_b2_vertices,
+    irradiance_map,
 };
 pub use gather::{
     GatherOptions, VertexGather, gather_adaptive, gather_vertices, refine_by_vertices,
