@@ -101,3 +101,26 @@ pub fn radiosity_shots(
         });
     })
 }
+
+/// The hierarchical radiosity solver's progress on `pb` (gathers, links,
+/// residual) and in the log every few seconds; with `budget`, it tells the
+/// solver to stop once that much time has passed since this was made.
+pub fn radiosity_gathers(
+    pb: &ProgressBar,
+    label: &'static str,
+    budget: Option<std::time::Duration>,
+) -> showcase_light::radiosity::HierarchyProgress {
+    let pb = pb.clone();
+    let log = LogLines::default();
+    let start = std::time::Instant::now();
+    showcase_light::radiosity::HierarchyProgress::new(move |p| {
+        pb.inc(1);
+        let text = format!(
+            "refinement round {}, {} links, gather {}, residual {:.4}",
+            p.round, p.links, p.iterations, p.residual
+        );
+        pb.set_message(text.clone());
+        log.say(|| format!("{label}: {text}"));
+        budget.is_none_or(|b| start.elapsed() < b)
+    })
+}

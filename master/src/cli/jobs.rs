@@ -239,6 +239,20 @@ pub struct RadiosityArgs {
     /// (wgpu rasterisation).
     #[arg(long, default_value = "cpu")]
     pub form_factors: crate::radiosity_job::FormFactorDevice,
+    /// `auto` (hierarchical above 4,000 elements), `progressive` (with a
+    /// final gather; cost grows as the square of the elements) or
+    /// `hierarchical` (with clustering; about linear).
+    #[arg(long, default_value = "auto")]
+    pub solver: crate::radiosity_job::Solver,
+    /// Hierarchical solver: refine a link while its estimated error may
+    /// exceed this fraction of the injected power (smaller: more links,
+    /// more accurate, slower).
+    #[arg(long)]
+    pub epsilon: Option<f64>,
+    /// Hierarchical solver: stop gathering after this many seconds and
+    /// write what it has (the summary says `complete: false`).
+    #[arg(long)]
+    pub time_budget: Option<f64>,
     /// Also print the summary (written to `<out>/summary.json`) on stdout.
     #[arg(long)]
     pub json: bool,
@@ -250,7 +264,9 @@ impl From<&RadiosityArgs> for crate::radiosity_job::RadiosityOptions {
             max_patch_area: a.max_patch_area,
             hemicube: a.hemicube,
             threshold: a.threshold,
-            progress: Default::default(),
+            solver: a.solver,
+            epsilon: a.epsilon,
+            ..Default::default()
         }
     }
 }
@@ -262,6 +278,13 @@ pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
     let pb = crate::progress::spinner("radiosity", Some("shots"));
     let mut options: crate::radiosity_job::RadiosityOptions = args.into();
     options.progress = crate::progress::radiosity_shots(&pb, "radiosity");
+    let budget = match args.time_budget {
+        Some(s) if !(s > 0.0 && s.is_finite()) => {
+            anyhow::bail!("--time-budget {s} must be a positive number of seconds")
+        }
+        s => s.map(std::time::Duration::from_secs_f64),
+    };
+    options.hierarchy_progress = crate::progress::radiosity_gathers(&pb, "radiosity", budget);
     eprintln!("radiosity: solving {}...", args.scene.display());
     let summary =
         crate::radiosity_job::run_radiosity_on(&args.scene, &args.out, &options, args.form_factors);
@@ -271,11 +294,28 @@ pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     }
     eprintln!(
-        "radiosity: {} patches, {} elements, {} shots to {:.4} unshot in {:.1} s; wrote {} ({}, {} irradiance maps, {} light maps)",
+        "radiosity: {} solver{}, {} patches, {} elements, {} links, {} {} to {:.4} {} in {:.1} s; wrote {} ({}, {} irradiance maps, {} light maps)",
+        summary.solver,
+        if summary.complete {
+            ""
+        } else {
+            " (stopped by the time budget)"
+        },
         summary.patches,
         summary.elements,
+        summary.links,
         summary.shots,
+        if summary.solver == "hierarchical" {
+            "gathers"
+        } else {
+            "shots"
+        },
         summary.unshot_fraction,
+        if summary.solver == "hierarchical" {
+            "residual"
+        } else {
+            "unshot"
+        },
         summary.seconds,
         args.out.join("summary.json").display(),
         summary.solution.display(),

@@ -34,6 +34,53 @@ pub struct RadiosityOptions {
     pub threshold: Option<f64>,
     /// Told after every shot (progress display).
     pub progress: radiosity::ShotProgress,
+    /// Which solver.
+    pub solver: Solver,
+    /// The hierarchical solver's refinement threshold (fraction of the
+    /// injected power a link's error may reach).
+    pub epsilon: Option<f64>,
+    /// Told at each gather of the hierarchical solver; returning false
+    /// stops it (progress display and time budget).
+    pub hierarchy_progress: radiosity::HierarchyProgress,
+}
+
+/// Which radiosity solver runs (`--solver`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Solver {
+    /// Hierarchical above [`AUTO_HIERARCHICAL_ELEMENTS`] elements,
+    /// progressive (with its final gather) below.
+    #[default]
+    Auto,
+    /// Progressive refinement with a final gather at the vertices: the
+    /// reference, cost about the square of the elements.
+    Progressive,
+    /// Hierarchical radiosity with clustering
+    /// ([`radiosity::hierarchy`]): cost about linear in the elements.
+    Hierarchical,
+}
+
+/// `--solver auto` solves meshes with more elements than this
+/// hierarchically: the progressive solver's time grows as the square of
+/// the elements and passes a minute at about this size (ARCHITECTURE.md,
+/// Radiosity).
+pub const AUTO_HIERARCHICAL_ELEMENTS: usize = 4000;
+
+/// Why a `--solver` value was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("radiosity solver {0:?} is not auto, progressive or hierarchical")]
+pub struct BadSolver(pub String);
+
+impl std::str::FromStr for Solver {
+    type Err = BadSolver;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "progressive" => Ok(Self::Progressive),
+            "hierarchical" => Ok(Self::Hierarchical),
+            other => Err(BadSolver(other.to_string())),
+        }
+    }
 }
 
 /// Where the hemi-cube's item buffers are made (`--form-factors cpu|gpu`).
@@ -76,6 +123,16 @@ impl RadiosityOptions {
         }
     }
 
+    /// The hierarchical solver's settings.
+    pub fn hierarchy(&self) -> radiosity::HierarchyOptions {
+        let d = radiosity::HierarchyOptions::default();
+        radiosity::HierarchyOptions {
+            epsilon: self.epsilon.unwrap_or(d.epsilon),
+            progress: self.hierarchy_progress.clone(),
+            ..d
+        }
+    }
+
     /// The solver settings.
     pub fn solve(&self) -> SolveOptions {
         let d = SolveOptions::default();
@@ -107,13 +164,20 @@ impl RadiosityOptions {
 /// What a radiosity run did.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Summary {
+    /// `progressive` or `hierarchical`.
+    pub solver: &'static str,
+    /// Links of the hierarchical B0 solve (0 for the progressive solver).
+    pub links: usize,
+    /// False when a time budget stopped the solve early.
+    pub complete: bool,
     /// Patches (shooters).
     pub patches: usize,
     /// Elements (receivers) after refinement.
     pub elements: usize,
-    /// Shots over all passes.
+    /// Shots over all passes (gathers, for the hierarchical solver).
     pub shots: usize,
-    /// Unshot fraction at the end of the B0 solve.
+    /// Unshot fraction at the end of the B0 solve (the last gather's
+    /// relative change, for the hierarchical solver).
     pub unshot_fraction: f64,
     /// Wall-clock seconds of meshing and solving.
     pub seconds: f64,
@@ -152,10 +216,23 @@ pub struct Solved {
     /// The output mesh: the patches at 16 elements each, refined where B0
     /// changes fast.
     pub output_mesh: RadiosityMesh,
-    /// B0 at the output mesh's vertices by a final gather
-    /// ([`radiosity::gather_adaptive`]): point values, not element
-    /// averages, so edges and corners are not smeared.
+    /// B0 at the output mesh's vertices: by a final gather
+    /// ([`radiosity::gather_adaptive`]) after the progressive solver
+    /// (point values, not element averages, so edges and corners are not
+    /// smeared); the element values averaged to the vertices after the
+    /// hierarchical one.
     pub b0_vertices: Vec<DVec3>,
+    /// B2 at the vertices of `mesh`, when augmented: the real
+    /// interreflection gathered at each vertex after the progressive
+    /// solver ([`radiosity::gathered_b2_vertices`]), element B2 averaged
+    /// to the vertices after the hierarchical one.
+    pub b2_vertices: Option<Vec<DVec3>>,
+    /// The solver that ran.
+    pub solver: Solver,
+    /// Links of the hierarchical B0 solve (0 for the progressive solver).
+    pub links: usize,
+    /// False when a budget stopped the hierarchical solve early.
+    pub complete: bool,
 }
 
 /// Mesh, solve with one round of adaptive refinement, and run the augmented
@@ -175,6 +252,14 @@ pub fn solve_showcase_on(
     let mut mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
     let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
     check_solvable(&mesh, &lights)?;
+    let hierarchical = match options.solver {
+        Solver::Hierarchical => true,
+        Solver::Progressive => false,
+        Solver::Auto => mesh.elements.len() > AUTO_HIERARCHICAL_ELEMENTS,
+    };
+    if hierarchical {
+        return solve_hierarchical_showcase(showcase, options, mesh, all, real, &lights);
+    }
     let solve = options.solve_on(device)?;
     let solution =
         radiosity::solve_adaptive(&mut mesh, &all, &lights, &solve, &RefineOptions::default())
@@ -213,16 +298,96 @@ pub fn solve_showcase_on(
         &GatherOptions::default(),
         &RefineOptions::default(),
     );
+    // The real room's interreflection gathered at each vertex, not
+    // element B2 averaged to it (radiosity::gathered_b2_vertices).
+    let b2_vertices = augmented
+        .as_ref()
+        .map(|a| gathered_b2_vertices(&mesh, &real, a, &GatherOptions::default()));
     Ok(Solved {
         b0,
         output_mesh,
         b0_vertices,
+        b2_vertices,
         mesh,
         augmented,
         real,
         shots: solution.shots,
         unshot_fraction: solution.unshot_fraction,
         convergence: solution.convergence,
+        solver: Solver::Progressive,
+        links: 0,
+        complete: true,
+    })
+}
+
+/// [`solve_showcase_on`] with the hierarchical solver: B0 (and the
+/// augmented passes, one-bounce B1, when the scene has real objects and
+/// projectors) on `mesh`, which is also the output mesh.
+fn solve_hierarchical_showcase(
+    showcase: &Showcase,
+    options: &RadiosityOptions,
+    mesh: RadiosityMesh,
+    all: SceneGeometry,
+    real: SceneGeometry,
+    lights: &[showcase_proto::Light],
+) -> anyhow::Result<Solved> {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    let has_real = showcase.objects.iter().any(|o| o.kind == ObjectKind::Real);
+    // Watch the passes' progress for the B0 links and an early stop.
+    let (stopped, b0_links) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicUsize::new(0)),
+    );
+    let mut h = options.hierarchy();
+    let inner = options.hierarchy_progress.clone();
+    let (st, bl) = (stopped.clone(), b0_links.clone());
+    h.progress = radiosity::HierarchyProgress::new(move |p| {
+        // The B0 solve reports first; its links are the largest count.
+        bl.fetch_max(p.links, Ordering::Relaxed);
+        let go_on = inner.report_to(p);
+        if !go_on {
+            st.store(true, Ordering::Relaxed);
+        }
+        go_on
+    });
+    let (b0, augmented, solution) = if has_real && !showcase.projectors.is_empty() {
+        let a = radiosity::augmented_radiosity_hierarchical(
+            &mesh,
+            &all,
+            &real,
+            lights,
+            &h,
+            B1Pass::OneBounce,
+        )
+        .context("augmented passes")?;
+        (a.b0.clone(), Some(a), None)
+    } else {
+        let s = radiosity::solve_hierarchical(&mesh, &all, lights, &h).context("solving")?;
+        (s.radiosity.clone(), None, Some(s))
+    };
+    let b0_vertices = mesh.vertex_values(&b0);
+    let b2_vertices = augmented.as_ref().map(|a| mesh.vertex_values(&a.b2));
+    let (iterations, residual) = match &solution {
+        Some(s) => (s.iterations as usize, s.residual),
+        None => (augmented.as_ref().map_or(0, |a| a.shots[0]), f64::NAN),
+    };
+    let links = b0_links.load(Ordering::Relaxed);
+    let complete = !stopped.load(Ordering::Relaxed);
+    Ok(Solved {
+        output_mesh: mesh.clone(),
+        b0,
+        b0_vertices,
+        b2_vertices,
+        mesh,
+        augmented,
+        real,
+        shots: iterations,
+        unshot_fraction: residual,
+        convergence: Vec::new(),
+        solver: Solver::Hierarchical,
+        links,
+        complete,
     })
 }
 
@@ -314,13 +479,10 @@ pub fn run_radiosity_scene(
     let start = Instant::now();
     let solved = solve_showcase_on(showcase, options, device).with_context(|| label.to_string())?;
     let mut maps = Vec::new();
-    if let Some(a) = &solved.augmented {
-        // The real room's interreflection gathered at each vertex, not
-        // element B2 averaged to it (radiosity::gathered_b2_vertices).
-        let b2 = gathered_b2_vertices(&solved.mesh, &solved.real, a, &GatherOptions::default());
+    if let Some(b2) = &solved.b2_vertices {
         for i in 0..showcase.projectors.len() {
             maps.push(
-                irradiance_map(&solved.mesh, &solved.real, &b2, &showcase.projectors, i)
+                irradiance_map(&solved.mesh, &solved.real, b2, &showcase.projectors, i)
                     .with_context(|| format!("projector {}", showcase.projectors[i].name))?,
             );
         }
@@ -352,6 +514,12 @@ pub fn run_radiosity_scene(
         light_maps.push(path);
     }
     let summary = Summary {
+        solver: match solved.solver {
+            Solver::Hierarchical => "hierarchical",
+            _ => "progressive",
+        },
+        links: solved.links,
+        complete: solved.complete,
         patches: solved.mesh.patches.len(),
         elements: solved.mesh.elements.len(),
         shots: solved.shots

@@ -118,7 +118,9 @@ impl HierarchyProgress {
         Self(Some(Arc::new(f)))
     }
 
-    fn report(&self, point: HierarchyPoint) -> bool {
+    /// Tell the callback, if there is one; true (go on) when there is
+    /// none.
+    pub fn report_to(&self, point: HierarchyPoint) -> bool {
         self.0.as_ref().is_none_or(|f| f(point))
     }
 }
@@ -359,7 +361,7 @@ impl<'a> Hierarchy<'a> {
                 residual = relative_change(self.mesh, &self.tree.order, &b, &next);
                 b = next;
                 it += 1;
-                let go_on = self.options.progress.report(HierarchyPoint {
+                let go_on = self.options.progress.report_to(HierarchyPoint {
                     round,
                     links: self.links.len(),
                     iterations: it,
