@@ -92,15 +92,6 @@ fn demo_radiosity_options() -> crate::radiosity_job::RadiosityOptions {
     }
 }
 
-/// Most radiosity elements (before refinement, at the demo's settings) the
-/// `radiosity` phase solves; a scene with more is skipped, not run for
-/// minutes (issue #23). Release, 2 cores: figure 3 at 816 elements takes
-/// 16 s, at about 3,300 elements 31 s; the cost grows about as the square
-/// of the count (shots times receivers), so 4,000 is under a minute. The
-/// demo cabinet's 46,800 did not finish in 300 s. See ARCHITECTURE.md
-/// (Demo).
-pub const RADIOSITY_MAX_ELEMENTS: usize = 4000;
-
 /// A spinner (or, with `len`, a bar) for the phase about to run, on a
 /// terminal only; the `[demo]` lines carry the same news in logs.
 fn progress(name: &str, len: Option<u64>) -> indicatif::ProgressBar {
@@ -234,7 +225,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         Err(reason) => report.skipped("radiosity", reason),
         Ok(elements) => {
             let t = Instant::now();
-            let pb = progress_counting("radiosity", None, Some("shots"));
+            let pb = progress_counting("radiosity", None, Some("gathers"));
             let outcome = radiosity_stage(&scene, elements, &opts.out, &pb)?;
             pb.finish_and_clear();
             report.ran("radiosity", t, outcome.detail);
@@ -332,22 +323,14 @@ fn reflectance_stage(
     })
 }
 
-/// The elements of `scene` at the demo's radiosity settings when the
-/// `radiosity` phase can solve it, else why not: nothing to solve, or
-/// more elements than [`RADIOSITY_MAX_ELEMENTS`].
+/// The elements of `scene` at the demo's radiosity settings, or why the
+/// `radiosity` phase cannot solve it (nothing to solve). Above
+/// [`crate::radiosity_job::AUTO_HIERARCHICAL_ELEMENTS`] the hierarchical
+/// solver takes it.
 fn radiosity_budget(scene: &showcase_proto::Showcase) -> Result<usize, String> {
     let opts = demo_radiosity_options();
     let (_, elements) = crate::radiosity_job::mesh_size(scene, &opts)
         .map_err(|e| format!("nothing to solve: {e:#}"))?;
-    if elements > RADIOSITY_MAX_ELEMENTS {
-        return Err(format!(
-            "the scene meshes into {elements} radiosity elements at {} m^2 patches, over the \
-             {RADIOSITY_MAX_ELEMENTS} the solver finishes in the demo's time (it does not yet \
-             scale to scenes this size: issue #23); the radiosity_figure3 phase checks the solver",
-            opts.max_patch_area
-                .unwrap_or(crate::radiosity_job::DEFAULT_PATCH_AREA)
-        ));
-    }
     Ok(elements)
 }
 
@@ -362,6 +345,7 @@ fn radiosity_stage(
 ) -> Result<StageOutcome> {
     let mut opts = demo_radiosity_options();
     opts.progress = crate::progress::radiosity_shots(pb, "[demo] radiosity");
+    opts.hierarchy_progress = crate::progress::radiosity_gathers(pb, "[demo] radiosity", None);
     let dir = out.join("radiosity");
     let s = crate::radiosity_job::run_radiosity_scene(
         scene,
@@ -371,6 +355,7 @@ fn radiosity_stage(
         crate::radiosity_job::FormFactorDevice::Cpu,
     )?;
     let mut figures = serde_json::Map::new();
+    figures.insert("radiosity_links".into(), serde_json::json!(s.links));
     figures.insert("radiosity_elements".into(), serde_json::json!(s.elements));
     figures.insert("radiosity_shots".into(), serde_json::json!(s.shots));
     figures.insert(
@@ -387,12 +372,18 @@ fn radiosity_stage(
     );
     Ok(StageOutcome {
         detail: format!(
-            "{}: {} patches, {} elements ({elements} before refinement), {} shots to {:.3} unshot; {}; solution and maps in {}",
+            "scene {}, {} solver: {} patches, {} elements ({elements} before refinement), {} links, {} {}; {}; solution and maps in {}",
             scene.name,
+            s.solver,
             s.patches,
             s.elements,
+            s.links,
             s.shots,
-            s.unshot_fraction,
+            if s.solver == "hierarchical" {
+                "gathers"
+            } else {
+                "shots"
+            },
             match s.b3_b0_deviation_rgb {
                 Some(d) => format!(
                     "augmented: B3-B0 deviation per channel {:.3}/{:.3}/{:.3}, projector clipped fractions {}",

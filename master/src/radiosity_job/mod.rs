@@ -370,7 +370,9 @@ fn solve_hierarchical_showcase(
     let b2_vertices = augmented.as_ref().map(|a| mesh.vertex_values(&a.b2));
     let (iterations, residual) = match &solution {
         Some(s) => (s.iterations as usize, s.residual),
-        None => (augmented.as_ref().map_or(0, |a| a.shots[0]), f64::NAN),
+        None => augmented
+            .as_ref()
+            .map_or((0, 0.0), |a| (a.shots[0], a.b0_residual)),
     };
     let links = b0_links.load(Ordering::Relaxed);
     let complete = !stopped.load(Ordering::Relaxed);

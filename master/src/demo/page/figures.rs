@@ -130,12 +130,21 @@ const FIGURES: &[(&str, Figure)] = &[
         ),
     ),
     (
+        "radiosity_links",
+        fig(
+            "Radiosity links",
+            "links",
+            None,
+            "links of the hierarchical B0 solve (0 when the progressive solver ran)",
+        ),
+    ),
+    (
         "radiosity_shots",
         fig(
-            "Radiosity shots",
-            "shots",
+            "Radiosity shots or gathers",
+            "count",
             None,
-            "progressive-refinement shots to reach the unshot-energy threshold",
+            "progressive-refinement shots, or hierarchical gathers, over all passes",
         ),
     ),
     (
@@ -144,7 +153,8 @@ const FIGURES: &[(&str, Figure)] = &[
             "Radiosity unshot energy",
             "ratio",
             None,
-            "energy left unshot when the solver stopped, as a fraction of the emitted",
+            "energy left unshot when the progressive solver stopped, as a fraction of the \
+             emitted; the hierarchical solver's last relative change of B0",
         ),
     ),
     (

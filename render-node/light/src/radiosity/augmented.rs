@@ -60,8 +60,11 @@ pub struct AugmentedSolution {
     /// Area-weighted mean `|B3 - B0|` over real surfaces, relative to the
     /// mean B0, per RGB channel (the paper's check, near 0 when it works).
     pub b3_b0_deviation_rgb: [f64; 3],
-    /// Shots of the three solves.
+    /// Shots of the three solves (gathers, for the hierarchical solver).
     pub shots: [usize; 3],
+    /// How far from converged B0 stopped: the unshot fraction
+    /// (progressive) or the last gather's relative change (hierarchical).
+    pub b0_residual: f64,
 }
 
 /// How the B1 pass propagates B0 among the real surfaces.
@@ -135,7 +138,8 @@ pub fn augmented_radiosity_with(
         Ok((s.radiosity().to_vec(), s.shots()))
     };
     let shots0 = s0.shots();
-    passes_from_b0(mesh, b0, shots0, |emission, first| {
+    let residual = s0.unshot_fraction();
+    passes_from_b0(mesh, b0, (shots0, residual), |emission, first| {
         pass(emission, if first { b1_pass } else { B1Pass::Converged })
     })
 }
@@ -146,7 +150,7 @@ pub fn augmented_radiosity_with(
 fn passes_from_b0<E>(
     mesh: &RadiosityMesh,
     b0: Vec<DVec3>,
-    work0: usize,
+    (work0, b0_residual): (usize, f64),
     mut pass: impl FnMut(&[DVec3], bool) -> Result<(Vec<DVec3>, usize), E>,
 ) -> Result<AugmentedSolution, E> {
     let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
@@ -195,6 +199,7 @@ fn passes_from_b0<E>(
         b3,
         clipped_elements,
         shots: [work0, shots1, shots3],
+        b0_residual,
     })
 }
 
@@ -220,7 +225,7 @@ pub fn augmented_radiosity_hierarchical(
     passes_from_b0(
         mesh,
         s0.radiosity,
-        s0.iterations as usize,
+        (s0.iterations as usize, s0.residual),
         |emission, first| {
             if !first || b1_pass == B1Pass::Converged {
                 let s = h.solve(emission, &[])?;
