@@ -59,6 +59,7 @@ fn gathered_b2_in_a_furnace_is_b0_times_one_minus_rho_at_every_vertex() {
         b1_b0_deviation_rgb: [0.0; 3],
         b3_b0_deviation_rgb: [0.0; 3],
         shots: [0; 3],
+        b0_residual: 0.0,
     };
     let b2 = gathered_b2_vertices(&m, &real, &solution, &GatherOptions::default());
     assert_eq!(b2.len(), m.vertices.len());
