@@ -73,7 +73,7 @@ pub struct BenchArgs {
     pub floor: bool,
     /// Radiosity only: make only the records of these kinds (default: all):
     /// reference, gathered, sweep, scaling, incremental, incremental_object,
-    /// augmented.
+    /// augmented, hierarchical.
     #[arg(long, value_delimiter = ',')]
     pub kinds: Vec<String>,
     /// Radiosity only: the `incremental_object` records to make, as

@@ -60,6 +60,21 @@ pub fn rss_mb() -> Option<f64> {
     Some(kb / 1024.0)
 }
 
+/// Peak resident memory of this process (MB) since the last
+/// [`reset_peak_rss`]: `VmHWM` of `/proc/self/status`.
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Start [`peak_rss_mb`] afresh from the present resident memory (Linux:
+/// `5` to `/proc/self/clear_refs`); false where that is refused.
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
 /// Counts the metrics lines the master writes: one per presented frame.
 struct LineCounter(Arc<AtomicU64>);
 

@@ -33,9 +33,11 @@ use std::path::Path;
 use std::time::Instant;
 
 mod augmented;
+mod hierarchical;
 mod incremental;
 mod object;
 pub use augmented::{CONSISTENCY_SAMPLES, augmented_record, augmented_record_with, figure3_scene};
+pub use hierarchical::{hierarchical_records, split_object};
 pub use incremental::incremental_record;
 pub use object::{
     MOVED_OBJECTS, ObjectRecords, cornell_with_small_cube, incremental_object_record,
@@ -388,7 +390,7 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
 /// are made.
-pub const RECORD_KINDS: [&str; 7] = [
+pub const RECORD_KINDS: [&str; 8] = [
     "reference",
     "gathered",
     "sweep",
@@ -396,6 +398,7 @@ pub const RECORD_KINDS: [&str; 7] = [
     "incremental",
     "incremental_object",
     "augmented",
+    "hierarchical",
 ];
 
 /// [`bench_radiosity_at`], making only the records whose `"kind"` is in
@@ -454,6 +457,9 @@ pub fn bench_radiosity_kinds(
     if wanted("augmented") {
         making("augmented");
         records.push(augmented_record(&showcase)?);
+    }
+    if wanted("hierarchical") {
+        records.extend(hierarchical_records(making)?);
     }
     Ok(records)
 }

@@ -34,6 +34,8 @@ pub struct RadiosityOptions {
     pub threshold: Option<f64>,
     /// Told after every shot (progress display).
     pub progress: radiosity::ShotProgress,
+    /// Each patch starts as `4^element_depth` elements (default 1).
+    pub element_depth: Option<u32>,
     /// Which solver.
     pub solver: Solver,
     /// The hierarchical solver's refinement threshold (fraction of the
@@ -118,7 +120,7 @@ impl RadiosityOptions {
     pub fn mesh(&self) -> MeshOptions {
         MeshOptions {
             max_patch_area: self.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA),
-            element_depth: 1,
+            element_depth: self.element_depth.unwrap_or(1),
             ..MeshOptions::default()
         }
     }
