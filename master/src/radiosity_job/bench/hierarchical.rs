@@ -96,7 +96,9 @@ pub fn hierarchical_records(making: &dyn Fn(&str)) -> anyhow::Result<Vec<BenchRe
     }));
 
     for splits in 0..=3 {
-        making(&format!("hierarchical_scaling (bunny split {splits} times)"));
+        making(&format!(
+            "hierarchical_scaling (bunny split {splits} times)"
+        ));
         let scene = split_object(&demo, "bunny", splits)?;
         let triangles: usize = scene
             .objects
