@@ -294,7 +294,7 @@ pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     }
     eprintln!(
-        "radiosity: {} solver{}, {} patches, {} elements, {} links, {} {} to {:.4} {} in {:.1} s; wrote {} ({}, {} irradiance maps, {} light maps)",
+        "radiosity: {} solver{}, {} patches, {} elements, {} links, {} {} to {:.4} {} in {:.1} s ({:.1} s solving, the rest the irradiance maps); wrote {} ({}, {} irradiance maps, {} light maps)",
         summary.solver,
         if summary.complete {
             ""
@@ -317,6 +317,7 @@ pub(super) fn radiosity(args: &RadiosityArgs) -> Result<()> {
             "unshot"
         },
         summary.seconds,
+        summary.solve_seconds,
         args.out.join("summary.json").display(),
         summary.solution.display(),
         summary.irradiance_maps.len(),

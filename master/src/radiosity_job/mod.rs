@@ -125,6 +125,18 @@ impl RadiosityOptions {
         }
     }
 
+    /// The mesh of the hierarchical solver: as [`Self::mesh`], but no
+    /// element below 1/64 of the largest patch area (the clusters merge
+    /// small triangles; splitting a scanned mesh's triangles only
+    /// multiplies the links).
+    pub fn hierarchical_mesh(&self) -> MeshOptions {
+        let m = self.mesh();
+        MeshOptions {
+            min_element_area: m.max_patch_area / 64.0,
+            ..m
+        }
+    }
+
     /// The hierarchical solver's settings.
     pub fn hierarchy(&self) -> radiosity::HierarchyOptions {
         let d = radiosity::HierarchyOptions::default();
@@ -181,8 +193,10 @@ pub struct Summary {
     /// Unshot fraction at the end of the B0 solve (the last gather's
     /// relative change, for the hierarchical solver).
     pub unshot_fraction: f64,
-    /// Wall-clock seconds of meshing and solving.
+    /// Wall-clock seconds of meshing, solving and the irradiance maps.
     pub seconds: f64,
+    /// Of which meshing and solving (B0..B3, vertex values).
+    pub solve_seconds: f64,
     /// The solution mesh.
     pub solution: PathBuf,
     /// Irradiance maps, one per projector.
@@ -260,6 +274,8 @@ pub fn solve_showcase_on(
         Solver::Auto => mesh.elements.len() > AUTO_HIERARCHICAL_ELEMENTS,
     };
     if hierarchical {
+        let mesh = RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh())
+            .context("meshing")?;
         return solve_hierarchical_showcase(showcase, options, mesh, all, real, &lights);
     }
     let solve = options.solve_on(device)?;
@@ -482,6 +498,7 @@ pub fn run_radiosity_scene(
 ) -> anyhow::Result<Summary> {
     let start = Instant::now();
     let solved = solve_showcase_on(showcase, options, device).with_context(|| label.to_string())?;
+    let solve_seconds = start.elapsed().as_secs_f64();
     let mut maps = Vec::new();
     if let Some(b2) = &solved.b2_vertices {
         for i in 0..showcase.projectors.len() {
@@ -533,6 +550,7 @@ pub fn run_radiosity_scene(
                 .map_or(0, |a| a.shots.iter().sum()),
         unshot_fraction: solved.unshot_fraction,
         seconds,
+        solve_seconds,
         solution,
         irradiance_maps,
         light_maps,

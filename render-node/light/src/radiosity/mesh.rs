@@ -46,6 +46,11 @@ pub struct MeshOptions {
     pub max_patch_area: f64,
     /// Each patch starts as `4^element_depth` elements.
     pub element_depth: u32,
+    /// Fewer elements where they would be smaller than this (m^2): a
+    /// patch is split only as deep as keeps its elements at least this
+    /// large, so a scanned mesh's small triangles stay one element each.
+    /// 0 splits every patch `element_depth` times.
+    pub min_element_area: f64,
     /// Hard limit on the number of elements (a guard against runaway input).
     pub max_elements: usize,
 }
@@ -55,6 +60,7 @@ impl Default for MeshOptions {
         Self {
             max_patch_area: 0.01,
             element_depth: 1,
+            min_element_area: 0.0,
             max_elements: 2_000_000,
         }
     }
@@ -351,6 +357,36 @@ mod tests {
             ),
             Err(MeshError::TooManyElements { .. })
         ));
+    }
+
+    #[test]
+    fn elements_stop_splitting_at_the_minimum_area() {
+        // A 1 m^2 quad: two triangles of 0.5 m^2, patches of at most 0.2
+        // (4 per triangle, 0.125 m^2), element depth 2 (16 per patch at
+        // 0.0078 m^2) unless that is below the minimum.
+        let s = quad_scene(1.0);
+        let g = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
+        let elements = |min_element_area| {
+            RadiosityMesh::build(
+                &s,
+                &g,
+                &MeshOptions {
+                    max_patch_area: 0.2,
+                    element_depth: 2,
+                    min_element_area,
+                    ..MeshOptions::default()
+                },
+            )
+            .unwrap()
+            .elements
+        };
+        assert_eq!(elements(0.0).len(), 2 * 4 * 16);
+        // 0.0078 is too small, 0.031 is not: one split per patch.
+        let e = elements(0.01);
+        assert_eq!(e.len(), 2 * 4 * 4);
+        assert!(e.iter().all(|e| (e.area - 0.125 / 4.0).abs() < 1e-12));
+        // Patches themselves are never merged: one element each.
+        assert_eq!(elements(1.0).len(), 2 * 4);
     }
 
     #[test]

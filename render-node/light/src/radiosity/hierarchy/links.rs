@@ -14,6 +14,9 @@ use std::f64::consts::PI;
 /// Pairs of nodes closer than this many times the sum of their radii are
 /// not "separated": the point-to-disk estimate does not hold for them.
 const SEPARATION: f64 = 1.0;
+/// Links that may carry this many refinement limits of power or more get
+/// all their visibility rays ([`Hierarchy::rays_for`]).
+const FULL_RAYS_POWER: f64 = 64.0;
 /// Relative error of a volume cluster's intensity or received harmonics.
 const CLUSTER_ERROR: f64 = 0.25;
 /// Leaves closer than this many times the sum of their radii get the
@@ -123,13 +126,21 @@ impl Hierarchy<'_> {
     /// irradiance it pushes down), plus [`CLUSTER_ERROR`] for each volume
     /// cluster.
     pub(super) fn must_refine(&self, r: u32, s: u32, moments: &[Moments]) -> bool {
+        self.judge(r, s, moments).is_none()
+    }
+
+    /// `None` when the pair must be refined ([`Self::must_refine`]), else
+    /// the power it may carry in units of the refinement limit.
+    fn judge(&self, r: u32, s: u32, moments: &[Moments]) -> Option<f64> {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        let limit = self.options.epsilon * self.reference_power;
+        let power = || self.transfer_estimate(r, s, &moments[s as usize]) / limit;
         if rn.is_leaf() && sn.is_leaf() {
-            return false;
+            return Some(power());
         }
         let dist = (rn.center - sn.center).length();
         if dist <= SEPARATION * (rn.radius + sn.radius) {
-            return true;
+            return None;
         }
         let mut relative = (rn.radius / dist).powi(2) + (sn.radius / dist).powi(2);
         for node in [rn, sn] {
@@ -137,8 +148,19 @@ impl Hierarchy<'_> {
                 relative += CLUSTER_ERROR;
             }
         }
-        self.transfer_estimate(r, s, &moments[s as usize]) * relative
-            > self.options.epsilon * self.reference_power
+        let power = power();
+        (!(power * relative > 1.0)).then_some(power)
+    }
+
+    /// Visibility rays for a link that may carry `power` refinement limits:
+    /// all of `visibility_rays` from [`FULL_RAYS_POWER`] limits up, fewer
+    /// (at least one) below, in proportion. A link's visibility estimate
+    /// is unbiased at any count; only its noise grows, and on links that
+    /// carry little.
+    fn rays_for(&self, power: f64) -> u32 {
+        let full = self.options.visibility_rays;
+        let share = (power / FULL_RAYS_POWER).clamp(0.0, 1.0);
+        ((f64::from(full) * share).ceil() as u32).clamp(1, full)
     }
 
     /// True when the two nodes cannot exchange light: one lies wholly
@@ -164,8 +186,8 @@ impl Hierarchy<'_> {
             if self.culled(r, s) {
                 continue;
             }
-            if !self.must_refine(r, s, moments) {
-                if let Some(l) = self.make_link(r, s) {
+            if let Some(power) = self.judge(r, s, moments) {
+                if let Some(l) = self.make_link(r, s, self.rays_for(power)) {
                     out.push(l);
                 }
                 continue;
@@ -306,9 +328,9 @@ impl Hierarchy<'_> {
 
     /// The link from `s` to `r`, with its visibility; `None` when no ray
     /// gets through or nothing can arrive.
-    pub(super) fn make_link(&self, r: u32, s: u32) -> Option<Link> {
+    pub(super) fn make_link(&self, r: u32, s: u32, rays: u32) -> Option<Link> {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
-        let visible = self.visibility(r, s);
+        let visible = self.visibility(r, s, rays);
         if !(visible > 0.0) {
             return None;
         }
@@ -365,8 +387,7 @@ impl Hierarchy<'_> {
     }
 
     /// The visible fraction of rays between random points of two nodes.
-    pub(super) fn visibility(&self, r: u32, s: u32) -> f64 {
-        let rays = self.options.visibility_rays;
+    pub(super) fn visibility(&self, r: u32, s: u32, rays: u32) -> f64 {
         let key = hash64(self.options.seed ^ (u64::from(r) << 32 | u64::from(s)));
         let mut seen = 0;
         for k in 0..u64::from(rays) {

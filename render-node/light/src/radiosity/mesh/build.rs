@@ -44,7 +44,8 @@ impl RadiosityMesh {
         let mut count = 0usize;
         for t in geometry.triangles().filter(|t| t.area > 0.0) {
             let depth = patch_depth(t.area, options.max_patch_area);
-            count = count.saturating_add(4usize.saturating_pow(depth + options.element_depth));
+            let elements = element_depth(t.area, depth, options);
+            count = count.saturating_add(4usize.saturating_pow(depth + elements));
         }
         if count > options.max_elements {
             return Err(MeshError::TooManyElements {
@@ -69,7 +70,8 @@ impl RadiosityMesh {
             });
             mesh.lookup.insert((t.object, t.triangle), pi);
             let depth = patch_depth(t.area, options.max_patch_area);
-            mesh.grow_patches(showcase, pi, root, depth, options.element_depth);
+            let elements = element_depth(t.area, depth, options);
+            mesh.grow_patches(showcase, pi, root, depth, elements);
         }
         mesh.rebuild_vertices();
         Ok(mesh)
@@ -156,6 +158,18 @@ impl RadiosityMesh {
 }
 
 /// Patch subdivision depth: each level quarters the area.
+/// The element depth of a primitive of `area` split `patch_depth` times
+/// into patches: `options.element_depth`, less where elements would fall
+/// below `options.min_element_area`.
+fn element_depth(area: f64, patch_depth: u32, options: &MeshOptions) -> u32 {
+    let patch = area * 0.25f64.powi(patch_depth as i32);
+    let mut depth = options.element_depth;
+    while depth > 0 && patch * 0.25f64.powi(depth as i32) < options.min_element_area {
+        depth -= 1;
+    }
+    depth
+}
+
 fn patch_depth(area: f64, max_area: f64) -> u32 {
     let mut depth = 0;
     let mut a = area;
