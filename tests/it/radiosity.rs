@@ -481,3 +481,70 @@ fn radiosity_command_writes_its_summary_to_a_file_and_one_line() {
     assert_eq!(printed["shots"], summary["shots"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The hierarchical solver through `radiosity`: a mesh that cannot fit
+/// the memory budget is refused before solving, with the estimate and
+/// what to change; a time budget stops the solve and the summary says it
+/// is not complete; otherwise it writes its solution with its links.
+#[test]
+fn hierarchical_radiosity_keeps_to_its_memory_and_time_budgets() {
+    let dir = std::env::temp_dir().join(format!("showcase-radiosity-hr-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exe = std::env::current_exe().unwrap();
+    let cornell = std::fs::canonicalize(CORNELL).unwrap();
+    let cornell = cornell.to_str().unwrap();
+    let base = |out: &'static str| {
+        vec![
+            "radiosity",
+            "--scene",
+            cornell,
+            "--out",
+            out,
+            "--solver",
+            "hierarchical",
+            "--max-patch-area",
+            "0.05",
+        ]
+    };
+    let mut tight = base("tight");
+    tight.extend(["--max-memory-mb", "0.01"]);
+    let run = crate::demo::run_cli(&exe, &dir, &tight);
+    assert!(!run.success);
+    assert!(
+        run.stderr.contains("needs at least")
+            && run.stderr.contains("--max-patch-area")
+            && run.stderr.contains("elements"),
+        "{}",
+        run.stderr
+    );
+    assert!(!dir.join("tight/summary.json").exists());
+
+    let mut hurried = base("hurried");
+    hurried.extend(["--time-budget", "0.000001"]);
+    let run = crate::demo::run_cli(&exe, &dir, &hurried);
+    assert!(run.success, "{}", run.stderr);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("hurried/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["complete"], false, "{summary}");
+    assert_eq!(
+        summary["shots"], 1,
+        "one gather, then the budget: {summary}"
+    );
+    assert!(
+        run.stderr.contains("stopped by the time budget"),
+        "{}",
+        run.stderr
+    );
+
+    let run = crate::demo::run_cli(&exe, &dir, &base("whole"));
+    assert!(run.success, "{}", run.stderr);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("whole/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["solver"], "hierarchical");
+    assert_eq!(summary["complete"], true);
+    assert!(summary["links"].as_u64().unwrap() > 0, "{summary}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

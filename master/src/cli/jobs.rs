@@ -249,6 +249,11 @@ pub struct RadiosityArgs {
     /// more accurate, slower).
     #[arg(long)]
     pub epsilon: Option<f64>,
+    /// Hierarchical solver: memory it may use, in MB (default: 80 % of
+    /// the available memory). A mesh that cannot fit is refused before
+    /// solving, with the estimate.
+    #[arg(long)]
+    pub max_memory_mb: Option<f64>,
     /// Hierarchical solver: stop gathering after this many seconds and
     /// write what it has (the summary says `complete: false`).
     #[arg(long)]
@@ -266,6 +271,7 @@ impl From<&RadiosityArgs> for crate::radiosity_job::RadiosityOptions {
             threshold: a.threshold,
             solver: a.solver,
             epsilon: a.epsilon,
+            max_memory_mb: a.max_memory_mb,
             ..Default::default()
         }
     }

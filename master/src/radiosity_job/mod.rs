@@ -38,9 +38,15 @@ pub struct RadiosityOptions {
     pub element_depth: Option<u32>,
     /// Which solver.
     pub solver: Solver,
+    /// Most links the hierarchical solver may make (set from the memory
+    /// budget when it runs).
+    pub max_links: usize,
     /// The hierarchical solver's refinement threshold (fraction of the
     /// injected power a link's error may reach).
     pub epsilon: Option<f64>,
+    /// Memory the hierarchical solver may use (MB); default: 80 % of what
+    /// the system has available.
+    pub max_memory_mb: Option<f64>,
     /// Told at each gather of the hierarchical solver; returning false
     /// stops it (progress display and time budget).
     pub hierarchy_progress: radiosity::HierarchyProgress,
@@ -142,6 +148,11 @@ impl RadiosityOptions {
         let d = radiosity::HierarchyOptions::default();
         radiosity::HierarchyOptions {
             epsilon: self.epsilon.unwrap_or(d.epsilon),
+            max_links: if self.max_links > 0 {
+                self.max_links
+            } else {
+                d.max_links
+            },
             progress: self.hierarchy_progress.clone(),
             ..d
         }
@@ -276,7 +287,10 @@ pub fn solve_showcase_on(
     if hierarchical {
         let mesh = RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh())
             .context("meshing")?;
-        return solve_hierarchical_showcase(showcase, options, mesh, all, real, &lights);
+        let max_links = memory_check(mesh.elements.len(), options)?;
+        let mut options = options.clone();
+        options.max_links = max_links;
+        return solve_hierarchical_showcase(showcase, &options, mesh, all, real, &lights);
     }
     let solve = options.solve_on(device)?;
     let solution =
@@ -409,6 +423,41 @@ fn solve_hierarchical_showcase(
         links,
         complete,
     })
+}
+
+/// The memory the hierarchical solver may use (bytes): `--max-memory-mb`,
+/// else 80 % of `MemAvailable` in `/proc/meminfo`; `None` when neither is
+/// known.
+fn memory_budget(options: &RadiosityOptions) -> Option<usize> {
+    if let Some(mb) = options.max_memory_mb {
+        return Some((mb * 1e6) as usize);
+    }
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some((kb * 1024.0 * 0.8) as usize)
+}
+
+/// Refuse up front a mesh whose hierarchy cannot fit the memory budget
+/// even at [`radiosity::MIN_LINKS_PER_ELEMENT`] links per element, saying
+/// the estimate and what to change; else the most links that fit.
+fn memory_check(elements: usize, options: &RadiosityOptions) -> anyhow::Result<usize> {
+    let Some(budget) = memory_budget(options) else {
+        return Ok(radiosity::HierarchyOptions::default().max_links);
+    };
+    let floor = radiosity::estimate_bytes(elements, radiosity::MIN_LINKS_PER_ELEMENT * elements);
+    anyhow::ensure!(
+        floor <= budget,
+        "the mesh has {elements} elements; solving it hierarchically needs at least {:.0} MB \
+         (the cluster tree and at least {} links per element of {} bytes), over the {:.0} MB \
+         budget: raise --max-patch-area (now {} m^2), or --max-memory-mb if the machine has more",
+        floor as f64 / 1e6,
+        radiosity::MIN_LINKS_PER_ELEMENT,
+        radiosity::LINK_BYTES,
+        budget as f64 / 1e6,
+        options.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA),
+    );
+    Ok((budget - radiosity::estimate_bytes(elements, 0)) / radiosity::LINK_BYTES)
 }
 
 /// Patches and elements of `showcase` meshed with `options`, before

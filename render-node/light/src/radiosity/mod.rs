@@ -55,7 +55,7 @@ pub use gather::{
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use hierarchy::{
     Hierarchy, HierarchyError, HierarchyOptions, HierarchyPoint, HierarchyProgress,
-    HierarchySolution, solve_hierarchical,
+    HierarchySolution, LINK_BYTES, MIN_LINKS_PER_ELEMENT, estimate_bytes, solve_hierarchical,
 };
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{

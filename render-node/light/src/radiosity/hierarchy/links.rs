@@ -10,6 +10,7 @@ use crate::sampling::{hash64, triangle_sample, unit};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Pairs of nodes closer than this many times the sum of their radii are
 /// not "separated": the point-to-disk estimate does not hold for them.
@@ -172,9 +173,20 @@ impl Hierarchy<'_> {
     }
 
     /// The links of pair `(r, s)` and below, depth first, into `out`.
-    pub(super) fn refine_pair(&self, r: u32, s: u32, moments: &[Moments], out: &mut Vec<Link>) {
+    pub(super) fn refine_pair(
+        &self,
+        r: u32,
+        s: u32,
+        moments: &[Moments],
+        out: &mut Vec<Link>,
+        made: &AtomicUsize,
+    ) {
         let mut stack = vec![(r, s)];
         while let Some((r, s)) = stack.pop() {
+            // Over the link limit: stop; set_links reports it.
+            if made.load(Ordering::Relaxed) > self.options.max_links {
+                return;
+            }
             if r == s {
                 let node = &self.tree.nodes[r as usize];
                 if !node.is_leaf() && !node.flat {
@@ -189,6 +201,7 @@ impl Hierarchy<'_> {
             if let Some(power) = self.judge(r, s, moments) {
                 if let Some(l) = self.make_link(r, s, self.rays_for(power)) {
                     out.push(l);
+                    made.fetch_add(1, Ordering::Relaxed);
                 }
                 continue;
             }
@@ -245,18 +258,30 @@ impl Hierarchy<'_> {
                 break;
             }
         }
+        let made = AtomicUsize::new(0);
         let parts: Vec<Vec<Link>> = frontier
             .par_iter()
             .map(|&(r, s)| {
                 let mut out = Vec::new();
-                self.refine_pair(r, s, &moments, &mut out);
+                self.refine_pair(r, s, &moments, &mut out, &made);
                 out
             })
             .collect();
+        if made.into_inner() > self.options.max_links {
+            return Err(self.too_many_links());
+        }
         for p in parts {
             links.extend(p);
         }
         self.set_links(links)
+    }
+
+    fn too_many_links(&self) -> HierarchyError {
+        HierarchyError::TooManyLinks {
+            limit: self.options.max_links,
+            bytes: self.options.max_links * LINK_BYTES,
+            epsilon: self.options.epsilon,
+        }
     }
 
     /// Check every link against exitance `b` and refine those that now
@@ -264,6 +289,7 @@ impl Hierarchy<'_> {
     pub(super) fn refine_again(&mut self, b: &[DVec3]) -> Result<usize, HierarchyError> {
         let moments = self.pull(b);
         let old = std::mem::take(&mut self.links);
+        let made = AtomicUsize::new(old.len());
         let parts: Vec<(Vec<Link>, usize)> = old
             .par_chunks(4096)
             .map(|chunk| {
@@ -286,7 +312,7 @@ impl Hierarchy<'_> {
                             sn.children.map(|c| (l.receiver, c))
                         };
                         for (r, s) in pairs {
-                            self.refine_pair(r, s, &moments, &mut out);
+                            self.refine_pair(r, s, &moments, &mut out, &made);
                         }
                     } else {
                         out.push(*l);
@@ -295,6 +321,11 @@ impl Hierarchy<'_> {
                 (out, refined)
             })
             .collect();
+        // Refinement that stopped at the limit dropped links: an error,
+        // never a silently thinner solution.
+        if made.into_inner() > self.options.max_links {
+            return Err(self.too_many_links());
+        }
         let mut links = Vec::new();
         let mut refined = 0;
         for (p, n) in parts {
@@ -307,11 +338,7 @@ impl Hierarchy<'_> {
 
     pub(super) fn set_links(&mut self, mut links: Vec<Link>) -> Result<(), HierarchyError> {
         if links.len() > self.options.max_links {
-            return Err(HierarchyError::TooManyLinks {
-                limit: self.options.max_links,
-                bytes: self.options.max_links * LINK_BYTES,
-                epsilon: self.options.epsilon,
-            });
+            return Err(self.too_many_links());
         }
         links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
         let mut offsets = vec![0u32; self.tree.nodes.len() + 1];

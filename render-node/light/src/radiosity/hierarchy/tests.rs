@@ -170,3 +170,31 @@ fn augmented_passes_agree_with_the_progressive_solver() {
         }
     }
 }
+
+#[test]
+fn a_link_limit_met_while_refining_again_is_an_error_not_a_thinner_solution() {
+    let s = lamp_over_floor(0.8, true);
+    let (m, g) = mesh_of(&s, 0.01, 1);
+    let first_round = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let seen = first_round.clone();
+    let o = HierarchyOptions {
+        progress: HierarchyProgress::new(move |p| {
+            if p.round == 0 {
+                seen.store(p.links, std::sync::atomic::Ordering::Relaxed);
+            }
+            true
+        }),
+        ..HierarchyOptions::default()
+    };
+    let full = solve_hierarchical(&m, &g, &[], &o).unwrap();
+    let first = first_round.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(first < full.links, "{first} then {}", full.links);
+    let o = HierarchyOptions {
+        max_links: (first + full.links) / 2,
+        ..HierarchyOptions::default()
+    };
+    assert!(matches!(
+        solve_hierarchical(&m, &g, &[], &o),
+        Err(HierarchyError::TooManyLinks { .. })
+    ));
+}
