@@ -14,6 +14,7 @@ mod gpu;
 mod hemicube;
 mod light;
 mod observer;
+mod probes;
 mod radiosity;
 mod render;
 mod report_page;

@@ -72,8 +72,8 @@ pub struct BenchArgs {
     #[arg(long)]
     pub floor: bool,
     /// Radiosity only: make only the records of these kinds (default: all):
-    /// reference, gathered, sweep, scaling, incremental, incremental_object,
-    /// augmented, hierarchical.
+    /// reference, gathered, sweep, scaling, probes, incremental,
+    /// incremental_object, augmented, hierarchical.
     #[arg(long, value_delimiter = ',')]
     pub kinds: Vec<String>,
     /// Radiosity only: the `incremental_object` records to make, as

@@ -17,6 +17,8 @@
 //!   patches shot once, B / rho interpolated) at 20 floor and wall points
 //!   that see the whole light, against Lambert's closed-form polygon
 //!   formula; mean relative error.
+//! - `probes` records: error against path-traced probes
+//!   ([`path_traced_probes`], [`probe_errors`]).
 
 use crate::scene_file::load_any;
 use anyhow::Context;
@@ -36,11 +38,16 @@ mod augmented;
 mod hierarchical;
 mod incremental;
 mod object;
+mod probes;
 pub use augmented::{CONSISTENCY_SAMPLES, augmented_record, augmented_record_with, figure3_scene};
 pub use hierarchical::{hierarchical_records, split_object};
 pub use incremental::incremental_record;
 pub use object::{
     MOVED_OBJECTS, ObjectRecords, cornell_with_small_cube, incremental_object_record,
+};
+pub use probes::{
+    PROBE_COUNT, PROBE_SEED, PROBE_SPP, Probe, ProbeErrors, ProbedConfig, ProbedSolution,
+    path_traced_probes, probe_errors, solve_probed,
 };
 
 /// One benchmark record (a JSON object).
@@ -390,11 +397,12 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
 /// are made.
-pub const RECORD_KINDS: [&str; 8] = [
+pub const RECORD_KINDS: [&str; 9] = [
     "reference",
     "gathered",
     "sweep",
     "scaling",
+    "probes",
     "incremental",
     "incremental_object",
     "augmented",
@@ -428,6 +436,10 @@ pub fn bench_radiosity_kinds(
     {
         making("reference, gathered, sweep and scaling");
         bench_against_reference(&showcase, &wanted, &mut records)?;
+    }
+    if wanted("probes") {
+        making("probes");
+        records.extend(probes::probes_records(&showcase)?);
     }
     if wanted("incremental") {
         making("incremental");

@@ -129,12 +129,12 @@ pub fn write_report(records: &[BenchRecord], out: &Path, machine: &str) -> anyho
         );
     }
     md.push_str(
-        "\nOther records (incremental, incremental_object, augmented) in full:\n\n```json\n",
+        "\nOther records (probes, incremental, incremental_object, augmented) in full:\n\n```json\n",
     );
     for r in records.iter().filter(|r| {
         matches!(
             r.get("kind").and_then(|k| k.as_str()),
-            Some("incremental" | "incremental_object" | "augmented")
+            Some("probes" | "incremental" | "incremental_object" | "augmented")
         )
     }) {
         let _ = writeln!(md, "{r}");

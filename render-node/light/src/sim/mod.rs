@@ -11,7 +11,7 @@ pub mod devices;
 pub mod world;
 
 pub use devices::{SimCamera, SimConfig, SimProjector, SimShowcase, wheel_weights};
-pub use world::{ProjectorLight, SimWorld, TransportImage};
+pub use world::{ExitanceEstimate, ProjectorLight, SimWorld, TransportImage};
 
 use crate::{DeviceError, DeviceRays, GeometryError, ObjectFilter, RgbImage};
 use showcase_proto::{PinholeDevice, Showcase};

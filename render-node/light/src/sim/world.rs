@@ -39,6 +39,9 @@ use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 const MAX_DEPTH: u32 = 64;
 /// Bounces before Russian roulette may end a path.
 const ROULETTE_AFTER: u32 = 3;
+/// How far in front of the point (in [`SceneGeometry::epsilon`]) the ray
+/// of [`SimWorld::exitance_at`] that finds its surface starts.
+const EXITANCE_LIFT: f64 = 16.0;
 
 /// One emitting triangle (`Ke` radiance, front side only).
 #[derive(Clone, Debug)]
@@ -138,6 +141,17 @@ impl TransportImage {
         }
         t
     }
+}
+
+/// A path-traced exitance at one surface point ([`SimWorld::exitance_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExitanceEstimate {
+    /// Mean of the paths' estimates of `B` (W/m^2 per channel).
+    pub exitance: DVec3,
+    /// Standard error of [`Self::exitance`]: the standard deviation of the
+    /// per-path estimates over `sqrt(spp)` (infinite for one path, zero
+    /// for a black surface, whose exitance is exact).
+    pub std_error: DVec3,
 }
 
 /// The physical world of the simulated showcase: geometry with its true
@@ -289,12 +303,94 @@ impl SimWorld {
         spp: u32,
         rng: &mut ChaCha8Rng,
     ) -> [DVec3; 3] {
-        let Some(hit) = self.geometry.closest_hit(ray, 0.0, f64::INFINITY) else {
+        let Some(seen) = self.seen(ray, f64::INFINITY) else {
             return [DVec3::ZERO; 3];
         };
-        let Some(frame) = SurfaceFrame::at(&hit, ray.direction) else {
-            return [DVec3::ZERO; 3];
+        let mut direct = self.projector_irradiance(&seen, projector);
+        let (mut emitter_direct, mut indirect) = (DVec3::ZERO, DVec3::ZERO);
+        self.sample_paths(&seen, projector, spp, rng, |e, i| {
+            emitter_direct += e;
+            indirect += i;
+        });
+        direct += emitter_direct / spp as f64;
+        [
+            seen.emitted,
+            seen.rho * std::f64::consts::FRAC_1_PI * direct,
+            indirect / spp as f64,
+        ]
+    }
+
+    /// Path-trace the exitance `B` (W/m^2 per channel) leaving the front
+    /// side of the surface at `point`, whose unit front normal is
+    /// `normal`: `pi` times the outgoing radiance of the Lambertian
+    /// surface, so `pi Ke` of its own emission (when this world's
+    /// emitters are on) plus `rho E`, with `E` the irradiance from
+    /// `projector` (if any) and everything this world emits or reflects.
+    /// `spp` paths (at least 1), the estimator of [`Self::render`]; the
+    /// result depends only on `seed` (one stream, no threads), and distinct
+    /// seeds give independent estimates.
+    ///
+    /// The surface is found by a ray that starts a few
+    /// [`SceneGeometry::epsilon`] in front of `point` and points back at
+    /// it; `None` when it finds none (a point off every surface) or the
+    /// input is not finite.
+    ///
+    /// [`ExitanceEstimate::std_error`] treats the paths as independent;
+    /// the first bounce is stratified, which only lowers the true error,
+    /// so it is an upper estimate.
+    pub fn exitance_at(
+        &self,
+        point: DVec3,
+        normal: DVec3,
+        projector: Option<&ProjectorLight>,
+        spp: u32,
+        seed: u64,
+    ) -> Option<ExitanceEstimate> {
+        let n = normal.normalize_or_zero();
+        if !(point.is_finite() && n != DVec3::ZERO && n.is_finite()) {
+            return None;
+        }
+        let lift = EXITANCE_LIFT * self.geometry.epsilon();
+        let seen = self.seen(&Ray::new(point + lift * n, -n), 2.0 * lift)?;
+        let projector = projector.filter(|p| !p.is_dark());
+        let spp = spp.max(1);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        // Per path: pi Ke + rho (E_projector + E_emitters) + pi L_indirect.
+        let fixed = std::f64::consts::PI * seen.emitted
+            + seen.rho * self.projector_irradiance(&seen, projector);
+        let (mut sum, mut sum_sq) = (DVec3::ZERO, DVec3::ZERO);
+        let mut paths = 0u32;
+        self.sample_paths(&seen, projector, spp, &mut rng, |e, i| {
+            let b = fixed + seen.rho * e + std::f64::consts::PI * i;
+            sum += b;
+            sum_sq += b * b;
+            paths += 1;
+        });
+        if paths == 0 {
+            // A black surface: its own emission only, exactly.
+            return Some(ExitanceEstimate {
+                exitance: finite_or_zero(fixed),
+                std_error: DVec3::ZERO,
+            });
+        }
+        let count = f64::from(paths);
+        let mean = sum / count;
+        let std_error = if paths > 1 {
+            let variance = (sum_sq - sum * mean) / (count - 1.0);
+            (variance.max(DVec3::ZERO) / count).map(f64::sqrt)
+        } else {
+            DVec3::INFINITY
         };
+        Some(ExitanceEstimate {
+            exitance: finite_or_zero(mean),
+            std_error,
+        })
+    }
+
+    /// The surface point `ray` sees first, within `t_max`.
+    fn seen(&self, ray: &Ray, t_max: f64) -> Option<Seen> {
+        let hit = self.geometry.closest_hit(ray, 0.0, t_max)?;
+        let frame = SurfaceFrame::at(&hit, ray.direction)?;
         let material = &self.materials[hit.object as usize];
         let emitted = if hit.front_face && self.emitters_on {
             finite_or_zero(material.emission.as_dvec3().max(DVec3::ZERO))
@@ -302,28 +398,52 @@ impl SimWorld {
             DVec3::ZERO
         };
         let rho = self.albedo(&hit);
-        let mut direct = projector.map_or(DVec3::ZERO, |p| {
-            p.irradiance(&self.geometry, hit.point, frame.facing, frame.shading)
-        });
-        let mut emitter_direct = DVec3::ZERO;
-        let mut indirect = DVec3::ZERO;
-        if rho != DVec3::ZERO {
-            // The first bounce, which carries most of the indirect light,
-            // is stratified: an n x n jittered grid over the cosine
-            // hemisphere's unit square (n = floor(sqrt(spp))), the paths
-            // past n^2 unstratified.
-            for s in 0..spp {
-                emitter_direct += self.sample_emitters(hit.point, &frame, rng);
-                let first = stratified_point(s, spp, (rng.random(), rng.random()));
-                indirect += self.trace_path(hit.point, frame, rho, projector, first, rng);
-            }
-        }
-        direct += emitter_direct / spp as f64;
-        [
+        Some(Seen {
+            hit,
+            frame,
             emitted,
-            rho * std::f64::consts::FRAC_1_PI * direct,
-            indirect / spp as f64,
-        ]
+            rho,
+        })
+    }
+
+    /// The projector's irradiance (W/m^2) at a seen point.
+    fn projector_irradiance(&self, seen: &Seen, projector: Option<&ProjectorLight>) -> DVec3 {
+        projector.map_or(DVec3::ZERO, |p| {
+            p.irradiance(
+                &self.geometry,
+                seen.hit.point,
+                seen.frame.facing,
+                seen.frame.shading,
+            )
+        })
+    }
+
+    /// `spp` paths from a seen point (none when its albedo is zero): each
+    /// gives `path(e, l)`, one next-event estimate `e` of the emitters'
+    /// irradiance and one estimate `l` of the indirect radiance (already
+    /// times the point's albedo), in path order.
+    fn sample_paths(
+        &self,
+        seen: &Seen,
+        projector: Option<&ProjectorLight>,
+        spp: u32,
+        rng: &mut ChaCha8Rng,
+        mut path: impl FnMut(DVec3, DVec3),
+    ) {
+        if seen.rho == DVec3::ZERO {
+            return;
+        }
+        let point = seen.hit.point;
+        // The first bounce, which carries most of the indirect light, is
+        // stratified: an n x n jittered grid over the cosine hemisphere's
+        // unit square (n = floor(sqrt(spp))), the paths past n^2
+        // unstratified.
+        for s in 0..spp {
+            let e = self.sample_emitters(point, &seen.frame, rng);
+            let first = stratified_point(s, spp, (rng.random(), rng.random()));
+            let l = self.trace_path(point, seen.frame, seen.rho, projector, first, rng);
+            path(e, l);
+        }
     }
 
     /// One continuation path from a surface point: the radiance it brings
@@ -417,6 +537,17 @@ impl SimWorld {
     }
 }
 
+/// The surface point a ray sees, as the estimator needs it.
+struct Seen {
+    hit: Hit,
+    frame: SurfaceFrame,
+    /// Emitted radiance toward the ray (zero from the back or with the
+    /// emitters off).
+    emitted: DVec3,
+    /// True albedo.
+    rho: DVec3,
+}
+
 /// Normals at a hit, oriented to the side a ray arriving along `incoming`
 /// sees.
 #[derive(Clone, Copy, Debug)]
@@ -439,65 +570,5 @@ impl SurfaceFrame {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use glam::Vec3;
-    use showcase_proto::{Mesh, Object, ObjectKind, PinholeDevice, Transform};
-
-    /// A floor and a wall meeting at a corner, the wall emitting.
-    fn corner() -> Showcase {
-        let mut s = Showcase::default();
-        let floor = s.add_mesh(Mesh {
-            positions: vec![Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X],
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-            ..Mesh::default()
-        });
-        let wall = s.add_mesh(Mesh {
-            positions: vec![
-                Vec3::new(0.0, 0.0, 1.0),
-                Vec3::new(0.0, 1.0, 1.0),
-                Vec3::new(1.0, 1.0, 1.0),
-                Vec3::new(1.0, 0.0, 1.0),
-            ],
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-            ..Mesh::default()
-        });
-        for (name, mesh, emission) in [("floor", floor, Vec3::ZERO), ("wall", wall, Vec3::ONE)] {
-            let mut material = Material::diffuse(Vec3::splat(0.7));
-            material.emission = emission;
-            s.objects.push(Object {
-                name: name.into(),
-                mesh,
-                material,
-                kind: ObjectKind::Real,
-                transform: Transform::IDENTITY,
-            });
-        }
-        s
-    }
-
-    #[test]
-    fn renders_are_reproducible_per_seed_whatever_the_thread_count() {
-        let world = SimWorld::new(&corner(), &ObjectFilter::All, true).unwrap();
-        let camera = PinholeDevice::look_at(
-            DVec3::new(0.5, 0.8, -0.5),
-            DVec3::new(0.5, 0.2, 0.8),
-            DVec3::Y,
-            60.0,
-            9,
-            7,
-        );
-        let rays = DeviceRays::new(&camera).unwrap();
-        let run = |threads: usize, seed: u64| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| world.render(&rays, None, 4, seed))
-        };
-        let a = run(1, 9);
-        assert!(a.indirect.data.iter().any(|v| *v != Vec3::ZERO));
-        assert_eq!(a, run(3, 9));
-        assert_ne!(a, run(2, 10));
-    }
-}
+#[path = "world_tests.rs"]
+mod tests;

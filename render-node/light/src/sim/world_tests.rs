@@ -1,0 +1,208 @@
+//! The path tracer against closed forms, and its reproducibility.
+
+use super::*;
+use crate::polygon_irradiance;
+use glam::Vec3;
+use showcase_proto::{Mesh, Object, ObjectKind, PinholeDevice, Transform};
+use std::f64::consts::PI;
+
+/// A floor and a wall meeting at a corner, the wall emitting.
+fn corner() -> Showcase {
+    let mut s = Showcase::default();
+    let floor = s.add_mesh(Mesh {
+        positions: vec![Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        ..Mesh::default()
+    });
+    let wall = s.add_mesh(Mesh {
+        positions: vec![
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        ..Mesh::default()
+    });
+    for (name, mesh, emission) in [("floor", floor, Vec3::ZERO), ("wall", wall, Vec3::ONE)] {
+        let mut material = Material::diffuse(Vec3::splat(0.7));
+        material.emission = emission;
+        s.objects.push(Object {
+            name: name.into(),
+            mesh,
+            material,
+            kind: ObjectKind::Real,
+            transform: Transform::IDENTITY,
+        });
+    }
+    s
+}
+
+#[test]
+fn renders_are_reproducible_per_seed_whatever_the_thread_count() {
+    let world = SimWorld::new(&corner(), &ObjectFilter::All, true).unwrap();
+    let camera = PinholeDevice::look_at(
+        DVec3::new(0.5, 0.8, -0.5),
+        DVec3::new(0.5, 0.2, 0.8),
+        DVec3::Y,
+        60.0,
+        9,
+        7,
+    );
+    let rays = DeviceRays::new(&camera).unwrap();
+    let run = |threads: usize, seed: u64| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| world.render(&rays, None, 4, seed))
+    };
+    let a = run(1, 9);
+    assert!(a.indirect.data.iter().any(|v| *v != Vec3::ZERO));
+    assert_eq!(a, run(3, 9));
+    assert_ne!(a, run(2, 10));
+}
+
+/// Adds an object made of `quads` (corners counter-clockwise seen from the
+/// front) to `s`.
+fn add_quads(s: &mut Showcase, name: &str, quads: &[[Vec3; 4]], material: Material) {
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for q in quads {
+        let k = positions.len() as u32;
+        positions.extend_from_slice(q);
+        triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    let mesh = s.add_mesh(Mesh {
+        positions,
+        triangles,
+        ..Mesh::default()
+    });
+    s.objects.push(Object {
+        name: name.into(),
+        mesh,
+        material,
+        kind: ObjectKind::Real,
+        transform: Transform::IDENTITY,
+    });
+}
+
+/// The six faces of the unit cube `[0, 1]^3`, facing in.
+fn unit_cube_inward() -> Vec<[Vec3; 4]> {
+    let axes = [Vec3::X, Vec3::Y, Vec3::Z];
+    let mut faces = Vec::new();
+    for a in 0..3 {
+        let (u, v) = (axes[(a + 1) % 3], axes[(a + 2) % 3]);
+        for side in [0.0, 1.0] {
+            let base = axes[a] * side;
+            let inward = axes[a] * (1.0 - 2.0 * side);
+            let q = [base, base + u, base + u + v, base + v];
+            faces.push(if u.cross(v).dot(inward) > 0.0 {
+                q
+            } else {
+                [q[0], q[3], q[2], q[1]]
+            });
+        }
+    }
+    faces
+}
+
+/// `got` agrees with `exact` within four of its standard errors, which are
+/// under 2 % of `exact` (so the check has teeth), in every channel.
+#[track_caller]
+fn assert_estimate(got: ExitanceEstimate, exact: DVec3) {
+    for c in 0..3 {
+        let (b, se, x) = (got.exitance[c], got.std_error[c], exact[c]);
+        assert!(
+            se > 0.0 && se < 0.02 * x,
+            "channel {c}: standard error {se} against {x}"
+        );
+        assert!(
+            (b - x).abs() < 4.0 * se,
+            "channel {c}: {b} +- {se}, exact {x}"
+        );
+    }
+}
+
+#[test]
+fn a_closed_glowing_box_has_the_furnace_exitance() {
+    // Every face emits Ke with albedo rho: B = pi Ke + rho B everywhere.
+    // Every path vertex near an edge samples a glowing face next to it, a
+    // heavy tail: 32,768 paths leave standard errors of 0.3-1.3 %.
+    let (rho, ke) = (Vec3::new(0.3, 0.5, 0.7), Vec3::new(1.0, 2.0, 0.5));
+    let mut material = Material::diffuse(rho);
+    material.emission = ke;
+    let mut s = Showcase::default();
+    add_quads(&mut s, "box", &unit_cube_inward(), material);
+    let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
+    let exact = PI * ke.as_dvec3() / (DVec3::ONE - rho.as_dvec3());
+    for (point, normal) in [
+        (DVec3::new(0.3, 0.0, 0.6), DVec3::Y),
+        (DVec3::new(1.0, 0.5, 0.5), -DVec3::X),
+        // Near an edge and a corner of the box.
+        (DVec3::new(0.9, 0.95, 0.0), DVec3::Z),
+    ] {
+        let got = world.exitance_at(point, normal, None, 32_768, 7).unwrap();
+        assert_estimate(got, exact);
+    }
+    // With the emitters off nothing glows: exactly black, and exactly so.
+    let dark = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
+    let got = dark
+        .exitance_at(DVec3::new(0.3, 0.0, 0.6), DVec3::Y, None, 64, 7)
+        .unwrap();
+    assert_eq!((got.exitance, got.std_error), (DVec3::ZERO, DVec3::ZERO));
+}
+
+#[test]
+fn a_floor_under_a_black_area_light_has_lamberts_exitance() {
+    // The light is black, so nothing comes back to the floor: B = rho E.
+    let (rho, ke) = (Vec3::new(0.6, 0.4, 0.2), Vec3::new(3.0, 2.0, 1.0));
+    let mut s = Showcase::default();
+    let floor = [
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(-2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, -2.0),
+    ];
+    add_quads(&mut s, "floor", &[floor], Material::diffuse(rho));
+    let light = [
+        Vec3::new(-0.25, 1.0, -0.25),
+        Vec3::new(0.25, 1.0, -0.25),
+        Vec3::new(0.25, 1.0, 0.25),
+        Vec3::new(-0.25, 1.0, 0.25),
+    ];
+    let mut black = Material::diffuse(Vec3::ZERO);
+    black.emission = ke;
+    add_quads(&mut s, "light", &[light], black);
+    let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
+    let polygon = light.map(|v| v.as_dvec3());
+    for point in [DVec3::new(0.3, 0.0, 0.2), DVec3::new(-1.5, 0.0, 1.0)] {
+        let e = polygon_irradiance(point, DVec3::Y, &polygon, 1.0).unwrap();
+        let exact = rho.as_dvec3() * ke.as_dvec3() * e;
+        let got = world.exitance_at(point, DVec3::Y, None, 1024, 3).unwrap();
+        assert_estimate(got, exact);
+    }
+    // The light's own front glows pi Ke, exactly (it reflects nothing).
+    let got = world
+        .exitance_at(DVec3::new(0.1, 1.0, 0.0), -DVec3::Y, None, 16, 3)
+        .unwrap();
+    assert_eq!(got.exitance, PI * ke.as_dvec3());
+    assert_eq!(got.std_error, DVec3::ZERO);
+}
+
+#[test]
+fn exitance_needs_a_surface_and_depends_only_on_its_seed() {
+    let world = SimWorld::new(&corner(), &ObjectFilter::All, true).unwrap();
+    let (p, n) = (DVec3::new(0.4, 0.0, 0.3), DVec3::Y);
+    let a = world.exitance_at(p, n, None, 64, 5).unwrap();
+    assert!(a.exitance.min_element() > 0.0);
+    assert_eq!(Some(a), world.exitance_at(p, n, None, 64, 5));
+    assert_ne!(Some(a), world.exitance_at(p, n, None, 64, 6));
+    // One path has no spread to measure.
+    let one = world.exitance_at(p, n, None, 1, 5).unwrap();
+    assert_eq!(one.std_error, DVec3::INFINITY);
+    // Off every surface, or not a point at all.
+    assert_eq!(world.exitance_at(p + 0.01 * n, n, None, 4, 5), None);
+    assert_eq!(world.exitance_at(p, DVec3::ZERO, None, 4, 5), None);
+    assert_eq!(world.exitance_at(DVec3::NAN, n, None, 4, 5), None);
+}
