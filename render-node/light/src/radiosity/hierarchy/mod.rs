@@ -416,6 +416,33 @@ impl<'a> Hierarchy<'a> {
         })
     }
 
+    /// Update `b`, solved before, for new `emission` and `direct` light (a
+    /// virtual light moved, dimmed or was switched): the same links, the
+    /// gathers started from `b`, so they stop as soon as the change has
+    /// settled to `tolerance`. Returns the gathers taken. Exact up to the
+    /// tolerance where the old links still suit the new light; where they
+    /// do not (a light moved far), solve afresh.
+    pub fn update(&self, b: &mut Vec<DVec3>, emission: &[DVec3], direct: &[DVec3]) -> u32 {
+        let init = self.initial(emission, direct);
+        let mut it = 0;
+        while it < self.options.max_iterations {
+            let next = self.gather_step(&init, b);
+            let residual = relative_change(self.mesh, &self.tree.order, b, &next);
+            *b = next;
+            it += 1;
+            if residual < self.options.tolerance {
+                break;
+            }
+        }
+        it
+    }
+
+    /// Direct irradiance of one light per element, as [`Self::direct`]:
+    /// what a light move recomputes.
+    pub fn direct_of(&self, light: &Light) -> Vec<DVec3> {
+        self.direct(std::slice::from_ref(light))
+    }
+
     /// `init + rho K b`: one gather of exitance `b` over the links.
     pub fn gather_step(&self, init: &[DVec3], b: &[DVec3]) -> Vec<DVec3> {
         let reflected = self.reflect(b);

@@ -198,3 +198,33 @@ fn a_link_limit_met_while_refining_again_is_an_error_not_a_thinner_solution() {
         Err(HierarchyError::TooManyLinks { .. })
     ));
 }
+
+#[test]
+fn an_update_after_a_light_moves_matches_a_fresh_solve() {
+    // The floor and box under a point light that moves 5 cm: the update
+    // keeps the links and starts the gathers from the old B.
+    let s = lamp_over_floor(0.8, true);
+    let (m, g) = mesh_of(&s, 0.01, 1);
+    let light = |x: f32| showcase_proto::Light::Point {
+        position: glam::Vec3::new(x, 0.6, 0.5),
+        intensity: glam::Vec3::splat(0.5),
+    };
+    let o = HierarchyOptions::default();
+    let emission: Vec<DVec3> = m.elements.iter().map(|e| e.emission).collect();
+    let mut h = Hierarchy::new(&m, &g, None, &o).unwrap();
+    let mut b = h
+        .solve(&emission, &h.direct_of(&light(0.3)))
+        .unwrap()
+        .radiosity;
+    let gathers = h.update(&mut b, &emission, &h.direct_of(&light(0.35)));
+    let fresh = solve_hierarchical(&m, &g, &[light(0.35)], &o).unwrap();
+    let e = relative_error(&m, &b, &m, &fresh.radiosity, 4).unwrap();
+    // Measured: 0.11 % after 3 gathers (the fresh solve takes 4, on links
+    // refined for its own B).
+    assert!(e < 0.005, "update off a fresh solve by {e}");
+    assert!(
+        gathers < fresh.iterations,
+        "{gathers} gathers, fresh {}",
+        fresh.iterations
+    );
+}
