@@ -18,6 +18,9 @@ const SEPARATION: f64 = 1.0;
 /// Links that may carry this many refinement limits of power or more get
 /// all their visibility rays ([`Hierarchy::rays_for`]).
 const FULL_RAYS_POWER: f64 = 64.0;
+/// Draws of a member facing the other node before a visibility ray takes
+/// any member ([`Hierarchy::random_point`]).
+const FACING_TRIES: u64 = 8;
 /// Relative error of a volume cluster's intensity or received harmonics.
 const CLUSTER_ERROR: f64 = 0.25;
 /// Leaves closer than this many times the sum of their radii get the
@@ -428,9 +431,13 @@ impl Hierarchy<'_> {
     pub(super) fn visibility(&self, r: u32, s: u32, rays: u32) -> f64 {
         let key = hash64(self.options.seed ^ (u64::from(r) << 32 | u64::from(s)));
         let mut seen = 0;
+        let (rc, sc) = (
+            self.tree.nodes[r as usize].center,
+            self.tree.nodes[s as usize].center,
+        );
         for k in 0..u64::from(rays) {
-            let (a, na) = self.random_point(r, hash64(key ^ (2 * k + 1)));
-            let (b, _) = self.random_point(s, hash64(key ^ (2 * k + 2)));
+            let (a, na) = self.random_point(r, hash64(key ^ (2 * k + 1)), sc);
+            let (b, _) = self.random_point(s, hash64(key ^ (2 * k + 2)), rc);
             if self.geometry.visible(a, na, b, true) {
                 seen += 1;
             }
@@ -439,12 +446,26 @@ impl Hierarchy<'_> {
     }
 
     /// A point of a random member of node `n`, and its normal.
-    pub(super) fn random_point(&self, n: u32, key: u64) -> (DVec3, DVec3) {
+    /// A point of a random member of node `n` that faces `toward` (the
+    /// other node's centroid), and its normal. Members facing away carry
+    /// nothing along the link (the moments and harmonics see to that);
+    /// their rays would be blocked by their own object and count a volume
+    /// cluster as hidden (the Cornell box's blocks made it 13 % dark at
+    /// epsilon 1e-5). After [`FACING_TRIES`] draws it takes what it has.
+    pub(super) fn random_point(&self, n: u32, key: u64, toward: DVec3) -> (DVec3, DVec3) {
         let members = self.tree.members(n);
-        let e = members[(key % members.len() as u64) as usize];
-        let el = &self.mesh.elements[e as usize];
-        let s = DVec2::new(unit(key ^ 0x9e37), unit(key ^ 0x7f4a));
-        (triangle_sample(&el.vertices, s), el.normal)
+        let mut point = (DVec3::ZERO, DVec3::ZERO);
+        for t in 0..FACING_TRIES {
+            let key = hash64(key ^ t);
+            let e = members[(key % members.len() as u64) as usize];
+            let el = &self.mesh.elements[e as usize];
+            let s = DVec2::new(unit(key ^ 0x9e37), unit(key ^ 0x7f4a));
+            point = (triangle_sample(&el.vertices, s), el.normal);
+            if el.normal.dot(toward - point.0) > 0.0 {
+                break;
+            }
+        }
+        point
     }
 }
 
