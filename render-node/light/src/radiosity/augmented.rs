@@ -237,29 +237,7 @@ pub fn augmented_radiosity_hierarchical(
             if b1_pass == B1Pass::OneBounce {
                 return Ok((h.gather_step(emission, emission), 1));
             }
-            // Clip-compensated: B* = max(B0, K B*) from B* = B0.
-            let scale = emission.iter().map(|b| b.max_element()).fold(0.0, f64::max);
-            let mut b = emission.to_vec();
-            let mut kb = h.reflect(&b);
-            let mut gathers = 1;
-            for _ in 0..CLIP_ITERATIONS {
-                let next: Vec<DVec3> = emission.iter().zip(&kb).map(|(e, k)| e.max(*k)).collect();
-                let change = next
-                    .iter()
-                    .zip(&b)
-                    .map(|(n, b)| (*n - *b).abs().max_element())
-                    .fold(0.0, f64::max);
-                b = next;
-                kb = h.reflect(&b);
-                gathers += 1;
-                if !(change > 1e-6 * scale) {
-                    break;
-                }
-            }
-            Ok((
-                emission.iter().zip(&kb).map(|(e, k)| *e + *k).collect(),
-                gathers,
-            ))
+            Ok(clip_fixed_point(emission, |b| (h.reflect(b), 1)))
         },
     )
 }
@@ -284,11 +262,22 @@ fn one_bounce(shooter: &mut Shooter<'_>, x: &[DVec3]) -> Vec<DVec3> {
 /// elements and already has `b0` added (non-real elements are zero in
 /// `b0`). Returns B1 and the shots taken.
 fn clip_compensated(shooter: &mut Shooter<'_>, b0: &[DVec3]) -> (Vec<DVec3>, usize) {
+    clip_fixed_point(b0, |b| {
+        let kb = one_bounce(shooter, b);
+        (kb, shooter.shots())
+    })
+}
+
+/// The fixed point of [`B1Pass::ClipCompensated`] for either solver:
+/// `bounce(x)` returns `K x` and its work (shots or gathers); returns
+/// `B1 = B0 + K B*` and the total work.
+fn clip_fixed_point(
+    b0: &[DVec3],
+    mut bounce: impl FnMut(&[DVec3]) -> (Vec<DVec3>, usize),
+) -> (Vec<DVec3>, usize) {
     let scale = b0.iter().map(|b| b.max_element()).fold(0.0, f64::max);
-    let mut shots = 0;
     let mut b = b0.to_vec();
-    let mut kb = one_bounce(shooter, &b);
-    shots += shooter.shots();
+    let (mut kb, mut work) = bounce(&b);
     for _ in 0..CLIP_ITERATIONS {
         let next: Vec<DVec3> = b0.iter().zip(&kb).map(|(b0, kb)| b0.max(*kb)).collect();
         let change = next
@@ -297,14 +286,15 @@ fn clip_compensated(shooter: &mut Shooter<'_>, b0: &[DVec3]) -> (Vec<DVec3>, usi
             .map(|(n, b)| (*n - *b).abs().max_element())
             .fold(0.0, f64::max);
         b = next;
-        kb = one_bounce(shooter, &b);
-        shots += shooter.shots();
+        let (k, w) = bounce(&b);
+        kb = k;
+        work += w;
         if !(change > 1e-6 * scale) {
             break;
         }
     }
     let b1 = b0.iter().zip(&kb).map(|(b0, kb)| *b0 + *kb).collect();
-    (b1, shots)
+    (b1, work)
 }
 
 /// B2 per vertex of `mesh` with the real interreflection evaluated *at*
