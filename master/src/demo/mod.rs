@@ -372,11 +372,16 @@ fn radiosity_stage(
     );
     Ok(StageOutcome {
         detail: format!(
-            "scene {}, {} solver: {} patches, {} elements ({elements} before refinement), {} links, {} {}; {}; solution and maps in {}",
+            "scene {}, {} solver: {} patches, {} elements ({}), {} links, {} {}; {}; solution and maps in {}",
             scene.name,
             s.solver,
             s.patches,
             s.elements,
+            if s.solver == "hierarchical" {
+                format!("small triangles kept whole; {elements} with every patch split")
+            } else {
+                format!("{elements} before refinement")
+            },
             s.links,
             s.shots,
             if s.solver == "hierarchical" {
