@@ -54,8 +54,13 @@ pub struct SoakRecord {
 
 /// Resident memory of this process (MB): `VmRSS` of `/proc/self/status`.
 pub fn rss_mb() -> Option<f64> {
+    status_mb("VmRSS:")
+}
+
+/// The `key` line of `/proc/self/status` (in kB there), in MB.
+fn status_mb(key: &str) -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
 }
@@ -63,10 +68,7 @@ pub fn rss_mb() -> Option<f64> {
 /// Peak resident memory of this process (MB) since the last
 /// [`reset_peak_rss`]: `VmHWM` of `/proc/self/status`.
 pub fn peak_rss_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
+    status_mb("VmHWM:")
 }
 
 /// Start [`peak_rss_mb`] afresh from the present resident memory (Linux:

@@ -221,7 +221,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         report.ran("reflectance", t, reflectance.detail);
         report.figures.extend(reflectance.figures);
     }
-    match radiosity_budget(&scene) {
+    match radiosity_elements(&scene) {
         Err(reason) => report.skipped("radiosity", reason),
         Ok(elements) => {
             let t = Instant::now();
@@ -327,7 +327,7 @@ fn reflectance_stage(
 /// `radiosity` phase cannot solve it (nothing to solve). Above
 /// [`crate::radiosity_job::AUTO_HIERARCHICAL_ELEMENTS`] the hierarchical
 /// solver takes it.
-fn radiosity_budget(scene: &showcase_proto::Showcase) -> Result<usize, String> {
+fn radiosity_elements(scene: &showcase_proto::Showcase) -> Result<usize, String> {
     let opts = demo_radiosity_options();
     let (_, elements) = crate::radiosity_job::mesh_size(scene, &opts)
         .map_err(|e| format!("nothing to solve: {e:#}"))?;

@@ -2,10 +2,10 @@
 //! light, the link's coefficient and visibility, and the exitance moments
 //! a source radiates with (see the module docs of [`super`]).
 
-use super::{Hierarchy, HierarchyError, LINK_BYTES, element_point};
+use super::{Hierarchy, HierarchyError, LINK_BYTES};
 use crate::finite::finite_or_zero;
 use crate::form_factor_point_polygon;
-use crate::radiosity::mesh::sub_centroids;
+use crate::radiosity::mesh::barycentric_point;
 use crate::sampling::{hash64, triangle_sample, unit};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -191,11 +191,7 @@ impl Hierarchy<'_> {
                 return;
             }
             if r == s {
-                let node = &self.tree.nodes[r as usize];
-                if !node.is_leaf() && !node.flat {
-                    let [a, b] = node.children;
-                    stack.extend([(a, a), (a, b), (b, a), (b, b)]);
-                }
+                stack.extend(self.self_pairs(r).into_iter().flatten());
                 continue;
             }
             if self.culled(r, s) {
@@ -208,20 +204,27 @@ impl Hierarchy<'_> {
                 }
                 continue;
             }
-            let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
-            let split_r = !rn.is_leaf()
-                && (sn.is_leaf()
-                    || rn.radius * rn.radius * rn.area.sqrt()
-                        >= sn.radius * sn.radius * sn.area.sqrt());
-            if split_r {
-                for c in rn.children {
-                    stack.push((c, s));
-                }
-            } else {
-                for c in sn.children {
-                    stack.push((r, c));
-                }
-            }
+            stack.extend(self.split(r, s));
+        }
+    }
+
+    /// The four pairs a node splits into when it gathers from itself
+    /// (`None` for a leaf or a flat node, which does not see itself).
+    fn self_pairs(&self, n: u32) -> Option<[(u32, u32); 4]> {
+        let node = &self.tree.nodes[n as usize];
+        let [a, b] = node.children;
+        (!node.is_leaf() && !node.flat).then_some([(a, a), (a, b), (b, a), (b, b)])
+    }
+
+    /// The two pairs `(r, s)` refines into: the larger node's children
+    /// (by `radius^2 sqrt(area)`), a leaf never.
+    fn split(&self, r: u32, s: u32) -> [(u32, u32); 2] {
+        let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
+        let size = |n: &super::tree::Node| n.radius * n.radius * n.area.sqrt();
+        if !rn.is_leaf() && (sn.is_leaf() || size(rn) >= size(sn)) {
+            rn.children.map(|c| (c, s))
+        } else {
+            sn.children.map(|c| (r, c))
         }
     }
 
@@ -246,10 +249,8 @@ impl Hierarchy<'_> {
             let mut split_any = false;
             for (r, s) in frontier {
                 if r == s {
-                    let node = &self.tree.nodes[r as usize];
-                    if !node.is_leaf() && !node.flat {
-                        let [a, c] = node.children;
-                        next.extend([(a, a), (a, c), (c, a), (c, c)]);
+                    if let Some(pairs) = self.self_pairs(r) {
+                        next.extend(pairs);
                         split_any = true;
                     }
                 } else {
@@ -301,20 +302,7 @@ impl Hierarchy<'_> {
                 for l in chunk {
                     if self.must_refine(l.receiver, l.source, &moments) {
                         refined += 1;
-                        let (rn, sn) = (
-                            &self.tree.nodes[l.receiver as usize],
-                            &self.tree.nodes[l.source as usize],
-                        );
-                        let split_r = !rn.is_leaf()
-                            && (sn.is_leaf()
-                                || rn.radius * rn.radius * rn.area.sqrt()
-                                    >= sn.radius * sn.radius * sn.area.sqrt());
-                        let pairs = if split_r {
-                            rn.children.map(|c| (c, l.source))
-                        } else {
-                            sn.children.map(|c| (l.receiver, c))
-                        };
-                        for (r, s) in pairs {
+                        for (r, s) in self.split(l.receiver, l.source) {
                             self.refine_pair(r, s, &moments, &mut out, &made);
                         }
                     } else {
@@ -379,11 +367,11 @@ impl Hierarchy<'_> {
         if rn.is_leaf() && sn.is_leaf() && dist2 < (PRECISE * (rn.radius + sn.radius)).powi(2) {
             let re = &self.mesh.elements[rn.element as usize];
             let se = &self.mesh.elements[sn.element as usize];
-            let points = sub_centroids(2);
+            let points = &self.quadrature;
             let f: f64 = points
                 .iter()
                 .map(|b| {
-                    let x = element_point(&re.vertices, *b);
+                    let x = barycentric_point(&re.vertices, *b);
                     form_factor_point_polygon(x, re.normal, &se.vertices).unwrap_or(0.0)
                 })
                 .sum::<f64>()

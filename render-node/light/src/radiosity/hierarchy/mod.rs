@@ -37,7 +37,7 @@ mod links;
 mod sh;
 mod tree;
 
-use super::mesh::{RadiosityMesh, sub_centroids};
+use super::mesh::{RadiosityMesh, barycentric_point, sub_centroids};
 use super::sources::direct_irradiance;
 use crate::SceneGeometry;
 use crate::finite::finite_or_zero;
@@ -280,6 +280,9 @@ pub struct Hierarchy<'a> {
     offsets: Vec<u32>,
     /// Power the refinement is relative to (max channel, W).
     reference_power: f64,
+    /// The four points (barycentric) at which a leaf's direct light and
+    /// precise form factors are averaged.
+    quadrature: Vec<DVec2>,
 }
 
 impl<'a> Hierarchy<'a> {
@@ -314,6 +317,7 @@ impl<'a> Hierarchy<'a> {
             links: Vec::new(),
             offsets: Vec::new(),
             reference_power: 0.0,
+            quadrature: sub_centroids(2),
         })
     }
 
@@ -334,7 +338,7 @@ impl<'a> Hierarchy<'a> {
         if lights.is_empty() {
             return out;
         }
-        let points = sub_centroids(2);
+        let points = &self.quadrature;
         let seed = self.options.seed;
         let samples = self.options.light_samples;
         let values: Vec<(u32, DVec3)> = self
@@ -345,7 +349,7 @@ impl<'a> Hierarchy<'a> {
                 let el = &self.mesh.elements[e as usize];
                 let mut sum = DVec3::ZERO;
                 for (k, b) in points.iter().enumerate() {
-                    let x = element_point(&el.vertices, *b);
+                    let x = barycentric_point(&el.vertices, *b);
                     for (l, light) in lights.iter().enumerate() {
                         let s = hash64(seed ^ (u64::from(e) << 20) ^ ((k as u64) << 8) ^ l as u64);
                         sum += direct_irradiance(light, self.geometry, x, el.normal, samples, s);
@@ -381,27 +385,8 @@ impl<'a> Hierarchy<'a> {
             } else if self.refine_again(&b)? == 0 && round > 0 {
                 break;
             }
-            let mut it = 0;
-            while it < self.options.max_iterations {
-                let next = self.gather_step(&init, &b);
-                residual = relative_change(self.mesh, &self.tree.order, &b, &next);
-                b = next;
-                it += 1;
-                let go_on = self.options.progress.report_to(HierarchyPoint {
-                    round,
-                    links: self.links.len(),
-                    iterations: it,
-                    residual,
-                });
-                if !go_on {
-                    complete = false;
-                    break;
-                }
-                if residual < self.options.tolerance {
-                    break;
-                }
-            }
-            iterations += it;
+            let (it, r, go_on) = self.iterate(&init, &mut b, Some(round));
+            (iterations, residual, complete) = (iterations + it, r, go_on);
             if !complete {
                 break;
             }
@@ -424,17 +409,37 @@ impl<'a> Hierarchy<'a> {
     /// do not (a light moved far), solve afresh.
     pub fn update(&self, b: &mut Vec<DVec3>, emission: &[DVec3], direct: &[DVec3]) -> u32 {
         let init = self.initial(emission, direct);
-        let mut it = 0;
+        self.iterate(&init, b, None).0
+    }
+
+    /// Gather `b = init + rho K b` until it changes by less than
+    /// `tolerance` or `max_iterations`, telling the progress callback
+    /// (refinement round `round`, when given) after each gather. Returns
+    /// the gathers, the last relative change, and false when the callback
+    /// stopped it.
+    fn iterate(&self, init: &[DVec3], b: &mut Vec<DVec3>, round: Option<u32>) -> (u32, f64, bool) {
+        let (mut it, mut residual) = (0, 1.0);
         while it < self.options.max_iterations {
-            let next = self.gather_step(&init, b);
-            let residual = relative_change(self.mesh, &self.tree.order, b, &next);
+            let next = self.gather_step(init, b);
+            residual = relative_change(self.mesh, &self.tree.order, b, &next);
             *b = next;
             it += 1;
+            if let Some(round) = round {
+                let point = HierarchyPoint {
+                    round,
+                    links: self.links.len(),
+                    iterations: it,
+                    residual,
+                };
+                if !self.options.progress.report_to(point) {
+                    return (it, residual, false);
+                }
+            }
             if residual < self.options.tolerance {
                 break;
             }
         }
-        it
+        (it, residual, true)
     }
 
     /// Direct irradiance of one light per element, as [`Self::direct`]:
@@ -547,11 +552,6 @@ impl<'a> Hierarchy<'a> {
         }
         g
     }
-}
-
-/// Point at barycentric `(u, v)` of a triangle.
-fn element_point(v: &[DVec3; 3], b: DVec2) -> DVec3 {
-    v[0] + b.x * (v[1] - v[0]) + b.y * (v[2] - v[0])
 }
 
 /// `sum |next - b| A / sum next A` over the active elements (max channel).
