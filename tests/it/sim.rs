@@ -5,7 +5,9 @@
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use showcase_light::hardware::{CameraDevice, ProjectorDevice};
-use showcase_light::sim::{SimConfig, SimShowcase, SimWorld, render_view, wheel_weights};
+use showcase_light::sim::{
+    SimConfig, SimLights, SimShowcase, SimWorld, render_view, wheel_weights,
+};
 use showcase_light::{
     DeviceRays, Image, IntensityLight, ObjectFilter, SceneGeometry, polygon_irradiance,
     render_intensity,
@@ -71,14 +73,19 @@ fn closed_emitting_box_conserves_energy() {
     // closed box is black, their own glow included.
     let dark = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
     assert_eq!(dark.emitter_count(), 0);
-    let img = dark.render(&DeviceRays::new(&camera).unwrap(), None, 4, 3);
+    let img = dark.render(&DeviceRays::new(&camera).unwrap(), &SimLights::none(), 4, 3);
     assert!(img.total().data.iter().all(|v| *v == Vec3::ZERO));
     let world = SimWorld::new(&s, &ObjectFilter::All, true).unwrap();
     assert_eq!(world.emitter_count(), 12);
     // 1024 paths: the next-event estimate in a closed box is heavy-tailed
     // (1/r^2 near the edges); at 256 paths one render's mean still
     // scatters by about 1.8%, too close to the 2% tolerance.
-    let img = world.render(&DeviceRays::new(&camera).unwrap(), None, 1024, 3);
+    let img = world.render(
+        &DeviceRays::new(&camera).unwrap(),
+        &SimLights::none(),
+        1024,
+        3,
+    );
     let total = img.total();
     let mean = total.data.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / total.data.len() as f64;
     let expect = le.as_dvec3() / (1.0 - rho as f64);
@@ -128,7 +135,7 @@ fn direct_light_from_a_polygon_emitter_matches_lambert() {
         10,
     );
     let rays = DeviceRays::new(&camera).unwrap();
-    let img = world.render(&rays, None, 1024, 5);
+    let img = world.render(&rays, &SimLights::none(), 1024, 5);
     let geometry = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
     let polygon: Vec<DVec3> = [corner, corner + u, corner + u + v, corner + v]
         .iter()
@@ -337,7 +344,10 @@ fn cornell_box_renders_with_its_own_light() {
         24,
         24,
     );
-    let img = render_view(&scene, &device, 32, 1).unwrap();
+    // The green wall's green-to-red ratio is 2.08 here (1024 paths per
+    // pixel, seeds 1-6: 2.07-2.14), close to the bound below: 32 paths
+    // gave 1.94-2.17, so the bound needs the converged image.
+    let img = render_view(&scene, &device, 1024, 1).unwrap();
     assert!(img.data.iter().all(|v| v.is_finite()));
     let rays = DeviceRays::new(&device).unwrap();
     let p = rays.pixel_of(DVec3::new(0.278, 0.5487, 0.2795)).unwrap();

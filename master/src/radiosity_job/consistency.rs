@@ -143,7 +143,12 @@ pub fn consistency_seeded(
                 .collect(),
         };
         let light = ProjectorLight::new(rays.clone(), intensity).context("sim projector")?;
-        let image = world.render(&camera_rays, Some(&light), samples, seed);
+        let image = world.render(
+            &camera_rays,
+            &showcase_light::sim::SimLights::projectors([&light]),
+            samples,
+            seed,
+        );
         for (r, v) in radiance.iter_mut().zip(&image.total().data) {
             *r += v.as_dvec3();
         }

@@ -32,7 +32,7 @@ use showcase_light::metrics::percentile;
 use showcase_light::radiosity::RadiosityMesh;
 use showcase_light::radiosity::mesh::barycentric_point;
 use showcase_light::sampling::{pixel_seed, unit};
-use showcase_light::sim::SimWorld;
+use showcase_light::sim::{SimLights, SimWorld};
 use showcase_light::{ObjectFilter, Ray, SceneGeometry, WorldTriangle};
 use showcase_proto::Showcase;
 use std::time::Instant;
@@ -124,7 +124,7 @@ pub fn path_traced_probes(
         .map(|(i, p)| {
             let paths = pixel_seed(seed, 2 * i as u64 + 1);
             let e = world
-                .exitance_at(p.point, p.normal, None, spp, paths)
+                .exitance_at(p.point, p.normal, &SimLights::none(), spp, paths)
                 .with_context(|| format!("probe {i} at {} is on no surface", p.point))?;
             Ok(Probe {
                 exitance: e.exitance,

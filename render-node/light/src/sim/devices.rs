@@ -25,8 +25,8 @@
 //! per pixel (at least 1): a projector showing black adds only its black
 //! level, whose noise is small even with one path.
 
-use super::SimError;
 use super::world::{ProjectorLight, SimWorld, TransportImage};
+use super::{SimError, SimLights};
 use crate::finite::{finite_or, finite_or_zero};
 use crate::hardware::{CameraDevice, CameraFrame, ProjectorDevice};
 use crate::sampling::pixel_seed;
@@ -232,7 +232,7 @@ impl Shared {
         );
         let t = Arc::new(self.world.render(
             &DeviceRays::new(&cam.device)?,
-            Some(&light),
+            &SimLights::projectors([&light]),
             samples,
             seed,
         ));
@@ -253,7 +253,7 @@ impl Shared {
             self.world
                 .render(
                     &DeviceRays::new(&cam.device)?,
-                    None,
+                    &SimLights::none(),
                     self.config.samples_per_pixel,
                     seed,
                 )

@@ -8,10 +8,14 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod devices;
+pub mod irradiance_cache;
+pub mod lights;
 pub mod world;
 
 pub use devices::{SimCamera, SimConfig, SimProjector, SimShowcase, wheel_weights};
-pub use world::{ExitanceEstimate, ProjectorLight, SimWorld, TransportImage};
+pub use irradiance_cache::{CacheOptions, IrradianceCache};
+pub use lights::SimLights;
+pub use world::{ExitanceEstimate, ProjectorLight, RayEnd, SimWorld, SurfacePoint, TransportImage};
 
 use crate::{DeviceError, DeviceRays, GeometryError, ObjectFilter, RgbImage};
 use showcase_proto::{PinholeDevice, Showcase};
@@ -44,6 +48,15 @@ pub enum SimError {
         /// The index asked for.
         index: usize,
     },
+    /// A light that is not finite, a spot without an axis, or an area
+    /// light without an area.
+    #[error(
+        "light `{name}` is not a usable light: give it finite values, a spot a direction, an area light two non-parallel edges"
+    )]
+    BadLight {
+        /// The light's name (`ambient` for the scene's ambient).
+        name: String,
+    },
     /// An exposure start or duration that is not finite or is negative.
     #[error(
         "exposure start {start_s} s / duration {duration_s} s is not a finite non-negative time"
@@ -68,5 +81,7 @@ pub fn render_view(
 ) -> Result<RgbImage, SimError> {
     let world = SimWorld::new(scene, &ObjectFilter::All, true)?;
     let rays = DeviceRays::new(device)?;
-    Ok(world.render(&rays, None, samples_per_pixel, seed).total())
+    Ok(world
+        .render(&rays, &SimLights::none(), samples_per_pixel, seed)
+        .total())
 }

@@ -10,18 +10,31 @@
 //! - `emitted`: the emission `Ke` of the surface when its front faces the
 //!   camera and the world's emitters are on (with them off, a lamp is an
 //!   ordinary reflector: it neither glows nor lights anything);
-//! - `direct`: `rho / pi * E_direct`, the projector's point light evaluated
-//!   exactly (it is a delta light) plus emitters by next-event estimation
-//!   (uniform area sampling of emitter triangles, weighted by area times
-//!   peak radiance);
+//! - `direct`: `rho / pi * E_direct` from the lights of [`SimLights`]: the
+//!   projectors' and point and spot lights evaluated exactly (they are
+//!   delta lights), area lights and emitting surfaces by next-event
+//!   estimation (area lights one uniform point each per path, stratified
+//!   over the pixel's paths; emitter triangles by uniform area sampling,
+//!   weighted by area times peak radiance);
 //! - `indirect`: everything scattered at least once more, by cosine-weighted
 //!   path continuation (the first bounce stratified over the pixel's paths) with next-event estimation at every vertex and
-//!   Russian roulette after the third bounce. Emission found by a
-//!   continuation ray is not added (next-event estimation already counts
-//!   it), so the estimator is unbiased.
+//!   Russian roulette after the third bounce, plus the environment's
+//!   radiance ([`SimLights::environment`]) along paths that leave the
+//!   scene. Emission found by a continuation ray is not added (next-event
+//!   estimation already counts it) unless the ray comes off a mirror, where
+//!   next-event estimation cannot reach, so the estimator is unbiased.
 //!
-//! Every pixel has its own random stream seeded from `(seed, pixel index)`,
-//! so a render is reproducible for a seed whatever the thread count.
+//! A reflective material ([`Material::reflective`]) is an ideal mirror
+//! tinted by its albedo, about its geometric normal (the mesh as it is):
+//! camera rays and paths follow it. Light that reaches a diffuse surface
+//! only by way of a mirror from a point, spot or projector light (a
+//! caustic of a delta light) cannot be found by this estimator and is left
+//! out; every other mirror path is counted.
+//!
+//! Every path has its own random stream, seeded from `(seed, pixel index,
+//! path index)`, so a render is reproducible for a seed whatever the
+//! thread count, and two worlds rendered with one seed use common random
+//! numbers ([`SimWorld::trace`]).
 
 use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Hit, Image, IntensityLight, ObjectFilter, Ray, RgbImage, SceneGeometry};
@@ -31,11 +44,12 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use showcase_proto::{Material, Showcase};
 
-use super::SimError;
+use super::{SimError, SimLights};
 use crate::geometry::face_forward;
 use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
 
-/// Longest path (in bounces) the estimator follows.
+/// Longest path (in bounces) the estimator follows, and the most mirrors
+/// a camera ray follows.
 const MAX_DEPTH: u32 = 64;
 /// Bounces before Russian roulette may end a path.
 const ROULETTE_AFTER: u32 = 3;
@@ -160,6 +174,8 @@ pub struct ExitanceEstimate {
 pub struct SimWorld {
     geometry: SceneGeometry,
     materials: Vec<Material>,
+    /// Per object: an ideal mirror ([`Material::reflective`]).
+    mirrors: Vec<bool>,
     emitters: Vec<Emitter>,
     /// Cumulative selection weights of `emitters`, ending at 1.
     emitter_cdf: Vec<f64>,
@@ -175,6 +191,7 @@ impl SimWorld {
     pub fn new(scene: &Showcase, filter: &ObjectFilter, emitters: bool) -> Result<Self, SimError> {
         let geometry = SceneGeometry::build(scene, filter)?;
         let materials: Vec<Material> = scene.objects.iter().map(|o| o.material.clone()).collect();
+        let mirrors = materials.iter().map(|m| m.reflective).collect();
         let mut list = Vec::new();
         if emitters {
             for t in geometry.triangles() {
@@ -211,6 +228,7 @@ impl SimWorld {
         Ok(Self {
             geometry,
             materials,
+            mirrors,
             emitters: list,
             emitter_cdf,
             emitters_on: emitters,
@@ -262,27 +280,25 @@ impl SimWorld {
     }
 
     /// Path-trace the radiance every pixel of `camera` sees, lit by
-    /// `projector` (if any) and this world's emitters, with
-    /// `samples_per_pixel` paths per pixel (at least 1).
+    /// `lights` and this world's emitters, with `samples_per_pixel` paths
+    /// per pixel (at least 1).
     pub fn render(
         &self,
         camera: &DeviceRays,
-        projector: Option<&ProjectorLight>,
+        lights: &SimLights<'_>,
         samples_per_pixel: u32,
         seed: u64,
     ) -> TransportImage {
         let d = camera.device();
         let (w, h) = (d.width, d.height);
-        let projector = projector.filter(|p| !p.is_dark());
-        let spp = samples_per_pixel.max(1);
         let pixels: Vec<[Vec3; 3]> = (0..w * h)
             .into_par_iter()
             .map(|i| {
-                let mut rng = ChaCha8Rng::seed_from_u64(pixel_seed(seed, i as u64));
-                let ray = camera.pixel_ray(i % w, i / w);
-                let r = ray.map_or([DVec3::ZERO; 3], |ray| {
-                    self.trace_pixel(&ray, projector, spp, &mut rng)
-                });
+                let r = camera
+                    .pixel_ray(i % w, i / w)
+                    .map_or([DVec3::ZERO; 3], |ray| {
+                        self.trace(&ray, lights, samples_per_pixel, pixel_seed(seed, i as u64))
+                    });
                 r.map(|v| finite_or_zero(v).as_vec3())
             })
             .collect();
@@ -295,29 +311,156 @@ impl SimWorld {
         out
     }
 
-    /// `[emitted, direct, indirect]` radiance along a camera ray.
-    fn trace_pixel(
-        &self,
-        ray: &Ray,
-        projector: Option<&ProjectorLight>,
-        spp: u32,
-        rng: &mut ChaCha8Rng,
-    ) -> [DVec3; 3] {
-        let Some(seen) = self.seen(ray, f64::INFINITY) else {
-            return [DVec3::ZERO; 3];
+    /// `[emitted, direct, indirect]` radiance (the split of
+    /// [`TransportImage`]) arriving along `ray`, lit by `lights` and this
+    /// world's emitters, from `spp` paths (at least 1); the result depends
+    /// only on `seed` (one stream, no threads). A ray that leaves the scene
+    /// brings the environment's radiance, counted as emitted.
+    pub fn trace(&self, ray: &Ray, lights: &SimLights<'_>, spp: u32, seed: u64) -> [DVec3; 3] {
+        let spp = spp.max(1);
+        let end = self.follow(ray, lights);
+        let Some(seen) = end.seen else {
+            return [end.emitted, DVec3::ZERO, DVec3::ZERO];
         };
-        let mut direct = self.projector_irradiance(&seen, projector);
-        let (mut emitter_direct, mut indirect) = (DVec3::ZERO, DVec3::ZERO);
-        self.sample_paths(&seen, projector, spp, rng, |e, i| {
-            emitter_direct += e;
+        let mut direct = self.delta_irradiance(&seen, lights);
+        let (mut sampled, mut indirect) = (DVec3::ZERO, DVec3::ZERO);
+        self.sample_paths(&seen, lights, spp, seed, |e, i| {
+            sampled += e;
             indirect += i;
         });
-        direct += emitter_direct / spp as f64;
+        direct += sampled / spp as f64;
         [
-            seen.emitted,
-            seen.rho * std::f64::consts::FRAC_1_PI * direct,
-            indirect / spp as f64,
+            end.emitted,
+            end.tint * seen.rho * std::f64::consts::FRAC_1_PI * direct,
+            end.tint * indirect / spp as f64,
         ]
+    }
+
+    /// Where `ray` ends: past the mirrors it meets, at a diffuse surface
+    /// (with what it collected on the way), or out of the scene.
+    pub fn surface_along(&self, ray: &Ray, lights: &SimLights<'_>) -> RayEnd {
+        let end = self.follow(ray, lights);
+        RayEnd {
+            emitted: end.emitted,
+            tint: end.tint,
+            surface: end.seen.map(|s| SurfacePoint {
+                point: s.point,
+                facing: s.frame.facing,
+                shading: s.frame.shading,
+                object: s.object,
+                rho: s.rho,
+            }),
+        }
+    }
+
+    /// Follow `ray` through the mirrors it meets to a diffuse surface.
+    fn follow(&self, ray: &Ray, lights: &SimLights<'_>) -> Followed {
+        let (mut ray, mut tint, mut emitted) = (*ray, DVec3::ONE, DVec3::ZERO);
+        let mut mirrors = 0;
+        loop {
+            let Some(seen) = self.seen(&ray, f64::INFINITY) else {
+                return Followed {
+                    emitted: emitted + tint * lights.environment(),
+                    tint,
+                    seen: None,
+                };
+            };
+            emitted += tint * seen.emitted;
+            if !self.is_mirror(seen.object) {
+                return Followed {
+                    emitted,
+                    tint,
+                    seen: Some(seen),
+                };
+            }
+            tint *= seen.rho;
+            mirrors += 1;
+            if tint == DVec3::ZERO || mirrors > MAX_DEPTH {
+                return Followed {
+                    emitted,
+                    tint,
+                    seen: None,
+                };
+            }
+            let dir = mirror_direction(ray.direction, seen.frame.facing);
+            let origin =
+                self.geometry
+                    .offset_point(seen.point, seen.frame.facing, seen.point + dir);
+            ray = Ray::new(origin, dir);
+        }
+    }
+
+    /// The direct irradiance (W/m^2) at `surface`: the delta lights
+    /// exactly, the area lights and emitters by `samples` next-event
+    /// estimates (at least 1, stratified over the area lights), on the
+    /// streams of `seed` ([`Self::trace`]'s).
+    pub fn direct_irradiance(
+        &self,
+        surface: &SurfacePoint,
+        lights: &SimLights<'_>,
+        samples: u32,
+        seed: u64,
+    ) -> DVec3 {
+        let seen = surface.seen();
+        let mut e = self.delta_irradiance(&seen, lights);
+        if lights.has_areas() || !self.emitters.is_empty() {
+            let samples = samples.max(1);
+            let mut sum = DVec3::ZERO;
+            for s in 0..samples {
+                let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
+                sum += self.sample_emitters(surface.point, &seen.frame, rng);
+                let u = stratified_point(s, samples, (rng.random(), rng.random()));
+                sum += lights.sample_areas(
+                    &self.geometry,
+                    surface.point,
+                    surface.facing,
+                    surface.shading,
+                    u,
+                );
+            }
+            e += sum / f64::from(samples);
+        }
+        finite_or_zero(e)
+    }
+
+    /// The indirect irradiance (W/m^2) at `surface`, everything but its
+    /// direct light, from `paths` paths (at least 1; the first bounce
+    /// stratified) on the streams of `seed` ([`Self::trace`]'s), and the
+    /// harmonic mean of the paths' first hit distances (how far the
+    /// surfaces that light it are; infinite when every path leaves the
+    /// scene).
+    pub fn indirect_irradiance(
+        &self,
+        surface: &SurfacePoint,
+        lights: &SimLights<'_>,
+        paths: u32,
+        seed: u64,
+    ) -> (DVec3, f64) {
+        let seen = surface.seen();
+        let paths = paths.max(1);
+        let (mut sum, mut inverse) = (DVec3::ZERO, 0.0);
+        for s in 0..paths {
+            let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
+            // The same draws as `sample_paths`, so both estimators share
+            // their paths for one seed.
+            let _ = (rng.random::<[f64; 3]>(), rng.random::<[f64; 2]>());
+            let first = stratified_point(s, paths, (rng.random(), rng.random()));
+            let (l, distance) =
+                self.trace_path(surface.point, seen.frame, DVec3::ONE, lights, first, rng);
+            sum += l;
+            if distance > 0.0 {
+                inverse += 1.0 / distance;
+            }
+        }
+        let harmonic = if inverse > 0.0 {
+            f64::from(paths) / inverse
+        } else {
+            f64::INFINITY
+        };
+        (
+            finite_or_zero(std::f64::consts::PI * sum / f64::from(paths)),
+            harmonic,
+        )
     }
 
     /// Path-trace the exitance `B` (W/m^2 per channel) leaving the front
@@ -325,7 +468,7 @@ impl SimWorld {
     /// `normal`: `pi` times the outgoing radiance of the Lambertian
     /// surface, so `pi Ke` of its own emission (when this world's
     /// emitters are on) plus `rho E`, with `E` the irradiance from
-    /// `projector` (if any) and everything this world emits or reflects.
+    /// `lights` and everything this world emits or reflects.
     /// `spp` paths (at least 1), the estimator of [`Self::render`]; the
     /// result depends only on `seed` (one stream, no threads), and distinct
     /// seeds give independent estimates.
@@ -342,7 +485,7 @@ impl SimWorld {
         &self,
         point: DVec3,
         normal: DVec3,
-        projector: Option<&ProjectorLight>,
+        lights: &SimLights<'_>,
         spp: u32,
         seed: u64,
     ) -> Option<ExitanceEstimate> {
@@ -352,15 +495,13 @@ impl SimWorld {
         }
         let lift = EXITANCE_LIFT * self.geometry.epsilon();
         let seen = self.seen(&Ray::new(point + lift * n, -n), 2.0 * lift)?;
-        let projector = projector.filter(|p| !p.is_dark());
         let spp = spp.max(1);
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        // Per path: pi Ke + rho (E_projector + E_emitters) + pi L_indirect.
-        let fixed = std::f64::consts::PI * seen.emitted
-            + seen.rho * self.projector_irradiance(&seen, projector);
+        // Per path: pi Ke + rho (E_delta + E_sampled) + pi L_indirect.
+        let fixed =
+            std::f64::consts::PI * seen.emitted + seen.rho * self.delta_irradiance(&seen, lights);
         let (mut sum, mut sum_sq) = (DVec3::ZERO, DVec3::ZERO);
         let mut paths = 0u32;
-        self.sample_paths(&seen, projector, spp, &mut rng, |e, i| {
+        self.sample_paths(&seen, lights, spp, seed, |e, i| {
             let b = fixed + seen.rho * e + std::f64::consts::PI * i;
             sum += b;
             sum_sq += b * b;
@@ -387,61 +528,85 @@ impl SimWorld {
         })
     }
 
+    /// True when object `object` is an ideal mirror.
+    fn is_mirror(&self, object: u32) -> bool {
+        self.mirrors.get(object as usize).copied().unwrap_or(false)
+    }
+
+    /// Emitted radiance of the surface at `hit` toward a ray that hit it
+    /// (zero from the back or with the emitters off).
+    fn emission(&self, hit: &Hit) -> DVec3 {
+        match self.materials.get(hit.object as usize) {
+            Some(m) if hit.front_face && self.emitters_on => {
+                finite_or_zero(m.emission.as_dvec3().max(DVec3::ZERO))
+            }
+            _ => DVec3::ZERO,
+        }
+    }
+
     /// The surface point `ray` sees first, within `t_max`.
     fn seen(&self, ray: &Ray, t_max: f64) -> Option<Seen> {
         let hit = self.geometry.closest_hit(ray, 0.0, t_max)?;
         let frame = SurfaceFrame::at(&hit, ray.direction)?;
-        let material = &self.materials[hit.object as usize];
-        let emitted = if hit.front_face && self.emitters_on {
-            finite_or_zero(material.emission.as_dvec3().max(DVec3::ZERO))
-        } else {
-            DVec3::ZERO
-        };
+        let emitted = self.emission(&hit);
         let rho = self.albedo(&hit);
         Some(Seen {
-            hit,
+            point: hit.point,
+            object: hit.object,
             frame,
             emitted,
             rho,
         })
     }
 
-    /// The projector's irradiance (W/m^2) at a seen point.
-    fn projector_irradiance(&self, seen: &Seen, projector: Option<&ProjectorLight>) -> DVec3 {
-        projector.map_or(DVec3::ZERO, |p| {
-            p.irradiance(
-                &self.geometry,
-                seen.hit.point,
-                seen.frame.facing,
-                seen.frame.shading,
-            )
-        })
+    /// The delta lights' irradiance (W/m^2) at a seen point.
+    fn delta_irradiance(&self, seen: &Seen, lights: &SimLights<'_>) -> DVec3 {
+        lights.delta_irradiance(
+            &self.geometry,
+            seen.point,
+            seen.frame.facing,
+            seen.frame.shading,
+        )
     }
 
     /// `spp` paths from a seen point (none when its albedo is zero): each
-    /// gives `path(e, l)`, one next-event estimate `e` of the emitters'
-    /// irradiance and one estimate `l` of the indirect radiance (already
-    /// times the point's albedo), in path order.
+    /// gives `path(e, l)`, one next-event estimate `e` of the irradiance
+    /// from the emitters and area lights and one estimate `l` of the
+    /// indirect radiance (already times the point's albedo), in path
+    /// order.
+    ///
+    /// Path `s` draws from its own stream, seeded from `(seed, s)`, and
+    /// draws the same numbers at each vertex whatever the world holds (an
+    /// emitter pick, a point on the area lights, a direction), so two
+    /// worlds traced with one seed follow the same paths as long as their
+    /// surfaces agree: their difference is then far less noisy than either
+    /// (common random numbers).
     fn sample_paths(
         &self,
         seen: &Seen,
-        projector: Option<&ProjectorLight>,
+        lights: &SimLights<'_>,
         spp: u32,
-        rng: &mut ChaCha8Rng,
+        seed: u64,
         mut path: impl FnMut(DVec3, DVec3),
     ) {
         if seen.rho == DVec3::ZERO {
             return;
         }
-        let point = seen.hit.point;
+        let point = seen.point;
+        let (facing, shading) = (seen.frame.facing, seen.frame.shading);
         // The first bounce, which carries most of the indirect light, is
         // stratified: an n x n jittered grid over the cosine hemisphere's
         // unit square (n = floor(sqrt(spp))), the paths past n^2
-        // unstratified.
+        // unstratified; so are the points on the area lights.
         for s in 0..spp {
-            let e = self.sample_emitters(point, &seen.frame, rng);
+            let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
+            let mut e = self.sample_emitters(point, &seen.frame, rng);
+            let u = stratified_point(s, spp, (rng.random(), rng.random()));
+            if lights.has_areas() {
+                e += lights.sample_areas(&self.geometry, point, facing, shading, u);
+            }
             let first = stratified_point(s, spp, (rng.random(), rng.random()));
-            let l = self.trace_path(point, seen.frame, seen.rho, projector, first, rng);
+            let (l, _) = self.trace_path(point, seen.frame, seen.rho, lights, first, rng);
             path(e, l);
         }
     }
@@ -454,41 +619,57 @@ impl SimWorld {
         start: DVec3,
         start_frame: SurfaceFrame,
         mut beta: DVec3,
-        projector: Option<&ProjectorLight>,
+        lights: &SimLights<'_>,
         first: (f64, f64),
         rng: &mut ChaCha8Rng,
-    ) -> DVec3 {
+    ) -> (DVec3, f64) {
         let mut sum = DVec3::ZERO;
-        let (mut point, mut frame) = (start, start_frame);
+        let mut first_distance = f64::INFINITY;
+        let (mut point, mut facing) = (start, start_frame.facing);
+        let mut dir = cosine_direction(start_frame.shading, first);
+        // Whether the ray leaves a mirror (emission it finds counts).
+        let mut off_mirror = false;
         for depth in 1..=MAX_DEPTH {
-            let u = if depth == 1 {
-                first
-            } else {
-                (rng.random(), rng.random())
-            };
-            let dir = cosine_direction(frame.shading, u);
-            if !(dir.dot(frame.facing) > 0.0) {
+            if !(dir.dot(facing) > 0.0) {
                 break;
             }
-            let origin = self.geometry.offset_point(point, frame.facing, point + dir);
+            let origin = self.geometry.offset_point(point, facing, point + dir);
             let Some(hit) = self
                 .geometry
                 .closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY)
             else {
+                sum += beta * lights.environment();
                 break;
             };
+            if depth == 1 {
+                first_distance = (hit.point - point).length();
+            }
             let Some(next) = SurfaceFrame::at(&hit, dir) else {
                 break;
             };
+            if off_mirror {
+                sum += beta * self.emission(&hit);
+            }
             let rho = self.albedo(&hit);
             if rho == DVec3::ZERO {
                 break;
             }
-            let mut e = self.sample_emitters(hit.point, &next, rng);
-            if let Some(p) = projector {
-                e += p.irradiance(&self.geometry, hit.point, next.facing, next.shading);
+            off_mirror = self.is_mirror(hit.object);
+            if !off_mirror {
+                let mut e = self.sample_emitters(hit.point, &next, rng);
+                e += lights.delta_irradiance(&self.geometry, hit.point, next.facing, next.shading);
+                let u = (rng.random(), rng.random());
+                if lights.has_areas() {
+                    e += lights.sample_areas(
+                        &self.geometry,
+                        hit.point,
+                        next.facing,
+                        next.shading,
+                        u,
+                    );
+                }
+                sum += beta * rho * std::f64::consts::FRAC_1_PI * e;
             }
-            sum += beta * rho * std::f64::consts::FRAC_1_PI * e;
             beta *= rho;
             if depth >= ROULETTE_AFTER {
                 let q = beta.max_element().min(0.95);
@@ -497,25 +678,30 @@ impl SimWorld {
                 }
                 beta /= q;
             }
+            dir = if off_mirror {
+                mirror_direction(dir, next.facing)
+            } else {
+                cosine_direction(next.shading, (rng.random(), rng.random()))
+            };
             point = hit.point;
-            frame = next;
+            facing = next.facing;
         }
-        finite_or_zero(sum)
+        (finite_or_zero(sum), first_distance)
     }
 
     /// One next-event estimate of the irradiance from the emitters.
+    /// Three numbers are drawn whether or not there are emitters.
     fn sample_emitters(&self, point: DVec3, frame: &SurfaceFrame, rng: &mut ChaCha8Rng) -> DVec3 {
+        let (u, r1, r2): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
         if self.emitters.is_empty() {
             return DVec3::ZERO;
         }
-        let u: f64 = rng.random();
         let k = self
             .emitter_cdf
             .partition_point(|c| *c < u)
             .min(self.emitters.len() - 1);
         let e = &self.emitters[k];
         let p_select = self.emitter_cdf[k] - if k == 0 { 0.0 } else { self.emitter_cdf[k - 1] };
-        let (r1, r2): (f64, f64) = (rng.random(), rng.random());
         let s = r1.sqrt();
         let [a, b, c] = e.vertices;
         let y = (1.0 - s) * a + s * (1.0 - r2) * b + s * r2 * c;
@@ -537,9 +723,67 @@ impl SimWorld {
     }
 }
 
+/// A diffuse surface point, as [`SimWorld::surface_along`] finds it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// The point (world metres).
+    pub point: DVec3,
+    /// Unit geometric normal on the side the ray arrived at.
+    pub facing: DVec3,
+    /// Unit shading normal, in the same hemisphere.
+    pub shading: DVec3,
+    /// Index of its object in the scene.
+    pub object: u32,
+    /// Its true albedo.
+    pub rho: DVec3,
+}
+
+impl SurfacePoint {
+    fn seen(&self) -> Seen {
+        Seen {
+            point: self.point,
+            object: self.object,
+            frame: SurfaceFrame {
+                facing: self.facing,
+                shading: self.shading,
+            },
+            emitted: DVec3::ZERO,
+            rho: self.rho,
+        }
+    }
+}
+
+/// Where a ray ends ([`SimWorld::surface_along`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayEnd {
+    /// Radiance collected on the way: emitting surfaces it met and, when
+    /// it leaves the scene, the environment, times the mirrors' tint.
+    pub emitted: DVec3,
+    /// The product of the albedos of the mirrors it met.
+    pub tint: DVec3,
+    /// The diffuse surface it ends at; `None` when it leaves the scene or
+    /// a black mirror stops it.
+    pub surface: Option<SurfacePoint>,
+}
+
+/// [`SimWorld::follow`]'s result: a [`RayEnd`] with the seen point.
+struct Followed {
+    emitted: DVec3,
+    tint: DVec3,
+    seen: Option<Seen>,
+}
+
+/// `dir` reflected about the unit normal `facing` of the side it arrives
+/// at.
+fn mirror_direction(dir: DVec3, facing: DVec3) -> DVec3 {
+    dir - 2.0 * dir.dot(facing) * facing
+}
+
 /// The surface point a ray sees, as the estimator needs it.
 struct Seen {
-    hit: Hit,
+    point: DVec3,
+    /// Index of its object in the scene.
+    object: u32,
     frame: SurfaceFrame,
     /// Emitted radiance toward the ray (zero from the back or with the
     /// emitters off).
