@@ -167,6 +167,20 @@ pub fn relative_rmse(
     relative_rmse_values(&channels(test), &channels(reference), m.as_deref())
 }
 
+/// RMSE of `test` against `reference` and the mean of `reference`, over
+/// the channels of the pixels where `mask` is true (all when `None`): the
+/// two halves of [`relative_rmse`], for a difference whose reference is
+/// not the image it is relative to.
+pub fn rmse_and_reference_mean(
+    test: &RgbImage,
+    reference: &RgbImage,
+    mask: Option<&Image<bool>>,
+) -> Result<(f64, f64), MetricError> {
+    check_sizes(test, reference)?;
+    let m = channel_mask(test, reference, mask)?;
+    error_stats(&channels(test), &channels(reference), m.as_deref())
+}
+
 /// PSNR of two linear RGB images, in dB, for signal peak `peak`.
 pub fn psnr(
     test: &RgbImage,

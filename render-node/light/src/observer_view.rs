@@ -34,6 +34,10 @@
 //! its distance-corrected lookup (texel resolution, what the map's centre
 //! cannot see) are the approximation the target judges.
 //!
+//! [`complete`] is the physically complete counterpart of the composite's
+//! real part and of the target: every bounce, from the simulated
+//! showcase's path tracer.
+//!
 //! Pure: no IO, no GPU.
 
 // `!(x > 0.0)` is deliberate: it is also true for NaN (as in `light`).
@@ -122,6 +126,9 @@ pub enum ObserverViewError {
     /// The scene or a device cannot be set up.
     #[error(transparent)]
     Setup(#[from] RenderSetupError),
+    /// The simulated showcase cannot set up the complete view.
+    #[error("simulated showcase: {0}")]
+    Sim(#[from] crate::sim::SimError),
     /// An output image does not have its device's size.
     #[error("{what} is {width}x{height} but its device is {dw}x{dh}")]
     SizeMismatch {
@@ -514,6 +521,8 @@ fn target_radiance(
     };
     Some((finite_or_zero(l), Some((hit.object, hit.primitive, lit))))
 }
+
+pub mod complete;
 
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,204 @@
+//! The complete view against what must hold whatever the noise: the same
+//! light from a projector and from a virtual lamp gives the same image,
+//! and the irradiance cache agrees with brute-force path tracing.
+
+use super::*;
+use crate::metrics::relative_rmse;
+use showcase_proto::{
+    Light, LightSource, Material, Mesh, Object, ObjectKind, Projector, ProjectorResponse, Showcase,
+    Transform,
+};
+
+/// A 1 m real floor (y = 0) and a real wall at x = -0.3 facing +x, both
+/// grey, so light bounces between them.
+fn corner() -> Showcase {
+    let mut s = Showcase::default();
+    let quad = |s: &mut Showcase, name: &str, q: [Vec3; 4]| {
+        let mesh = s.add_mesh(Mesh {
+            positions: q.to_vec(),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        });
+        s.objects.push(Object {
+            name: name.into(),
+            mesh,
+            material: Material::diffuse(Vec3::splat(0.6)),
+            kind: ObjectKind::Real,
+            transform: Transform::IDENTITY,
+        });
+    };
+    quad(
+        &mut s,
+        "floor",
+        [
+            Vec3::new(-0.5, 0.0, -0.5),
+            Vec3::new(-0.5, 0.0, 0.5),
+            Vec3::new(0.5, 0.0, 0.5),
+            Vec3::new(0.5, 0.0, -0.5),
+        ],
+    );
+    quad(
+        &mut s,
+        "wall",
+        [
+            Vec3::new(-0.3, 0.0, -0.4),
+            Vec3::new(-0.3, 0.4, -0.4),
+            Vec3::new(-0.3, 0.4, 0.4),
+            Vec3::new(-0.3, 0.0, 0.4),
+        ],
+    );
+    s
+}
+
+/// A projector 1.2 m above the origin looking down, wide enough to cover
+/// the whole corner, with a linear response of 1 W/sr at value 1.
+fn projector() -> Projector {
+    let device = PinholeDevice::look_at(
+        DVec3::new(0.0, 1.2, 0.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        100.0,
+        64,
+        64,
+    );
+    Projector {
+        name: "p".into(),
+        device,
+        response: ProjectorResponse {
+            gamma: 1.0,
+            eta: 1.0,
+            black_level: 0.0,
+            wheel_segments: Vec::new(),
+            wheel_period_s: 0.0,
+        },
+    }
+}
+
+fn camera() -> PinholeDevice {
+    PinholeDevice::look_at(
+        DVec3::new(0.6, 0.8, 0.8),
+        DVec3::new(-0.1, 0.1, 0.0),
+        DVec3::Y,
+        60.0,
+        32,
+        24,
+    )
+}
+
+/// The virtual lamp where the projector is, as bright as its pixels.
+fn lamp(value: f32) -> LightSource {
+    LightSource {
+        name: "lamp".into(),
+        light: Light::Point {
+            position: Vec3::new(0.0, 1.2, 0.0),
+            intensity: Vec3::splat(value),
+        },
+    }
+}
+
+#[test]
+fn a_projector_lighting_like_the_lamp_sees_the_target_exactly() {
+    // Every point the camera sees is inside the projector's image, so the
+    // projector showing 0.5 everywhere is the lamp of 0.5 W/sr: both
+    // worlds are the same physics, traced with the same random numbers,
+    // so their images agree to rounding while each is noisy on its own.
+    let mut scene = corner();
+    scene.lights.push(lamp(0.5));
+    let frame = FrameScene::from_parts(scene, &[]).unwrap();
+    let p = projector();
+    let value = Image::new(64, 64, Vec3::splat(0.5));
+    let view = complete_view(
+        &frame,
+        &camera(),
+        &[ProjectedLight {
+            projector: &p,
+            value: &value,
+        }],
+        CompleteOptions {
+            paths_per_point: 64,
+            seed: 5,
+        },
+    )
+    .unwrap();
+    let same = relative_rmse(&view.real.radiance, &view.target.radiance, None).unwrap();
+    assert!(same < 1e-5, "real against target: {same}");
+    let compared = view.difference_noise_rel_rmse(None).unwrap();
+    assert!(compared < 1e-5, "noise of the difference: {compared}");
+    let own = view.target.noise_rel_rmse(None).unwrap();
+    assert!(own > 1e-3, "the target's own noise: {own}");
+    // The wall lights the floor and back: interreflection is there.
+    let share = relative_rmse(&view.real.direct, &view.real.radiance, None).unwrap();
+    assert!(share > 0.05, "interreflection share {share}");
+    // The projector dark: only the target is lit.
+    let dark = Image::new(64, 64, Vec3::ZERO);
+    let off = complete_view(
+        &frame,
+        &camera(),
+        &[ProjectedLight {
+            projector: &p,
+            value: &dark,
+        }],
+        CompleteOptions {
+            paths_per_point: 16,
+            seed: 5,
+        },
+    )
+    .unwrap();
+    assert!(off.real.radiance.data.iter().all(|v| *v == Vec3::ZERO));
+    assert!(
+        off.target
+            .radiance
+            .data
+            .iter()
+            .any(|v| v.max_element() > 0.0)
+    );
+}
+
+#[test]
+fn the_irradiance_cache_agrees_with_brute_force_path_tracing() {
+    // The same image by brute force: every subsample ray with 2048 paths
+    // of its own. The cache may differ by its noise and a small
+    // interpolation bias; both are measured here.
+    let mut scene = corner();
+    scene.lights.push(lamp(0.5));
+    let world = SimWorld::new(&scene, &ObjectFilter::All, true).unwrap();
+    let lights = SimLights::virtual_lights(&scene.lights, scene.ambient).unwrap();
+    let cam = camera();
+    let rays = DeviceRays::new(&cam).unwrap();
+    let cached = trace_image(
+        &world,
+        &lights,
+        &rays,
+        CompleteOptions {
+            paths_per_point: 2048,
+            seed: 9,
+        },
+    );
+    let n = SUBSAMPLES * SUBSAMPLES;
+    let brute = Image::from_fn(cam.width, cam.height, |x, y| {
+        let mut sum = DVec3::ZERO;
+        for k in 0..n {
+            let offset = DVec2::new(
+                ((k % SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+                ((k / SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64,
+            );
+            let ray = rays
+                .ray_through(DVec2::new(x as f64, y as f64) + offset)
+                .unwrap();
+            let seed = pixel_seed(77, u64::from(y * cam.width + x) * 4 + u64::from(k));
+            let [e, d, i] = world.trace(&ray, &lights, 2048, seed);
+            sum += e + d + i;
+        }
+        (sum / f64::from(n)).as_vec3()
+    });
+    let noise = cached.noise_rel_rmse(None).unwrap();
+    let error = relative_rmse(&cached.radiance, &brute, None).unwrap();
+    let mean = |img: &RgbImage| img.data.iter().map(|v| v.as_dvec3()).sum::<DVec3>();
+    let bias = (mean(&cached.radiance) / mean(&brute) - DVec3::ONE)
+        .abs()
+        .max_element();
+    eprintln!("cache noise {noise:.5}, against brute force {error:.5}, bias of the mean {bias:.5}");
+    assert!(noise < 0.005, "cache noise {noise}");
+    assert!(error < 0.01, "cache against brute force: {error}");
+    assert!(bias < 0.003, "bias of the mean: {bias}");
+}
