@@ -61,7 +61,7 @@ pub fn error_vs_time_plot(records: &[Record]) -> Plot {
     let series = [
         (
             "direct-light consistency (rel RMSE)",
-            (|r: &Record| r.consistency_rel_rmse) as fn(&Record) -> Option<f64>,
+            (|r: &Record| r.consistency_rel_rmse_direct) as fn(&Record) -> Option<f64>,
         ),
         ("GPU against CPU reference (rel RMSE)", |r| {
             r.gpu_cpu_rel_rmse
@@ -110,7 +110,7 @@ mod tests {
             median_ms: ms,
             p99_ms: ms,
             adapter: "test".into(),
-            consistency_rel_rmse: consistency,
+            consistency_rel_rmse_direct: consistency,
             gpu_cpu_rel_rmse: gpu_cpu,
             gpu_cpu_rel_rmse_off_edges: None,
             outliers_off_edges: None,

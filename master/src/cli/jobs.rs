@@ -20,6 +20,12 @@ pub struct DemoArgs {
     /// runs on it; one it cannot support is skipped with the reason.
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// Paths per irradiance-cache point of the physically complete ground
+    /// truth (every bounce, path-traced by the simulated showcase); its
+    /// noise is in the report (`ground_truth_noise_rel_rmse`,
+    /// `compared_noise_rel_rmse`) and falls about as 1/sqrt(paths).
+    #[arg(long, default_value_t = crate::demo::TRUTH_PATHS, value_parser = clap::value_parser!(u32).range(8..))]
+    pub truth_paths: u32,
 }
 
 impl From<DemoArgs> for crate::demo::DemoOptions {
@@ -28,6 +34,7 @@ impl From<DemoArgs> for crate::demo::DemoOptions {
             out: a.out,
             frames: a.frames,
             scene: a.scene,
+            truth_paths: a.truth_paths,
         }
     }
 }

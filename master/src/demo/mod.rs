@@ -27,7 +27,14 @@ pub struct DemoOptions {
     pub frames: u64,
     /// Scene file (`None`: [`default_scene`], the built-in demo cabinet).
     pub scene: Option<PathBuf>,
+    /// Paths per irradiance-cache point of the physically complete views
+    /// ([`TRUTH_PATHS`] by default).
+    pub truth_paths: u32,
 }
+
+/// Paths per irradiance-cache point of the demo's physically complete
+/// views ([`showcase_light::observer_view::complete`]).
+pub const TRUTH_PATHS: u32 = 1024;
 
 /// How one phase of the demo went.
 #[derive(Debug, Clone, Serialize)]

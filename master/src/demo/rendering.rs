@@ -3,9 +3,12 @@
 //! projectors' light (the end-to-end consistency check), and what each
 //! observer sees of them next to its target.
 
+use super::views::Transport;
 use super::{DemoOptions, GalleryRow, INTERACTIVE_HZ, StageOutcome, progress, views};
 use anyhow::{Context, Result};
+use showcase_light::RgbImage;
 use showcase_light::metrics::percentile;
+use showcase_light::observer_view::complete::CompleteOptions;
 use std::time::Instant;
 
 /// Frames of the walk the rendering stage draws: a quarter, half and
@@ -55,9 +58,12 @@ pub(super) fn rendering_stage(
         backend.describe()
     );
     let observers = truth.observers.len();
-    let mut all_de = Vec::new();
-    let mut per_observer: Vec<Seen> = vec![Seen::default(); observers];
-    let mut cameras = SeenByCamera::default();
+    let complete_transport = Transport::Complete(CompleteOptions {
+        paths_per_point: opts.truth_paths,
+        seed: COMPLETE_SEED,
+    });
+    let mut direct = Judged::new(observers, ", direct light only", "-direct");
+    let mut complete = Judged::new(observers, ", physically complete", "");
     let mut render_s = Vec::new();
     let pb = progress("rendering", Some(states.len() as u64));
     for state in &states {
@@ -76,54 +82,74 @@ pub(super) fn rendering_stage(
             nodes.push((format!("{} (pixel values)", p.name), file));
         }
         let mut rows = Vec::new();
-        for (o, seen) in per_observer.iter_mut().enumerate() {
-            let r = views::observe(&truth, state, &outputs, o)?;
-            let name = &truth.observers[o].name;
-            let mut images = Vec::new();
-            for (what, img) in [
-                ("target", &r.view.target),
-                ("composite", &r.view.composite),
-                ("through-mirror", &r.view.reflected),
-            ] {
-                let file = format!("{dir_name}/{name}-{what}.png");
-                views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
-                images.push((format!("{name}: {what}"), file));
+        for (judged, transport) in [
+            (&mut direct, Transport::Direct),
+            (&mut complete, complete_transport),
+        ] {
+            let tag = judged.tag;
+            for o in 0..observers {
+                let r = views::observe(&truth, state, &outputs, o, transport)?;
+                let name = &truth.observers[o].name;
+                let mut images = Vec::new();
+                let parts: &[(&str, &RgbImage)] = match transport {
+                    Transport::Direct => &[
+                        ("target", &r.view.target),
+                        ("composite", &r.view.composite),
+                        ("through-mirror", &r.view.reflected),
+                    ],
+                    // The mirror's part is the same in both worlds.
+                    Transport::Complete(_) => {
+                        &[("target", &r.view.target), ("composite", &r.view.composite)]
+                    }
+                };
+                for (what, img) in parts {
+                    let file = format!("{dir_name}/{name}-{what}{}.png", judged.file_suffix);
+                    views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
+                    images.push((format!("{name}: {what}{tag}"), file));
+                }
+                let file = format!(
+                    "{dir_name}/{name}{}{}",
+                    judged.file_suffix,
+                    views::HEAT_MAP_SUFFIX
+                );
+                views::write_heat_map(
+                    &opts.out.join(&file),
+                    r.view.target.width,
+                    r.view.target.height,
+                    &r.delta_e,
+                )?;
+                let median = percentile(&r.delta_e, 50.0).unwrap_or(f64::NAN);
+                images.push((format!("{name}: CIEDE2000{tag} (median {median:.2})"), file));
+                rows.push(GalleryRow {
+                    title: format!(
+                        "frame {}: {name}{tag} (rel RMSE {:.3})",
+                        state.frame, r.rel_rmse
+                    ),
+                    images,
+                });
+                judged.add_observer(o, &r);
             }
-            let file = format!("{dir_name}/{name}{}", views::HEAT_MAP_SUFFIX);
-            views::write_heat_map(
-                &opts.out.join(&file),
-                r.view.target.width,
-                r.view.target.height,
-                &r.delta_e,
-            )?;
-            let median = percentile(&r.delta_e, 50.0).unwrap_or(f64::NAN);
-            images.push((format!("{name}: CIEDE2000 (median {median:.2})"), file));
-            rows.push(GalleryRow {
-                title: format!("frame {}: {name} (rel RMSE {:.3})", state.frame, r.rel_rmse),
-                images,
-            });
-            all_de.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            seen.add(&r);
-        }
-        for (c, camera) in truth.cameras.iter().enumerate() {
-            let r = views::camera_consistency(&truth, state, &outputs, c)?;
-            let name = &camera.name;
-            let mut images = Vec::new();
-            for (what, img) in [("target", &r.view.target), ("measured", &r.view.real)] {
-                let file = format!("{dir_name}/{name}-{what}.png");
-                views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
-                images.push((format!("{name}: {what}"), file));
+            for (c, camera) in truth.cameras.iter().enumerate() {
+                let r = views::camera_consistency(&truth, state, &outputs, c, transport)?;
+                let name = &camera.name;
+                let mut images = Vec::new();
+                for (what, img) in [("target", &r.view.target), ("measured", &r.view.real)] {
+                    let file = format!("{dir_name}/{name}-{what}{}.png", judged.file_suffix);
+                    views::write_radiance(&opts.out.join(&file), img, r.exposure)?;
+                    images.push((format!("{name}: {what}{tag}"), file));
+                }
+                rows.push(GalleryRow {
+                    title: format!(
+                        "frame {}: {name}, projectors only{tag} (rel RMSE {:.4} over {:.0}% of the real pixels)",
+                        state.frame,
+                        r.rel_rmse,
+                        100.0 * r.compared_fraction
+                    ),
+                    images,
+                });
+                judged.add_noise(r.noise);
+                judged.cameras.add(&r);
             }
-            rows.push(GalleryRow {
-                title: format!(
-                    "frame {}: {name}, projectors only, direct light (rel RMSE {:.4} over {:.0}% of the real pixels)",
-                    state.frame,
-                    r.rel_rmse,
-                    100.0 * r.compared_fraction
-                ),
-                images,
-            });
-            cameras.add(&r);
         }
         for (f, _, [left, right]) in &outputs.faces {
             let face = calibrated
@@ -145,69 +171,28 @@ pub(super) fn rendering_stage(
     }
     pb.finish_and_clear();
     let mut figures = serde_json::Map::new();
-    let median = percentile(&all_de, 50.0);
-    let p95 = percentile(&all_de, 95.0);
-    figures.insert("delta_e2000_median".into(), serde_json::json!(median));
-    figures.insert("delta_e2000_p95".into(), serde_json::json!(p95));
-    // The projector-role consistency figure, measured by the cabinet's camera.
+    complete.insert_figures(&truth, "", &mut figures);
+    direct.insert_figures(&truth, "_direct", &mut figures);
+    // How much the ground truth can be trusted: the complete images' noise
+    // over the compared pixels (worst view), and how much of what the
+    // camera sees is interreflection.
     figures.insert(
-        "interactive_consistency_rel_rmse".into(),
-        serde_json::json!(cameras.rel),
+        "ground_truth_noise_rel_rmse".into(),
+        serde_json::json!(complete.noise.map(|n| n.target)),
     );
     figures.insert(
-        "interactive_consistency_rel_rmse_per_object".into(),
-        serde_json::json!(cameras.per_object),
+        "compared_noise_rel_rmse".into(),
+        serde_json::json!(complete.noise.map(|n| n.compared)),
     );
     figures.insert(
-        "interactive_compared_fraction".into(),
-        serde_json::json!(cameras.compared_fraction),
-    );
-    // What each observer sees, composite against target: every covered
-    // pixel off item edges, virtual objects and the mirror included.
-    let worst = per_observer.iter().map(|p| p.rel).fold(0.0f64, f64::max);
-    figures.insert(
-        "observer_consistency_rel_rmse".into(),
-        serde_json::json!(worst),
-    );
-    figures.insert(
-        "observers".into(),
-        serde_json::json!(
-            per_observer
-                .iter()
-                .enumerate()
-                .map(|(o, seen)| serde_json::json!({
-                    "observer": truth.observers[o].name,
-                    "delta_e2000_median": percentile(&seen.delta_e, 50.0),
-                    "delta_e2000_p95": percentile(&seen.delta_e, 95.0),
-                    "consistency_rel_rmse": seen.rel,
-                    "consistency_rel_rmse_real": seen.rel_real,
-                    "consistency_rel_rmse_virtual": seen.rel_virtual,
-                    "consistency_rel_rmse_reflective": seen.rel_reflective,
-                    "consistency_rel_rmse_per_object": seen.per_object,
-                    "projector_reach_fraction": seen.reach,
-                    "consistency_rel_rmse_real_comparable": seen.rel_real_comparable,
-                    "consistency_rel_rmse_real_comparable_per_object": seen.per_object_comparable,
-                    "comparable_real_fraction": seen.comparable_fraction,
-                }))
-                .collect::<Vec<_>>()
-        ),
-    );
-    // The observers' real surfaces over the pixels the method can get
-    // right by design (see `views::ObserverResult`): the consistency check seen
-    // from the eyes, for the real-surface error budget.
-    let comparable = per_observer
-        .iter()
-        .filter_map(|p| p.rel_real_comparable)
-        .reduce(f64::max);
-    figures.insert(
-        "observer_consistency_rel_rmse_real_comparable".into(),
-        serde_json::json!(comparable),
+        "camera_interreflection_rel_rmse".into(),
+        serde_json::json!(complete.cameras.interreflection),
     );
     figures.insert("renderer".into(), serde_json::json!(backend.describe()));
     render_s.sort_by(f64::total_cmp);
     Ok(StageOutcome {
         detail: format!(
-            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); projectors through the camera, direct light (the projector-role consistency check): worst rel RMSE {}; observers' views against targets: CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {worst:.3} (off edges, where a projector reaches), real surfaces where the method can be right {:.4}; images in {}/frames",
+            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); judged in the physically complete world (every bounce, path-traced by the sim, {} paths per irradiance-cache point, noise {}): {}; in a world of direct light only: {}; images in {}/frames",
             calibrated.projectors.len(),
             calibrated.faces.len(),
             backend.describe(),
@@ -215,20 +200,166 @@ pub(super) fn rendering_stage(
                 .get(render_s.len() / 2)
                 .copied()
                 .unwrap_or(f64::NAN),
-            cameras.rel.map_or(
-                "not measured (the scene has no camera)".to_string(),
-                |r| format!(
-                    "{r:.4} over at least {:.0}% of the real pixels",
-                    100.0 * cameras.compared_fraction.unwrap_or(0.0)
-                )
-            ),
-            median.unwrap_or(f64::NAN),
-            p95.unwrap_or(f64::NAN),
-            comparable.unwrap_or(f64::NAN),
+            opts.truth_paths,
+            complete.noise.map_or("not measured".into(), |n| format!(
+                "{:.4} in the target, {:.4} in what is compared",
+                n.target, n.compared
+            )),
+            complete.describe(),
+            direct.describe(),
             opts.out.display()
         ),
         figures,
     })
+}
+
+/// The rendering stage's seed of the complete views' paths.
+const COMPLETE_SEED: u64 = 24;
+
+/// Everything the rendering stage measured in one world (direct light
+/// only, or physically complete).
+struct Judged {
+    /// Added to image titles (", direct light only").
+    tag: &'static str,
+    /// Added to image file names ("-direct").
+    file_suffix: &'static str,
+    /// Every observer's CIEDE2000 values.
+    all_de: Vec<f64>,
+    per_observer: Vec<Seen>,
+    cameras: SeenByCamera,
+    /// The worst noise of the complete views over their compared pixels.
+    noise: Option<views::TruthNoise>,
+}
+
+impl Judged {
+    fn new(observers: usize, tag: &'static str, file_suffix: &'static str) -> Self {
+        Self {
+            tag,
+            file_suffix,
+            all_de: Vec::new(),
+            per_observer: vec![Seen::default(); observers],
+            cameras: SeenByCamera::default(),
+            noise: None,
+        }
+    }
+
+    fn add_observer(&mut self, o: usize, r: &views::ObserverResult) {
+        self.all_de
+            .extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+        self.per_observer[o].add(r);
+        self.add_noise(r.noise);
+    }
+
+    fn add_noise(&mut self, noise: Option<views::TruthNoise>) {
+        if let Some(n) = noise {
+            let w = self.noise.get_or_insert(n);
+            w.target = w.target.max(n.target);
+            w.compared = w.compared.max(n.compared);
+        }
+    }
+
+    /// The worst observer's whole-view figure.
+    fn worst_observer(&self) -> f64 {
+        self.per_observer
+            .iter()
+            .map(|p| p.rel)
+            .fold(0.0f64, f64::max)
+    }
+
+    /// The observers' real surfaces where the method can be right by
+    /// design (see `views::ObserverResult`), worst observer.
+    fn comparable(&self) -> Option<f64> {
+        self.per_observer
+            .iter()
+            .filter_map(|p| p.rel_real_comparable)
+            .reduce(f64::max)
+    }
+
+    /// This world's figures, each key ending in `suffix`.
+    fn insert_figures(
+        &self,
+        truth: &showcase_proto::Showcase,
+        suffix: &str,
+        figures: &mut serde_json::Map<String, serde_json::Value>,
+    ) {
+        let mut put = |key: &str, v: serde_json::Value| {
+            figures.insert(format!("{key}{suffix}"), v);
+        };
+        put(
+            "delta_e2000_median",
+            serde_json::json!(percentile(&self.all_de, 50.0)),
+        );
+        put(
+            "delta_e2000_p95",
+            serde_json::json!(percentile(&self.all_de, 95.0)),
+        );
+        // The projector-role consistency figure, measured by the cabinet's camera.
+        put(
+            "interactive_consistency_rel_rmse",
+            serde_json::json!(self.cameras.rel),
+        );
+        put(
+            "interactive_consistency_rel_rmse_per_object",
+            serde_json::json!(self.cameras.per_object),
+        );
+        put(
+            "interactive_compared_fraction",
+            serde_json::json!(self.cameras.compared_fraction),
+        );
+        // What each observer sees, composite against target: every covered
+        // pixel off item edges, virtual objects and the mirror included.
+        put(
+            "observer_consistency_rel_rmse",
+            serde_json::json!(self.worst_observer()),
+        );
+        put(
+            "observers",
+            serde_json::json!(
+                self.per_observer
+                    .iter()
+                    .enumerate()
+                    .map(|(o, seen)| serde_json::json!({
+                        "observer": truth.observers[o].name,
+                        "delta_e2000_median": percentile(&seen.delta_e, 50.0),
+                        "delta_e2000_p95": percentile(&seen.delta_e, 95.0),
+                        "consistency_rel_rmse": seen.rel,
+                        "consistency_rel_rmse_real": seen.rel_real,
+                        "consistency_rel_rmse_virtual": seen.rel_virtual,
+                        "consistency_rel_rmse_reflective": seen.rel_reflective,
+                        "consistency_rel_rmse_per_object": seen.per_object,
+                        "projector_reach_fraction": seen.reach,
+                        "consistency_rel_rmse_real_comparable": seen.rel_real_comparable,
+                        "consistency_rel_rmse_real_comparable_per_object": seen.per_object_comparable,
+                        "comparable_real_fraction": seen.comparable_fraction,
+                    }))
+                    .collect::<Vec<_>>()
+            ),
+        );
+        // The consistency check seen from the eyes, for the real-surface
+        // error budget.
+        put(
+            "observer_consistency_rel_rmse_real_comparable",
+            serde_json::json!(self.comparable()),
+        );
+    }
+
+    /// One line of this world's figures.
+    fn describe(&self) -> String {
+        format!(
+            "camera {}; observers CIEDE2000 median {:.2}, p95 {:.2}, worst rel RMSE {:.3} (off edges, where a projector reaches), real surfaces where the method can be right {:.4}",
+            self.cameras.rel.map_or(
+                "not measured (the scene has no camera)".to_string(),
+                |r| format!(
+                    "rel RMSE {r:.4} over at least {:.0}% of the real pixels",
+                    100.0 * self.cameras.compared_fraction.unwrap_or(0.0)
+                )
+            ),
+            percentile(&self.all_de, 50.0).unwrap_or(f64::NAN),
+            percentile(&self.all_de, 95.0).unwrap_or(f64::NAN),
+            self.worst_observer(),
+            self.comparable().unwrap_or(f64::NAN),
+        )
+    }
 }
 
 /// What one observer saw over the rendered frames: every CIEDE2000 value
@@ -301,6 +432,8 @@ struct SeenByCamera {
     rel: Option<f64>,
     per_object: std::collections::BTreeMap<String, f64>,
     compared_fraction: Option<f64>,
+    /// The largest interreflection share of what a camera measured.
+    interreflection: Option<f64>,
 }
 
 impl SeenByCamera {
@@ -314,5 +447,8 @@ impl SeenByCamera {
             self.compared_fraction
                 .map_or(r.compared_fraction, |c| c.min(r.compared_fraction)),
         );
+        if let Some(share) = r.interreflection_share {
+            self.interreflection = Some(self.interreflection.unwrap_or(0.0).max(share));
+        }
     }
 }

@@ -51,7 +51,7 @@ pub struct Record {
     /// The adapter.
     pub adapter: String,
     /// End-to-end direct-light consistency of the GPU output (relative RMSE).
-    pub consistency_rel_rmse: Option<f64>,
+    pub consistency_rel_rmse_direct: Option<f64>,
     /// GPU against CPU reference, `L` relative RMSE over surface pixels.
     pub gpu_cpu_rel_rmse: Option<f64>,
     /// The same away from silhouette and shadow edges.
@@ -447,7 +447,7 @@ pub fn bench_render(
                 median_ms: percentile(&times, 50.0).unwrap_or(0.0),
                 p99_ms: percentile(&times, 99.0).unwrap_or(0.0),
                 adapter: ctx.describe(),
-                consistency_rel_rmse: consistency,
+                consistency_rel_rmse_direct: consistency,
                 gpu_cpu_rel_rmse: gpu_cpu,
                 gpu_cpu_rel_rmse_off_edges: off_edges,
                 outliers_off_edges: outliers,
@@ -565,7 +565,7 @@ fn bench_face_variant(
         median_ms: percentile(&times, 50.0).unwrap_or(0.0),
         p99_ms: percentile(&times, 99.0).unwrap_or(0.0),
         adapter: ctx.describe(),
-        consistency_rel_rmse: None,
+        consistency_rel_rmse_direct: None,
         gpu_cpu_rel_rmse: gpu_cpu,
         gpu_cpu_rel_rmse_off_edges: None,
         outliers_off_edges: None,

@@ -46,7 +46,7 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
             "median_ms",
             "p99_ms",
             "adapter",
-            "consistency_rel_rmse",
+            "consistency_rel_rmse_direct",
             "gpu_cpu_rel_rmse",
         ] {
             ensure!(r.get(key).is_some(), "record lacks {key}: {r}");
@@ -109,6 +109,8 @@ fn bench_records_cover_every_variant_with_the_issues_keys() -> Result<()> {
         "static redrew: {:?}",
         by("static").passes_run
     );
-    ensure!(by("full").gpu_cpu_rel_rmse.is_some() && by("full").consistency_rel_rmse.is_some());
+    ensure!(
+        by("full").gpu_cpu_rel_rmse.is_some() && by("full").consistency_rel_rmse_direct.is_some()
+    );
     Ok(())
 }

@@ -25,6 +25,12 @@ pub(in crate::demo) struct CameraConsistency {
     pub per_object: Vec<(String, f64)>,
     /// Compared pixels over the camera's pixels that show a real surface.
     pub compared_fraction: f64,
+    /// With complete light transport, the noise over the compared pixels
+    /// ([`noise`]).
+    pub noise: Option<TruthNoise>,
+    /// With complete light transport, the interreflection's share of what
+    /// it measures over the compared pixels ([`interreflection_share`]).
+    pub interreflection_share: Option<f64>,
 }
 
 /// [`CameraConsistency`] of `outputs` at `state`, seen by `truth`'s
@@ -34,6 +40,7 @@ pub(in crate::demo) fn camera_consistency(
     state: &FrameState,
     outputs: &Outputs,
     camera: usize,
+    transport: Transport,
 ) -> Result<CameraConsistency> {
     let device = &truth
         .cameras
@@ -42,7 +49,11 @@ pub(in crate::demo) fn camera_consistency(
         .device;
     // No mirror: the camera is no tracked eye, so every eye's occlusion
     // shadow counts as unfillable and is left out.
-    let (view, projector_edges) = simulate(truth, state, outputs, device, None)?;
+    let Simulated {
+        view,
+        projector_edges,
+        complete,
+    } = simulate(truth, state, outputs, device, None, transport)?;
     let n = view.covered.data.len();
     let real = |i: usize| view.covered.data[i] && !view.sees_virtual.data[i];
     let mask = Image {
@@ -64,6 +75,8 @@ pub(in crate::demo) fn camera_consistency(
     let rel_rmse = metrics::relative_rmse(&view.composite, &view.target, Some(&mask))
         .with_context(|| format!("camera {camera} at frame {}", state.frame))?;
     Ok(CameraConsistency {
+        noise: noise(complete.as_ref(), &mask),
+        interreflection_share: interreflection_share(complete.as_ref(), &mask),
         exposure: exposure(&view)
             .with_context(|| format!("camera {camera} sees no object at frame {}", state.frame))?,
         per_object: per_object_rel_rmse(truth, &view, &mask, true),
@@ -118,15 +131,22 @@ mod tests {
             }
             out
         };
-        let right =
-            camera_consistency(&truth, &state, &outputs(ProjectorOptions::default()), 0).unwrap();
+        let right = camera_consistency(
+            &truth,
+            &state,
+            &outputs(ProjectorOptions::default()),
+            0,
+            Transport::Direct,
+        )
+        .unwrap();
         assert!(right.rel_rmse <= 0.01, "reference maps: {}", right.rel_rmse);
         assert!(right.compared_fraction > 0.6, "{}", right.compared_fraction);
         let unshadowed = ProjectorOptions {
             shadows: false,
             ..ProjectorOptions::default()
         };
-        let wrong = camera_consistency(&truth, &state, &outputs(unshadowed), 0).unwrap();
+        let wrong =
+            camera_consistency(&truth, &state, &outputs(unshadowed), 0, Transport::Direct).unwrap();
         assert!(wrong.rel_rmse > 0.05, "unshadowed maps: {}", wrong.rel_rmse);
     }
 }

@@ -13,6 +13,7 @@ use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use showcase_light::DeviceRays;
+use showcase_light::observer_view::complete::{CompleteOptions, CompleteView, complete_view};
 use showcase_light::observer_view::{
     MirrorImage, ObserverView, ProjectedLight, observer_view, projector_edge_pixels,
 };
@@ -337,6 +338,9 @@ pub(super) struct ObserverResult {
     /// Pixels of [`Self::rel_rmse_real_comparable`] over those of
     /// [`Self::rel_rmse_real`].
     pub comparable_real_fraction: f64,
+    /// With complete light transport, the noise over [`Self::rel_rmse`]'s
+    /// pixels ([`noise`]).
+    pub noise: Option<TruthNoise>,
 }
 
 /// Simulate `observer`'s view of `outputs` in the true scene `truth` (at
@@ -346,6 +350,7 @@ pub(super) fn observe(
     state: &FrameState,
     outputs: &Outputs,
     observer: usize,
+    transport: Transport,
 ) -> Result<ObserverResult> {
     let mirror = outputs
         .faces
@@ -358,7 +363,11 @@ pub(super) fn observe(
             })
         });
     let cam = eye_camera(truth, state, observer);
-    let (view, projector_edges) = simulate(truth, state, outputs, &cam, mirror)?;
+    let Simulated {
+        view,
+        projector_edges,
+        complete,
+    } = simulate(truth, state, outputs, &cam, mirror, transport)?;
     let exposure = exposure(&view).with_context(|| {
         format!(
             "observer {observer} sees no object at frame {}",
@@ -443,6 +452,7 @@ pub(super) fn observe(
     let rel_rmse_real_comparable =
         metrics::relative_rmse(&view.composite, &view.target, Some(&comparable)).ok();
     let rel_rmse_real_comparable_per_object = per_object_rel_rmse(truth, &view, &comparable, true);
+    let noise = noise(complete.as_ref(), &mask);
     Ok(ObserverResult {
         view,
         exposure,
@@ -456,20 +466,79 @@ pub(super) fn observe(
         rel_rmse_real_comparable,
         rel_rmse_real_comparable_per_object,
         comparable_real_fraction,
+        noise,
     })
+}
+
+/// Which light transport the simulated cabinet follows.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::demo) enum Transport {
+    /// Direct light only, as paper section 5 assumes (the `_direct`
+    /// figures).
+    Direct,
+    /// Every bounce, path-traced by the simulated showcase (the headline
+    /// figures, [`showcase_light::observer_view::complete`]).
+    Complete(CompleteOptions),
+}
+
+/// One simulated view of the cabinet.
+pub(in crate::demo) struct Simulated {
+    /// The view; with [`Transport::Complete`] its real part, composite and
+    /// target are the complete ones, its masks those of the direct view.
+    pub view: ObserverView,
+    /// Its pixels lit from a projector pixel on an edge of that
+    /// projector's map.
+    pub projector_edges: Image<bool>,
+    /// The complete images (with their halves, for the noise), with
+    /// [`Transport::Complete`].
+    pub complete: Option<CompleteView>,
+}
+
+/// The noise of a complete view over some pixels, each relative to the
+/// target's mean there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::demo) struct TruthNoise {
+    /// Of the target alone.
+    pub target: f64,
+    /// Of `measured - target`, what the figures compare (common random
+    /// numbers make it far less than either image's own).
+    pub compared: f64,
+}
+
+/// The complete images' noise over `mask`; `None` without complete images
+/// or for an empty mask.
+pub(in crate::demo) fn noise(
+    complete: Option<&CompleteView>,
+    mask: &Image<bool>,
+) -> Option<TruthNoise> {
+    let c = complete?;
+    Some(TruthNoise {
+        target: c.target.noise_rel_rmse(Some(mask)).ok()?,
+        compared: c.difference_noise_rel_rmse(Some(mask)).ok()?,
+    })
+}
+
+/// How far the complete real part's direct light alone is from all of it
+/// over `mask` (relative RMSE): the interreflection's share; `None`
+/// without complete images or for an empty mask.
+pub(in crate::demo) fn interreflection_share(
+    complete: Option<&CompleteView>,
+    mask: &Image<bool>,
+) -> Option<f64> {
+    metrics::relative_rmse(&complete?.real.direct, &complete?.real.radiance, Some(mask)).ok()
 }
 
 /// What `eye` sees of `outputs` in the true scene `truth` at `state`
 /// through the simulated cabinet (`mirror`: the face image reflected to
-/// it, if any), and its pixels lit from a projector pixel on an edge of
-/// that projector's map.
-fn simulate(
+/// it, if any), with light following `transport`.
+pub(in crate::demo) fn simulate(
     truth: &Showcase,
     state: &FrameState,
     outputs: &Outputs,
     eye: &PinholeDevice,
     mirror: Option<MirrorImage<'_>>,
-) -> Result<(ObserverView, Image<bool>)> {
+    transport: Transport,
+) -> Result<Simulated> {
     let frame = FrameScene::resolve(truth, state)?;
     let occluders = Occluders::new(&frame)?;
     let projected: Vec<ProjectedLight<'_>> = truth
@@ -478,14 +547,35 @@ fn simulate(
         .zip(&outputs.projectors)
         .map(|(projector, value)| ProjectedLight { projector, value })
         .collect();
-    let view = observer_view(&frame, &occluders, eye, &projected, mirror)?;
+    let mut view = observer_view(&frame, &occluders, eye, &projected, mirror)?;
     let edges: Vec<(&showcase_proto::Projector, &Image<bool>)> = truth
         .projectors
         .iter()
         .zip(&outputs.projector_edges)
         .collect();
     let projector_edges = projector_edge_pixels(&occluders, eye, &edges)?;
-    Ok((view, projector_edges))
+    let complete = match transport {
+        Transport::Direct => None,
+        Transport::Complete(options) => {
+            let c = complete_view(&frame, eye, &projected, options)?;
+            for i in 0..view.covered.data.len() {
+                let real = c.real.radiance.data[i];
+                view.real.data[i] = real;
+                view.composite.data[i] = real + view.reflected.data[i];
+                view.target.data[i] = if view.covered.data[i] {
+                    c.target.radiance.data[i]
+                } else {
+                    Vec3::ZERO
+                };
+            }
+            Some(c)
+        }
+    };
+    Ok(Simulated {
+        view,
+        projector_edges,
+        complete,
+    })
 }
 
 /// The exposure that maps the 99th percentile of `view`'s target (its
