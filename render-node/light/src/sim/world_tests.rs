@@ -169,14 +169,7 @@ fn a_closed_glowing_box_has_the_furnace_exitance() {
 fn a_floor_under_a_black_area_light_has_lamberts_exitance() {
     // The light is black, so nothing comes back to the floor: B = rho E.
     let (rho, ke) = (Vec3::new(0.6, 0.4, 0.2), Vec3::new(3.0, 2.0, 1.0));
-    let mut s = Showcase::default();
-    let floor = [
-        Vec3::new(-2.0, 0.0, -2.0),
-        Vec3::new(-2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, -2.0),
-    ];
-    add_quads(&mut s, "floor", &[floor], Material::diffuse(rho));
+    let mut s = floor_only(rho);
     let light = [
         Vec3::new(-0.25, 1.0, -0.25),
         Vec3::new(0.25, 1.0, -0.25),
