@@ -242,6 +242,67 @@ pub fn augmented_radiosity_hierarchical(
     )
 }
 
+/// The irradiance (W/m^2 per channel, per element; zero on virtual
+/// elements) that the projectors must add to the virtual lights' direct
+/// irradiance so that the real surfaces show the target's global
+/// illumination in a real cabinet, where light bounces between the real
+/// surfaces alone:
+///
+/// `dE = E_indirect(B0) - E_real(B0_real)`
+///
+/// with `B0` the hierarchical solution of every object under `lights`,
+/// `E_indirect(B0)` the irradiance its bounce brings (`K B0 / rho` over
+/// every object: colour bleeding, the virtual objects' light and shadows)
+/// and `E_real(B0_real)` what the real surfaces at their target exitance
+/// bring each other over the real geometry alone (`K_real B0 / rho`,
+/// which the cabinet adds by itself). A projector delivering
+/// `E_direct + dE` makes `B = rho (E_direct + dE + E_real(B))`, whose
+/// solution is `B0`: the exact one-bounce compensation `B2 = (I - K) B0`
+/// with the direct part left to the per-pixel pass. Negative where the
+/// virtual objects block light that passes in the cabinet.
+pub fn indirect_correction(
+    mesh: &RadiosityMesh,
+    all: &SceneGeometry,
+    real: &SceneGeometry,
+    lights: &[Light],
+    options: &HierarchyOptions,
+) -> Result<Vec<DVec3>, HierarchyError> {
+    let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
+    let mut h0 = Hierarchy::new(mesh, all, None, options)?;
+    let direct = h0.direct(lights);
+    let b0 = h0.solve(&emission, &direct)?.radiosity;
+    let bounce_all = h0.reflect(&b0);
+    drop(h0);
+    let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
+    let real_b0: Vec<DVec3> = b0
+        .iter()
+        .zip(&mask)
+        .map(|(b, r)| if *r { *b } else { DVec3::ZERO })
+        .collect();
+    let mut h = Hierarchy::new(mesh, real, Some(&mask), options)?;
+    h.link(&real_b0)?;
+    let bounce_real = h.reflect(&real_b0);
+    Ok(mesh
+        .elements
+        .iter()
+        .zip(bounce_all.iter().zip(&bounce_real))
+        .map(|(e, (all, real))| {
+            let rho = e.reflectance;
+            if !e.real {
+                return DVec3::ZERO;
+            }
+            let per = |c: usize| {
+                if rho[c] > RHO_F_FLOOR {
+                    (all[c] - real[c]) / rho[c]
+                } else {
+                    0.0
+                }
+            };
+            finite_or_zero(DVec3::new(per(0), per(1), per(2)))
+        })
+        .collect())
+}
+
 /// One bounce of the real transport: `K x` for exitance `x` per element,
 /// with the form-factor rows `shooter` has cached (its energy is reset).
 fn one_bounce(shooter: &mut Shooter<'_>, x: &[DVec3]) -> Vec<DVec3> {

@@ -3,11 +3,13 @@
 //! tracked eyes. Shared by every CPU reference and GPU pass of `render`.
 
 use super::RenderSetupError;
+use super::indirect::IndirectField;
 use crate::finite::finite_or_zero;
 use crate::spot::{cone_cosines, spot_falloff};
 use crate::{ObjectFilter, SceneGeometry};
 use glam::{DVec3, Vec3};
 use showcase_proto::{FrameState, Light, Observer, Showcase};
+use std::sync::Arc;
 
 /// How a light sample's radiant intensity depends on direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,6 +156,10 @@ pub struct FrameScene {
     pub samples: Vec<LightSample>,
     /// Eye positions of every tracked head (two per head).
     pub eyes: Vec<DVec3>,
+    /// The global-illumination correction the projectors add to the
+    /// direct target (`illumination = "global"`); `None`: direct light
+    /// only.
+    pub indirect: Option<Arc<IndirectField>>,
 }
 
 impl FrameScene {
@@ -185,7 +191,16 @@ impl FrameScene {
             samples: light_samples(&showcase.lights)?,
             eyes: eyes.to_vec(),
             showcase,
+            indirect: None,
         })
+    }
+
+    /// This frame with the projectors' global-illumination correction.
+    pub fn with_indirect(self, indirect: Arc<IndirectField>) -> Self {
+        Self {
+            indirect: Some(indirect),
+            ..self
+        }
     }
 
     /// Ambient irradiance (W/m^2 per channel), negative parts cut to 0.

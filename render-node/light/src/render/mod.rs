@@ -16,9 +16,11 @@ pub mod consistency;
 pub mod cube_map;
 pub mod face;
 pub mod frame;
+pub mod indirect;
 pub mod projector;
 
 pub use frame::{FrameScene, LightSample, Lobe};
+pub use indirect::{IndirectField, IndirectFieldError};
 pub use projector::{IrradianceMap, Occluders, PixelState, ProjectorOptions, irradiance_map_cpu};
 
 use crate::{DeviceError, GeometryError};

@@ -328,7 +328,10 @@ fn pixel_irradiance(
             },
         );
     }
-    let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    let (mut e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    if let Some(field) = &frame.indirect {
+        e += field.at(&hit);
+    }
     let share = blend.as_ref().map_or(1.0, |(b, i)| {
         b.weight(*i, &occluders.real_only, hit.point, facing)
     });

@@ -202,3 +202,139 @@ fn the_irradiance_cache_agrees_with_brute_force_path_tracing() {
     assert!(error < 0.01, "cache against brute force: {error}");
     assert!(bias < 0.003, "bias of the mean: {bias}");
 }
+
+/// [`corner`] with a red virtual block standing on the floor in front of
+/// the wall, lit by the lamp: in the target it bleeds red onto the real
+/// wall and floor and shades them, which direct light cannot show.
+fn corner_with_block() -> Showcase {
+    let mut s = corner();
+    let (lo, hi) = (Vec3::new(-0.2, 0.0, -0.2), Vec3::new(-0.1, 0.25, 0.2));
+    let corner = |i: usize| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    };
+    // Outward faces, counter-clockwise seen from outside.
+    let faces: [[usize; 4]; 6] = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    let mut triangles = Vec::new();
+    let mut positions = Vec::new();
+    for f in faces {
+        let k = positions.len() as u32;
+        positions.extend(f.map(corner));
+        triangles.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    let mesh = s.add_mesh(Mesh {
+        positions,
+        triangles,
+        ..Mesh::default()
+    });
+    s.objects.push(Object {
+        name: "block".into(),
+        mesh,
+        material: Material::diffuse(Vec3::new(0.9, 0.1, 0.1)),
+        kind: ObjectKind::Virtual,
+        transform: Transform::IDENTITY,
+    });
+    s.lights.push(lamp(0.5));
+    s
+}
+
+/// The projector's map with the correction of
+/// [`crate::radiosity::augmented::indirect_correction`] against its map of
+/// direct light, both judged in the complete world over the real pixels
+/// off edges: 0.0083 against 0.0282 measured (noise 0.0026); the same
+/// with 4x finer patches (0.0086), so what is left is the solution's own
+/// error, not its mesh. Without the block the correction is below 0.001
+/// W/m^2 everywhere and both maps agree with the target to 0.001.
+#[test]
+fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_target() {
+    use crate::radiosity::augmented::indirect_correction;
+    use crate::radiosity::{HierarchyOptions, MeshOptions, RadiosityMesh};
+    use crate::render::projector::irradiance_map_cpu;
+    use crate::render::{IndirectField, Occluders, ProjectorOptions};
+    use crate::{SceneGeometry, observer_view};
+    use std::sync::Arc;
+
+    let scene = corner_with_block();
+    let frame = FrameScene::from_parts(scene.clone(), &[]).unwrap();
+    let occluders = Occluders::new(&frame).unwrap();
+    let p = projector();
+
+    let all = SceneGeometry::build(&scene, &ObjectFilter::All).unwrap();
+    let real = SceneGeometry::build(&scene, &ObjectFilter::Real).unwrap();
+    let mesh = RadiosityMesh::build(
+        &scene,
+        &all,
+        &MeshOptions {
+            max_patch_area: 0.002,
+            ..MeshOptions::default()
+        },
+    )
+    .unwrap();
+    let lights: Vec<_> = scene.lights.iter().map(|l| l.light.clone()).collect();
+    let delta =
+        indirect_correction(&mesh, &all, &real, &lights, &HierarchyOptions::default()).unwrap();
+    let field = Arc::new(IndirectField::new(Arc::new(mesh), &delta).unwrap());
+    let cam = camera();
+    let judge = |frame: &FrameScene| {
+        let map = irradiance_map_cpu(frame, &occluders, &p, ProjectorOptions::default()).unwrap();
+        let projected = [ProjectedLight {
+            projector: &p,
+            value: &map.value,
+        }];
+        let direct =
+            observer_view::observer_view(frame, &occluders, &cam, &projected, None).unwrap();
+        let complete = complete_view(
+            frame,
+            &cam,
+            &projected,
+            CompleteOptions {
+                paths_per_point: 1024,
+                seed: 3,
+            },
+        )
+        .unwrap();
+        let mask = Image {
+            width: cam.width,
+            height: cam.height,
+            data: (0..direct.covered.data.len())
+                .map(|i| {
+                    direct.covered.data[i]
+                        && !direct.sees_virtual.data[i]
+                        && !direct.edge.data[i]
+                        && direct.reachable.data[i]
+                })
+                .collect(),
+        };
+        let error = relative_rmse(
+            &complete.real.radiance,
+            &complete.target.radiance,
+            Some(&mask),
+        )
+        .unwrap();
+        let noise = complete.difference_noise_rel_rmse(Some(&mask)).unwrap();
+        (error, noise)
+    };
+    let (direct, noise_d) = judge(&frame);
+    let (global, noise_g) = judge(&frame.clone().with_indirect(field));
+    eprintln!(
+        "complete world: direct maps {direct:.4} (noise {noise_d:.4}), global maps {global:.4} (noise {noise_g:.4})"
+    );
+    assert!(
+        direct > 5.0 * noise_d,
+        "direct maps {direct}, noise {noise_d}"
+    );
+    assert!(
+        global < direct / 3.0,
+        "global maps {global} against direct {direct}"
+    );
+}

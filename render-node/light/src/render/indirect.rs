@@ -1,0 +1,120 @@
+//! The global-illumination correction a projector adds to its direct
+//! target ([`crate::radiosity::augmented::indirect_correction`]), as the
+//! frame model carries it: per vertex of the radiosity mesh it was solved
+//! on, interpolated at the surface point a projector pixel lights.
+
+use crate::Hit;
+use crate::radiosity::RadiosityMesh;
+use glam::DVec3;
+use std::sync::Arc;
+
+/// A correction field over the real surfaces (W/m^2 per channel).
+#[derive(Clone, Debug)]
+pub struct IndirectField {
+    mesh: Arc<RadiosityMesh>,
+    vertex_values: Vec<DVec3>,
+}
+
+/// Why a field cannot be made.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum IndirectFieldError {
+    /// The values are not one per element of the mesh.
+    #[error("{got} correction values for a mesh of {elements} elements")]
+    Length {
+        /// Values given.
+        got: usize,
+        /// Elements of the mesh.
+        elements: usize,
+    },
+    /// A value is not finite.
+    #[error("correction value {index} is not finite")]
+    NotFinite {
+        /// Its element.
+        index: usize,
+    },
+}
+
+impl IndirectField {
+    /// The field of per-element `values` on `mesh`, averaged to its
+    /// vertices ([`RadiosityMesh::vertex_values`]).
+    pub fn new(mesh: Arc<RadiosityMesh>, values: &[DVec3]) -> Result<Self, IndirectFieldError> {
+        if values.len() != mesh.elements.len() {
+            return Err(IndirectFieldError::Length {
+                got: values.len(),
+                elements: mesh.elements.len(),
+            });
+        }
+        if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+            return Err(IndirectFieldError::NotFinite { index });
+        }
+        let vertex_values = mesh.vertex_values(values);
+        Ok(Self {
+            mesh,
+            vertex_values,
+        })
+    }
+
+    /// The correction at `hit` (zero off the mesh).
+    pub fn at(&self, hit: &Hit) -> DVec3 {
+        self.mesh
+            .primitive_of(hit.object, hit.triangle)
+            .and_then(|p| {
+                self.mesh
+                    .interpolate(p, hit.barycentric, &self.vertex_values)
+            })
+            .filter(|v| v.is_finite())
+            .unwrap_or(DVec3::ZERO)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::radiosity::MeshOptions;
+    use crate::{ObjectFilter, Ray, SceneGeometry};
+    use glam::Vec3;
+    use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
+
+    #[test]
+    fn a_field_is_one_finite_value_per_element_read_where_a_ray_lands() {
+        let mut s = Showcase::default();
+        let mesh = s.add_mesh(Mesh {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 0.0),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        });
+        s.objects.push(Object {
+            name: "floor".into(),
+            mesh,
+            material: Material::diffuse(Vec3::splat(0.5)),
+            kind: ObjectKind::Real,
+            transform: Transform::IDENTITY,
+        });
+        let g = SceneGeometry::build(&s, &ObjectFilter::All).unwrap();
+        let m = Arc::new(RadiosityMesh::build(&s, &g, &MeshOptions::default()).unwrap());
+        let n = m.elements.len();
+        assert_eq!(
+            IndirectField::new(m.clone(), &vec![DVec3::ONE; n + 1]).unwrap_err(),
+            IndirectFieldError::Length {
+                got: n + 1,
+                elements: n
+            }
+        );
+        let mut bad = vec![DVec3::ONE; n];
+        bad[n / 2] = DVec3::NAN;
+        assert_eq!(
+            IndirectField::new(m.clone(), &bad).unwrap_err(),
+            IndirectFieldError::NotFinite { index: n / 2 }
+        );
+        // A uniform field reads the same everywhere on the floor.
+        let field = IndirectField::new(m, &vec![DVec3::new(0.1, 0.2, 0.3); n]).unwrap();
+        let ray = Ray::new(DVec3::new(0.3, 1.0, 0.7), -DVec3::Y);
+        let hit = g.closest_hit(&ray, 0.0, f64::INFINITY).unwrap();
+        assert!((field.at(&hit) - DVec3::new(0.1, 0.2, 0.3)).length() < 1e-12);
+    }
+}
