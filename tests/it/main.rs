@@ -10,6 +10,7 @@ mod cluster;
 mod codec;
 mod dashboard;
 mod demo;
+mod gi;
 mod gpu;
 mod hemicube;
 mod light;

@@ -28,6 +28,11 @@ pub enum BenchTarget {
     /// The live dashboard's cost: master CPU with it off and on (4 node
     /// processes at 120 Hz, alternated runs), and eviction to `/api/state`.
     Dashboard,
+    /// Global illumination for the projectors, offline: their CPU
+    /// reference maps in direct and global mode at one frame of the walk,
+    /// judged in the physically complete world (the live cluster does not
+    /// run global mode yet).
+    Gi,
 }
 
 /// Arguments of `bench`.
@@ -44,7 +49,7 @@ pub struct BenchArgs {
     pub out: PathBuf,
     /// Frames per configuration (default: 600 for cluster, 30 for render,
     /// 12000 for soak; dashboard: the measured window of each run, 1200
-    /// frames = 10 s at 120 Hz).
+    /// frames = 10 s at 120 Hz; gi: the one frame of the walk judged, 60).
     #[arg(long)]
     pub frames: Option<u64>,
     /// Cluster only: node counts to run (default: 2,4,8).
@@ -92,6 +97,16 @@ pub struct BenchArgs {
     /// Faults and dashboard: keep the work folder (config, logs, metrics).
     #[arg(long)]
     pub keep: bool,
+    /// Gi only: the scenes (default: builtin:showcase,builtin:figure3).
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<PathBuf>,
+    /// Gi only: paths per irradiance-cache point of the complete views
+    /// (default: the demo's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(8..))]
+    pub truth_paths: Option<u32>,
+    /// Gi only: also judge the projectors' maps without occlusion shadows.
+    #[arg(long)]
+    pub without_occlusion: bool,
 }
 
 /// Run the bench `args.target` names, with its progress on a terminal: a
@@ -118,6 +133,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
         BenchTarget::Faults => faults(args, &pb),
         BenchTarget::Soak => soak(args, &pb),
         BenchTarget::Dashboard => dashboard(args, &pb),
+        BenchTarget::Gi => gi(args, &pb),
     };
     pb.finish_and_clear();
     result
@@ -334,4 +350,30 @@ fn dashboard(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         keep: args.keep,
     })?;
     emit_bench(args, pb, &[record])
+}
+
+fn gi(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
+    use crate::demo::gi::{GiBenchOptions, bench_gi_scene};
+    let scenes = if args.scenes.is_empty() {
+        vec![
+            PathBuf::from("builtin:showcase"),
+            PathBuf::from("builtin:figure3"),
+        ]
+    } else {
+        args.scenes.clone()
+    };
+    let options = GiBenchOptions {
+        frame: args.frames.unwrap_or(60),
+        truth_paths: args.truth_paths.unwrap_or(crate::demo::TRUTH_PATHS),
+        without_occlusion: args.without_occlusion,
+    };
+    let mut records = Vec::new();
+    for scene in &scenes {
+        pb.set_message(format!("{}", scene.display()));
+        records.extend(
+            bench_gi_scene(scene, &options)
+                .with_context(|| format!("bench gi on {}", scene.display()))?,
+        );
+    }
+    emit_bench(args, pb, &records)
 }

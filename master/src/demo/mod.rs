@@ -3,6 +3,7 @@
 //! interactive cluster, rendering), with `report.json` and `index.html`.
 //! A phase that fails stops the demo with its error and no report.
 
+pub mod gi;
 mod page;
 mod rendering;
 mod views;

@@ -185,6 +185,10 @@ pub(super) fn rendering_stage(
         serde_json::json!(complete.noise.map(|n| n.compared)),
     );
     figures.insert(
+        "ground_truth_leaves_out".into(),
+        serde_json::json!(showcase_light::sim::world::LEFT_OUT),
+    );
+    figures.insert(
         "camera_interreflection_rel_rmse".into(),
         serde_json::json!(complete.cameras.interreflection),
     );

@@ -262,6 +262,40 @@ pub struct Solved {
     pub complete: bool,
 }
 
+/// The projectors' global-illumination correction for `showcase` as it
+/// stands ([`radiosity::augmented::indirect_correction`] on the
+/// hierarchical mesh and settings of `options`), and the elements it has.
+pub fn indirect_field(
+    showcase: &Showcase,
+    options: &RadiosityOptions,
+) -> anyhow::Result<(showcase_light::render::IndirectField, usize)> {
+    let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
+    let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
+    let mesh =
+        RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh()).context("meshing")?;
+    let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+    check_solvable(&mesh, &lights)?;
+    let mut options = options.clone();
+    options.max_links = memory_check(mesh.elements.len(), &options)?;
+    let projectors: Vec<showcase_light::DeviceRays> = showcase
+        .projectors
+        .iter()
+        .map(|p| showcase_light::DeviceRays::new(&p.device))
+        .collect::<Result<_, _>>()?;
+    let delta = radiosity::augmented::indirect_correction(
+        &mesh,
+        &all,
+        &real,
+        &lights,
+        &projectors,
+        &options.hierarchy(),
+    )
+    .context("solving the global-illumination correction")?;
+    let elements = mesh.elements.len();
+    let field = showcase_light::render::IndirectField::new(std::sync::Arc::new(mesh), &delta)?;
+    Ok((field, elements))
+}
+
 /// Mesh, solve with one round of adaptive refinement, and run the augmented
 /// passes when the scene has real objects and projectors.
 pub fn solve_showcase(showcase: &Showcase, options: &RadiosityOptions) -> anyhow::Result<Solved> {

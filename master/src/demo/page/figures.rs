@@ -338,6 +338,15 @@ const FIGURES: &[(&str, Figure)] = &[
         ),
     ),
     (
+        "ground_truth_leaves_out",
+        fig(
+            "Ground truth leaves out",
+            "text",
+            None,
+            "what the path tracer of the complete world cannot find, so no complete figure includes it",
+        ),
+    ),
+    (
         "camera_interreflection_rel_rmse",
         fig(
             "Interreflection (camera)",

@@ -122,6 +122,7 @@ mod tests {
                 projectors: Vec::new(),
                 projector_edges: Vec::new(),
                 faces: Vec::new(),
+                reference_clipped: Vec::new(),
             };
             for p in &truth.projectors {
                 let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();

@@ -20,7 +20,9 @@ use showcase_light::observer_view::{
 use showcase_light::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
 use showcase_light::render::face::{eyes_to_fill, face_image_cpu_with};
 use showcase_light::render::projector::{PixelState, edge_mask};
-use showcase_light::render::{FrameScene, Occluders, ProjectorOptions, irradiance_map_cpu};
+use showcase_light::render::{
+    FrameScene, IndirectField, Occluders, ProjectorOptions, irradiance_map_cpu,
+};
 use showcase_light::{Image, RgbImage, metrics};
 use showcase_proto::{FrameState, PinholeDevice, Showcase};
 use showcase_render::gpu::GpuContext;
@@ -109,6 +111,9 @@ pub(super) struct Outputs {
     /// right eye])` radiance (the face index, not the position in this
     /// list, names the face: a face serving no observer has no entry).
     pub faces: Vec<(usize, usize, [RgbImage; 2])>,
+    /// Per projector: the clipped fraction of its CPU reference map of the
+    /// same frame.
+    pub reference_clipped: Vec<f64>,
 }
 
 fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
@@ -122,6 +127,10 @@ fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> Rg
 pub(super) struct NodeRenderers {
     scene: Arc<Showcase>,
     kind: RenderersKind,
+    /// The projectors' global-illumination correction, if any.
+    indirect: Option<Arc<IndirectField>>,
+    /// The projectors' CPU reference settings.
+    projector_options: ProjectorOptions,
 }
 
 enum RenderersKind {
@@ -158,7 +167,34 @@ impl NodeRenderers {
             }
             Backend::Cpu(_) => RenderersKind::Cpu,
         };
-        Ok(Self { scene, kind })
+        Ok(Self {
+            scene,
+            kind,
+            indirect: None,
+            projector_options: ProjectorOptions::default(),
+        })
+    }
+
+    /// Draw the projectors without occlusion shadows (the CPU references
+    /// only: the GPU renderers always draw them).
+    pub(super) fn without_occlusion_shadows(&mut self) -> Result<()> {
+        anyhow::ensure!(
+            matches!(self.kind, RenderersKind::Cpu),
+            "the GPU projector renderer always draws occlusion shadows"
+        );
+        self.projector_options.occlusion = false;
+        Ok(())
+    }
+
+    /// Draw the projectors in global mode with `field` (the CPU references
+    /// only: the GPU projector pass has no global mode yet).
+    pub(super) fn set_indirect(&mut self, field: Arc<IndirectField>) -> Result<()> {
+        anyhow::ensure!(
+            matches!(self.kind, RenderersKind::Cpu),
+            "the GPU projector renderer has no global-illumination mode yet: use the CPU references"
+        );
+        self.indirect = Some(field);
+        Ok(())
     }
 
     /// Render every output for `state` (its scene version is taken as the
@@ -173,14 +209,19 @@ impl NodeRenderers {
             projectors: Vec::new(),
             projector_edges: Vec::new(),
             faces: Vec::new(),
+            reference_clipped: Vec::new(),
         };
-        let frame = FrameScene::resolve(scene, &state)?;
+        let mut frame = FrameScene::resolve(scene, &state)?;
+        if let Some(field) = &self.indirect {
+            frame = frame.with_indirect(field.clone());
+        }
         let occluders = Occluders::new(&frame)?;
         let mut maps = Vec::new();
         for p in &scene.projectors {
-            let map = irradiance_map_cpu(&frame, &occluders, p, ProjectorOptions::default())?;
+            let map = irradiance_map_cpu(&frame, &occluders, p, self.projector_options)?;
             out.projector_edges
                 .push(projector_edges(scene, &occluders, p, &map.state)?);
+            out.reference_clipped.push(map.clipped_fraction);
             maps.push(map);
         }
         match &mut self.kind {

@@ -260,11 +260,17 @@ pub fn augmented_radiosity_hierarchical(
 /// solution is `B0`: the exact one-bounce compensation `B2 = (I - K) B0`
 /// with the direct part left to the per-pixel pass. Negative where the
 /// virtual objects block light that passes in the cabinet.
+///
+/// A real element that none of `projectors` reaches (none given: every
+/// element is reached) cannot show B0: in the cabinet it only reflects
+/// what the others send it, `rho E_real` (one bounce), and that is what
+/// it brings the others in `E_real`.
 pub fn indirect_correction(
     mesh: &RadiosityMesh,
     all: &SceneGeometry,
     real: &SceneGeometry,
     lights: &[Light],
+    projectors: &[DeviceRays],
     options: &HierarchyOptions,
 ) -> Result<Vec<DVec3>, HierarchyError> {
     let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
@@ -281,7 +287,28 @@ pub fn indirect_correction(
         .collect();
     let mut h = Hierarchy::new(mesh, real, Some(&mask), options)?;
     h.link(&real_b0)?;
-    let bounce_real = h.reflect(&real_b0);
+    let reached: Vec<bool> = mesh
+        .elements
+        .iter()
+        .map(|e| {
+            projectors.is_empty()
+                || (e.real && projectors.iter().any(|p| p.sees(real, e.center, e.normal)))
+        })
+        .collect();
+    let mut cabinet: Vec<DVec3> = real_b0
+        .iter()
+        .zip(&reached)
+        .map(|(b, r)| if *r { *b } else { DVec3::ZERO })
+        .collect();
+    if reached.iter().any(|r| !r) {
+        let bounce = h.reflect(&cabinet);
+        for ((c, b), r) in cabinet.iter_mut().zip(&bounce).zip(&reached) {
+            if !r {
+                *c = *b;
+            }
+        }
+    }
+    let bounce_real = h.reflect(&cabinet);
     Ok(mesh
         .elements
         .iter()

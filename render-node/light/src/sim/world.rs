@@ -57,6 +57,10 @@ const ROULETTE_AFTER: u32 = 3;
 /// of [`SimWorld::exitance_at`] that finds its surface starts.
 const EXITANCE_LIFT: f64 = 16.0;
 
+/// What the estimator cannot find, in words for reports (see the module
+/// docs).
+pub const LEFT_OUT: &str = "light that reaches a diffuse surface only by way of a mirror from a point, spot or projector light (a caustic of a delta light)";
+
 /// One emitting triangle (`Ke` radiance, front side only).
 #[derive(Clone, Debug)]
 struct Emitter {

@@ -281,8 +281,16 @@ fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_t
     )
     .unwrap();
     let lights: Vec<_> = scene.lights.iter().map(|l| l.light.clone()).collect();
-    let delta =
-        indirect_correction(&mesh, &all, &real, &lights, &HierarchyOptions::default()).unwrap();
+    let rays = [DeviceRays::new(&p.device).unwrap()];
+    let delta = indirect_correction(
+        &mesh,
+        &all,
+        &real,
+        &lights,
+        &rays,
+        &HierarchyOptions::default(),
+    )
+    .unwrap();
     let field = Arc::new(IndirectField::new(Arc::new(mesh), &delta).unwrap());
     let cam = camera();
     let judge = |frame: &FrameScene| {

@@ -1,0 +1,124 @@
+//! `showcase-master bench gi`: global illumination for the projectors,
+//! judged in the physically complete world, offline.
+//!
+//! For each scene, at one frame of the scripted walk (the demo's
+//! resolution), the projectors' CPU reference maps in direct mode and in
+//! global mode (the hierarchical solution's indirect correction,
+//! [`crate::radiosity_job::indirect_field`]), each seen by the cabinet's
+//! cameras and the observers in the physically complete world
+//! ([`views::Transport::Complete`]). The live cluster does not run global
+//! mode yet, so the records have no update latency, stale frames, swap
+//! skew or tracking-to-swap figures; `renderer` says what drew the maps.
+
+use super::INTERACTIVE_HZ;
+use super::views::{self, Backend, NodeRenderers, Transport};
+use crate::cluster::commands::walk_tracking;
+use crate::cluster::{Show, Tracking};
+use anyhow::{Context, Result};
+use serde_json::{Value, json};
+use showcase_light::metrics::percentile;
+use showcase_light::observer_view::complete::CompleteOptions;
+use showcase_proto::config::TrackingSource;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What `bench gi` runs.
+#[derive(Clone, Debug)]
+pub struct GiBenchOptions {
+    /// The frame of the scripted walk to judge.
+    pub frame: u64,
+    /// Paths per irradiance-cache point of the complete views.
+    pub truth_paths: u32,
+    /// Also judge the maps drawn without occlusion shadows (what the dark
+    /// patches they leave cost in the complete world, where they would
+    /// have lit the rest of the room).
+    pub without_occlusion: bool,
+}
+
+/// The records of one scene: one per mode (`direct`, `global`), and with
+/// [`GiBenchOptions::without_occlusion`] one per mode without occlusion
+/// shadows (`occlusion_shadows: false`).
+pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec<Value>> {
+    let truth = crate::scene_file::load_any(scene_path)?;
+    let truth = views::at_demo_resolution(&truth)?;
+    anyhow::ensure!(
+        !truth.projectors.is_empty() && !truth.cameras.is_empty(),
+        "{}: bench gi needs a projector and a camera",
+        scene_path.display()
+    );
+    let tracker =
+        crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;
+    let mut show = Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64);
+    let mut state = None;
+    for f in 0..=options.frame {
+        state = Some(show.frame_state(f, 0.0, &truth, 1).0);
+    }
+    let state = state.context("no frame")?;
+    let resolved = showcase_light::render::FrameScene::resolve(&truth, &state)?;
+    let t = Instant::now();
+    let (field, elements) = crate::radiosity_job::indirect_field(
+        &resolved.showcase,
+        &crate::radiosity_job::RadiosityOptions::default(),
+    )?;
+    let solve_s = t.elapsed().as_secs_f64();
+    let field = Arc::new(field);
+    let backend = Backend::Cpu("bench gi draws the projectors' CPU reference maps".into());
+    let transport = Transport::Complete(CompleteOptions {
+        paths_per_point: options.truth_paths,
+        seed: 24,
+    });
+    let mut records = Vec::new();
+    let occlusion: &[bool] = if options.without_occlusion {
+        &[true, false]
+    } else {
+        &[true]
+    };
+    for (&occlusion_shadows, mode) in occlusion
+        .iter()
+        .flat_map(|o| [(o, "direct"), (o, "global")])
+    {
+        let mut renderers = NodeRenderers::new(&backend, Arc::new(truth.clone()))?;
+        if mode == "global" {
+            renderers.set_indirect(field.clone())?;
+        }
+        if !occlusion_shadows {
+            renderers.without_occlusion_shadows()?;
+        }
+        let outputs = renderers.render(&state)?;
+        let mut camera = None;
+        let mut per_object = serde_json::Map::new();
+        let mut noise: f64 = 0.0;
+        for c in 0..truth.cameras.len() {
+            let r = views::camera_consistency(&truth, &state, &outputs, c, transport)?;
+            camera = Some(camera.map_or(r.rel_rmse, |w: f64| w.max(r.rel_rmse)));
+            noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
+            for (name, e) in r.per_object {
+                let w = per_object.entry(name).or_insert(json!(0.0));
+                *w = json!(w.as_f64().unwrap_or(0.0).max(e));
+            }
+        }
+        let mut delta_e = Vec::new();
+        for o in 0..truth.observers.len() {
+            let r = views::observe(&truth, &state, &outputs, o, transport)?;
+            delta_e.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+            noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
+        }
+        records.push(json!({
+            "scene": truth.name,
+            "elements": elements,
+            "mode": mode,
+            "occlusion_shadows": occlusion_shadows,
+            "frame": state.frame,
+            "renderer": "cpu-reference",
+            "solve_s": if mode == "global" { Some(solve_s) } else { None },
+            "camera_consistency_rel_rmse": camera,
+            "camera_consistency_rel_rmse_per_object": per_object,
+            "observer_delta_e_median": percentile(&delta_e, 50.0),
+            "observer_delta_e_p95": percentile(&delta_e, 95.0),
+            "compared_noise_rel_rmse": noise,
+            "projector_clipped_fractions": outputs.reference_clipped,
+        }));
+    }
+    Ok(records)
+}
