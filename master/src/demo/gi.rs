@@ -56,13 +56,6 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     }
     let state = state.context("no frame")?;
     let resolved = showcase_light::render::FrameScene::resolve(&truth, &state)?;
-    let t = Instant::now();
-    let (field, elements) = crate::radiosity_job::indirect_field(
-        &resolved.showcase,
-        &crate::radiosity_job::RadiosityOptions::default(),
-    )?;
-    let solve_s = t.elapsed().as_secs_f64();
-    let field = Arc::new(field);
     let backend = Backend::Cpu("bench gi draws the projectors' CPU reference maps".into());
     let transport = Transport::Complete(CompleteOptions {
         paths_per_point: options.truth_paths,
@@ -74,51 +67,89 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     } else {
         &[true]
     };
-    for (&occlusion_shadows, mode) in occlusion
-        .iter()
-        .flat_map(|o| [(o, "direct"), (o, "global")])
-    {
-        let mut renderers = NodeRenderers::new(&backend, Arc::new(truth.clone()))?;
-        if mode == "global" {
-            renderers.set_indirect(field.clone())?;
+    for &occlusion_shadows in occlusion {
+        // Without occlusion shadows no element is left dark for an eye.
+        let eyes = if occlusion_shadows {
+            resolved.eyes.as_slice()
+        } else {
+            &[]
+        };
+        let t = Instant::now();
+        let (field, elements) = crate::radiosity_job::indirect_field(
+            &resolved.showcase,
+            eyes,
+            &crate::radiosity_job::RadiosityOptions::default(),
+        )?;
+        let solve_s = t.elapsed().as_secs_f64();
+        let field = Arc::new(field);
+        for mode in ["direct", "global"] {
+            records.push(judge(
+                &truth,
+                &state,
+                &backend,
+                transport,
+                (mode == "global").then(|| field.clone()),
+                occlusion_shadows,
+                elements,
+                solve_s,
+            )?);
         }
-        if !occlusion_shadows {
-            renderers.without_occlusion_shadows()?;
-        }
-        let outputs = renderers.render(&state)?;
-        let mut camera = None;
-        let mut per_object = serde_json::Map::new();
-        let mut noise: f64 = 0.0;
-        for c in 0..truth.cameras.len() {
-            let r = views::camera_consistency(&truth, &state, &outputs, c, transport)?;
-            camera = Some(camera.map_or(r.rel_rmse, |w: f64| w.max(r.rel_rmse)));
-            noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
-            for (name, e) in r.per_object {
-                let w = per_object.entry(name).or_insert(json!(0.0));
-                *w = json!(w.as_f64().unwrap_or(0.0).max(e));
-            }
-        }
-        let mut delta_e = Vec::new();
-        for o in 0..truth.observers.len() {
-            let r = views::observe(&truth, &state, &outputs, o, transport)?;
-            delta_e.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
-            noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
-        }
-        records.push(json!({
-            "scene": truth.name,
-            "elements": elements,
-            "mode": mode,
-            "occlusion_shadows": occlusion_shadows,
-            "frame": state.frame,
-            "renderer": "cpu-reference",
-            "solve_s": if mode == "global" { Some(solve_s) } else { None },
-            "camera_consistency_rel_rmse": camera,
-            "camera_consistency_rel_rmse_per_object": per_object,
-            "observer_delta_e_median": percentile(&delta_e, 50.0),
-            "observer_delta_e_p95": percentile(&delta_e, 95.0),
-            "compared_noise_rel_rmse": noise,
-            "projector_clipped_fractions": outputs.reference_clipped,
-        }));
     }
     Ok(records)
+}
+
+/// One record: the maps of one mode judged in the complete world.
+#[allow(clippy::too_many_arguments)]
+fn judge(
+    truth: &showcase_proto::Showcase,
+    state: &showcase_proto::FrameState,
+    backend: &Backend,
+    transport: Transport,
+    field: Option<Arc<showcase_light::render::IndirectField>>,
+    occlusion_shadows: bool,
+    elements: usize,
+    solve_s: f64,
+) -> Result<Value> {
+    let mode = if field.is_some() { "global" } else { "direct" };
+    let mut renderers = NodeRenderers::new(backend, Arc::new(truth.clone()))?;
+    if let Some(field) = field {
+        renderers.set_indirect(field)?;
+    }
+    if !occlusion_shadows {
+        renderers.without_occlusion_shadows()?;
+    }
+    let outputs = renderers.render(state)?;
+    let mut camera = None;
+    let mut per_object = serde_json::Map::new();
+    let mut noise: f64 = 0.0;
+    for c in 0..truth.cameras.len() {
+        let r = views::camera_consistency(truth, state, &outputs, c, transport)?;
+        camera = Some(camera.map_or(r.rel_rmse, |w: f64| w.max(r.rel_rmse)));
+        noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
+        for (name, e) in r.per_object {
+            let w = per_object.entry(name).or_insert(json!(0.0));
+            *w = json!(w.as_f64().unwrap_or(0.0).max(e));
+        }
+    }
+    let mut delta_e = Vec::new();
+    for o in 0..truth.observers.len() {
+        let r = views::observe(truth, state, &outputs, o, transport)?;
+        delta_e.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+        noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
+    }
+    Ok(json!({
+        "scene": truth.name,
+        "elements": elements,
+        "mode": mode,
+        "occlusion_shadows": occlusion_shadows,
+        "frame": state.frame,
+        "renderer": "cpu-reference",
+        "solve_s": (mode == "global").then_some(solve_s),
+        "camera_consistency_rel_rmse": camera,
+        "camera_consistency_rel_rmse_per_object": per_object,
+        "observer_delta_e_median": percentile(&delta_e, 50.0),
+        "observer_delta_e_p95": percentile(&delta_e, 95.0),
+        "compared_noise_rel_rmse": noise,
+        "projector_clipped_fractions": outputs.reference_clipped,
+    }))
 }

@@ -263,14 +263,20 @@ pub struct Solved {
 }
 
 /// The projectors' global-illumination correction for `showcase` as it
-/// stands ([`radiosity::augmented::indirect_correction`] on the
-/// hierarchical mesh and settings of `options`), and the elements it has.
+/// stands, seen by the eyes `eyes` ([`radiosity::augmented::indirect_correction`]
+/// on the hierarchical mesh and settings of `options`, with the real
+/// elements the projectors leave dark: those none reaches and those in an
+/// eye's occlusion shadow), and the elements it has.
 pub fn indirect_field(
     showcase: &Showcase,
+    eyes: &[glam::DVec3],
     options: &RadiosityOptions,
 ) -> anyhow::Result<(showcase_light::render::IndirectField, usize)> {
+    use rayon::prelude::*;
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
+    let virtual_only =
+        SceneGeometry::build(showcase, &ObjectFilter::Virtual).context("building geometry")?;
     let mesh =
         RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh()).context("meshing")?;
     let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
@@ -282,12 +288,26 @@ pub fn indirect_field(
         .iter()
         .map(|p| showcase_light::DeviceRays::new(&p.device))
         .collect::<Result<_, _>>()?;
+    let reach = radiosity::augmented::projector_reach(&mesh, &real, &projectors);
+    let lit: Vec<bool> = mesh
+        .elements
+        .par_iter()
+        .zip(&reach)
+        .map(|(e, r)| {
+            *r && !showcase_light::render::projector::in_occlusion_shadow(
+                &virtual_only,
+                eyes,
+                e.center,
+                e.normal,
+            )
+        })
+        .collect();
     let delta = radiosity::augmented::indirect_correction(
         &mesh,
         &all,
         &real,
         &lights,
-        &projectors,
+        Some(&lit),
         &options.hierarchy(),
     )
     .context("solving the global-illumination correction")?;

@@ -261,16 +261,17 @@ pub fn augmented_radiosity_hierarchical(
 /// with the direct part left to the per-pixel pass. Negative where the
 /// virtual objects block light that passes in the cabinet.
 ///
-/// A real element that none of `projectors` reaches (none given: every
-/// element is reached) cannot show B0: in the cabinet it only reflects
-/// what the others send it, `rho E_real` (one bounce), and that is what
-/// it brings the others in `E_real`.
+/// A real element the projectors leave dark (`lit`, per element, false;
+/// `None`: every element is lit) cannot show B0: one no projector reaches
+/// ([`projector_reach`]) or one in an observer's occlusion shadow. In the
+/// cabinet it only reflects what the others send it, `rho E_real` (one
+/// bounce), and that is what it brings the others in `E_real`.
 pub fn indirect_correction(
     mesh: &RadiosityMesh,
     all: &SceneGeometry,
     real: &SceneGeometry,
     lights: &[Light],
-    projectors: &[DeviceRays],
+    lit: Option<&[bool]>,
     options: &HierarchyOptions,
 ) -> Result<Vec<DVec3>, HierarchyError> {
     let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
@@ -287,13 +288,8 @@ pub fn indirect_correction(
         .collect();
     let mut h = Hierarchy::new(mesh, real, Some(&mask), options)?;
     h.link(&real_b0)?;
-    let reached: Vec<bool> = mesh
-        .elements
-        .iter()
-        .map(|e| {
-            projectors.is_empty()
-                || (e.real && projectors.iter().any(|p| p.sees(real, e.center, e.normal)))
-        })
+    let reached: Vec<bool> = (0..mesh.elements.len())
+        .map(|e| lit.is_none_or(|l| l.get(e).copied().unwrap_or(false)))
         .collect();
     let mut cabinet: Vec<DVec3> = real_b0
         .iter()
@@ -328,6 +324,20 @@ pub fn indirect_correction(
             finite_or_zero(DVec3::new(per(0), per(1), per(2)))
         })
         .collect())
+}
+
+/// Per element of `mesh`: whether some projector of `projectors` reaches
+/// its centre on its front side over the real geometry `real` (false for
+/// virtual elements).
+pub fn projector_reach(
+    mesh: &RadiosityMesh,
+    real: &SceneGeometry,
+    projectors: &[DeviceRays],
+) -> Vec<bool> {
+    mesh.elements
+        .par_iter()
+        .map(|e| e.real && projectors.iter().any(|p| p.sees(real, e.center, e.normal)))
+        .collect()
 }
 
 /// One bounce of the real transport: `K x` for exitance `x` per element,

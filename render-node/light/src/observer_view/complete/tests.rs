@@ -257,7 +257,7 @@ fn corner_with_block() -> Showcase {
 /// W/m^2 everywhere and both maps agree with the target to 0.001.
 #[test]
 fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_target() {
-    use crate::radiosity::augmented::indirect_correction;
+    use crate::radiosity::augmented::{indirect_correction, projector_reach};
     use crate::radiosity::{HierarchyOptions, MeshOptions, RadiosityMesh};
     use crate::render::projector::irradiance_map_cpu;
     use crate::render::{IndirectField, Occluders, ProjectorOptions};
@@ -281,13 +281,14 @@ fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_t
     )
     .unwrap();
     let lights: Vec<_> = scene.lights.iter().map(|l| l.light.clone()).collect();
-    let rays = [DeviceRays::new(&p.device).unwrap()];
+    let lit = projector_reach(&mesh, &real, &[DeviceRays::new(&p.device).unwrap()]);
+    assert!(lit.iter().any(|l| *l) && lit.iter().any(|l| !l));
     let delta = indirect_correction(
         &mesh,
         &all,
         &real,
         &lights,
-        &rays,
+        Some(&lit),
         &HierarchyOptions::default(),
     )
     .unwrap();
