@@ -33,8 +33,7 @@ use crate::render::{FrameScene, RenderSetupError};
 use crate::sampling::pixel_seed;
 use crate::sim::devices::projector_intensity;
 use crate::sim::{
-    CacheOptions, IrradianceCache, ProjectorLight, RayEnd, SimError, SimLights, SimWorld,
-    SurfacePoint,
+    CacheOptions, IrradianceCache, ProjectorLight, RayEnd, SimLights, SimWorld, SurfacePoint,
 };
 use crate::{DeviceRays, Image, MetricError, ObjectFilter, RgbImage};
 use glam::{DVec2, DVec3, Vec3};
@@ -140,13 +139,12 @@ pub fn complete_view(
             .value
             .map(|v| projector_intensity(&p.projector.response, *v));
         let rays = DeviceRays::new(d).map_err(RenderSetupError::from)?;
-        lights.push(ProjectorLight::new(rays, intensity).map_err(sim_error)?);
+        lights.push(ProjectorLight::new(rays, intensity)?);
     }
     let scene = &frame.showcase;
-    let real_world = SimWorld::new(scene, &ObjectFilter::Real, true).map_err(sim_error)?;
-    let full_world = SimWorld::new(scene, &ObjectFilter::All, true).map_err(sim_error)?;
-    let virtual_lights =
-        SimLights::virtual_lights(&scene.lights, scene.ambient).map_err(sim_error)?;
+    let real_world = SimWorld::new(scene, &ObjectFilter::Real, true)?;
+    let full_world = SimWorld::new(scene, &ObjectFilter::All, true)?;
+    let virtual_lights = SimLights::virtual_lights(&scene.lights, scene.ambient)?;
     let real = trace_image(
         &real_world,
         &SimLights::projectors(&lights),
@@ -155,10 +153,6 @@ pub fn complete_view(
     );
     let target = trace_image(&full_world, &virtual_lights, &eye_rays, options);
     Ok(CompleteView { real, target })
-}
-
-fn sim_error(e: SimError) -> ObserverViewError {
-    ObserverViewError::Sim(e)
 }
 
 /// Every pixel of `eye` in `world` under `lights`, as two halves: each

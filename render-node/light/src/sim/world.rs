@@ -318,7 +318,7 @@ impl SimWorld {
     /// `[emitted, direct, indirect]` radiance (the split of
     /// [`TransportImage`]) arriving along `ray`, lit by `lights` and this
     /// world's emitters, from `spp` paths (at least 1); the result depends
-    /// only on `seed` (one stream, no threads). A ray that leaves the scene
+    /// only on `seed` (no threads). A ray that leaves the scene
     /// brings the environment's radiance, counted as emitted.
     pub fn trace(&self, ray: &Ray, lights: &SimLights<'_>, spp: u32, seed: u64) -> [DVec3; 3] {
         let spp = spp.max(1);
@@ -474,7 +474,7 @@ impl SimWorld {
     /// emitters are on) plus `rho E`, with `E` the irradiance from
     /// `lights` and everything this world emits or reflects.
     /// `spp` paths (at least 1), the estimator of [`Self::render`]; the
-    /// result depends only on `seed` (one stream, no threads), and distinct
+    /// result depends only on `seed` (no threads), and distinct
     /// seeds give independent estimates.
     ///
     /// The surface is found by a ray that starts a few
