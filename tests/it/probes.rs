@@ -42,13 +42,14 @@ fn probes_lie_on_lit_surfaces_and_do_not_depend_on_the_thread_count() -> anyhow:
     Ok(())
 }
 
+/// 48 probes of 4096 paths. Measured: median errors 0.0282 for the
+/// gathered configuration and 0.118 for the base, reference noise
+/// 0.0130 (all 256 probes of 131,072 paths of the bench: 0.0283, 0.124,
+/// 0.0022). The bound sits between the two, 1.6 times the gathered.
+const BOUND: f64 = 0.045;
+
 #[test]
 fn gathered_radiosity_meets_the_probes_and_the_coarse_base_does_not() -> anyhow::Result<()> {
-    // 48 probes of 4096 paths. Measured: median errors 0.0282 for the
-    // gathered configuration and 0.118 for the base, reference noise
-    // 0.0130 (all 256 probes of 131,072 paths of the bench: 0.0283, 0.124,
-    // 0.0022). The bound sits between the two, 1.6 times the gathered.
-    const BOUND: f64 = 0.045;
     let showcase = load_any(Path::new(CORNELL))?;
     let probes = path_traced_probes(&showcase, 48, 4096, PROBE_SEED)?;
     let errors = |config| -> anyhow::Result<_> {
@@ -78,9 +79,15 @@ fn hierarchical_radiosity_is_not_dark_against_the_probes() -> anyhow::Result<()>
         ..RadiosityOptions::default()
     };
     let s = solve_showcase(&showcase, &options)?;
-    let e = probe_errors(&s.mesh, &s.b0_vertices, &probes).context("no probe on the mesh")?;
+    let averaged = s.mesh.vertex_values(&s.b0);
+    let e = probe_errors(&s.mesh, &averaged, &probes).context("no probe on the mesh")?;
     // Measured: median 0.052, median signed -0.025; before the fix 0.181
     // and -0.181.
     assert!(e.median < 0.09 && e.median_signed > -0.06, "{e:?}");
+    // The output: on a mesh this small, B0 gathered at the vertices, which
+    // meets the progressive solver's gathered bound where the average does
+    // not (measured 0.025 gathered, 0.049 averaged).
+    let g = probe_errors(&s.output_mesh, &s.b0_vertices, &probes).context("no probe")?;
+    assert!(g.median < BOUND, "gathered {g:?}, averaged {e:?}");
     Ok(())
 }

@@ -108,7 +108,7 @@ pub fn hierarchical_records(making: &dyn Fn(&str)) -> anyhow::Result<Vec<BenchRe
             seconds.push(t.elapsed().as_secs_f64());
         }
         let solved = solved.context("no run")?;
-        let errors = probe_errors(&solved.mesh, &solved.b0_vertices, &probes);
+        let errors = probe_errors(&solved.output_mesh, &solved.b0_vertices, &probes);
         records.push(json!({
             "kind": "hierarchical_cornell",
             "max_patch_area": area,
