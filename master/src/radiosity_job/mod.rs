@@ -408,8 +408,9 @@ pub fn solve_showcase_on(
 }
 
 /// Element-vertex pairs up to which the hierarchical path gathers B0 at
-/// the output mesh's vertices (Cornell at 0.02 m^2: 824 elements; the
-/// demo cabinet's 11,988 elements stay far above).
+/// the output mesh's vertices, for a solve of at most
+/// [`AUTO_HIERARCHICAL_ELEMENTS`] elements (Cornell at 0.02 m^2: 824
+/// elements; the demo cabinet's 11,988 stay out).
 pub const HIERARCHICAL_GATHER_PAIRS: usize = 4_000_000;
 
 /// [`solve_showcase_on`] with the hierarchical solver: B0 (and the
@@ -464,10 +465,17 @@ fn solve_hierarchical_showcase(
     // as the progressive path does: averaging element B to the vertices
     // puts them half an element inside at every edge and corner (Cornell
     // probes: 5.3 % median averaged, 2.7 % gathered).
-    let mut output_mesh =
-        RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing the output")?;
-    let (output_mesh, b0_vertices) =
-        if mesh.elements.len() * output_mesh.vertices.len() <= HIERARCHICAL_GATHER_PAIRS {
+    // (The plain mesh is built only for a small solve: the cabinet's would
+    // hold 46,800 elements for nothing.)
+    let small = if mesh.elements.len() <= AUTO_HIERARCHICAL_ELEMENTS {
+        let m =
+            RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing the output")?;
+        (mesh.elements.len() * m.vertices.len() <= HIERARCHICAL_GATHER_PAIRS).then_some(m)
+    } else {
+        None
+    };
+    let (output_mesh, b0_vertices) = match small {
+        Some(mut output_mesh) => {
             let (_, v) = gather_adaptive(
                 &mesh,
                 &b0,
@@ -478,9 +486,9 @@ fn solve_hierarchical_showcase(
                 &RefineOptions::default(),
             );
             (output_mesh, v)
-        } else {
-            (mesh.clone(), mesh.vertex_values(&b0))
-        };
+        }
+        None => (mesh.clone(), mesh.vertex_values(&b0)),
+    };
     let b2_vertices = augmented.as_ref().map(|a| mesh.vertex_values(&a.b2));
     let (iterations, residual) = match &solution {
         Some(s) => (s.iterations as usize, s.residual),
