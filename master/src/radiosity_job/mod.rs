@@ -367,7 +367,7 @@ pub fn solve_showcase_on(
     let b0 = augmented
         .as_ref()
         .map_or(solution.display, |a| a.b0.clone());
-    let mut output_mesh = RadiosityMesh::build(
+    let output_mesh = RadiosityMesh::build(
         showcase,
         &all,
         &MeshOptions {
@@ -376,15 +376,7 @@ pub fn solve_showcase_on(
         },
     )
     .context("meshing the output")?;
-    let (_, b0_vertices) = gather_adaptive(
-        &mesh,
-        &b0,
-        &mut output_mesh,
-        &all,
-        &lights,
-        &GatherOptions::default(),
-        &RefineOptions::default(),
-    );
+    let (output_mesh, b0_vertices) = gathered_output(&mesh, &b0, output_mesh, &all, &lights);
     // The real room's interreflection gathered at each vertex, not
     // element B2 averaged to it (radiosity::gathered_b2_vertices).
     let b2_vertices = augmented
@@ -405,6 +397,28 @@ pub fn solve_showcase_on(
         links: 0,
         complete: true,
     })
+}
+
+/// `output_mesh`, refined where B0 changes fast, and B0 gathered at its
+/// vertices from the solution `b0` on `mesh` ([`gather_adaptive`]): both
+/// solvers' point values at the output's vertices.
+fn gathered_output(
+    mesh: &RadiosityMesh,
+    b0: &[DVec3],
+    mut output_mesh: RadiosityMesh,
+    all: &SceneGeometry,
+    lights: &[showcase_proto::Light],
+) -> (RadiosityMesh, Vec<DVec3>) {
+    let (_, values) = gather_adaptive(
+        mesh,
+        b0,
+        &mut output_mesh,
+        all,
+        lights,
+        &GatherOptions::default(),
+        &RefineOptions::default(),
+    );
+    (output_mesh, values)
 }
 
 /// Element-vertex pairs up to which the hierarchical path gathers B0 at
@@ -475,18 +489,7 @@ fn solve_hierarchical_showcase(
         None
     };
     let (output_mesh, b0_vertices) = match small {
-        Some(mut output_mesh) => {
-            let (_, v) = gather_adaptive(
-                &mesh,
-                &b0,
-                &mut output_mesh,
-                &all,
-                lights,
-                &GatherOptions::default(),
-                &RefineOptions::default(),
-            );
-            (output_mesh, v)
-        }
+        Some(output_mesh) => gathered_output(&mesh, &b0, output_mesh, &all, lights),
         None => (mesh.clone(), mesh.vertex_values(&b0)),
     };
     let b2_vertices = augmented.as_ref().map(|a| mesh.vertex_values(&a.b2));

@@ -103,16 +103,6 @@ impl IrradianceCache {
         }
     }
 
-    /// Number of cache points.
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    /// True when the cache holds no point.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
     /// The interpolated indirect irradiance at `surface`, as two halves;
     /// `None` where no cache point is valid.
     pub fn lookup(&self, surface: &SurfacePoint) -> Option<[DVec3; 2]> {

@@ -16,18 +16,17 @@
 
 use super::SimError;
 use super::world::ProjectorLight;
-use crate::SceneGeometry;
 use crate::finite::finite_or_zero;
 use crate::spot::{cone_cosines, spot_falloff};
+use crate::{IntensityLight, SceneGeometry};
 use glam::{DVec3, Vec3};
 use showcase_proto::{Light, LightSource};
 
-/// A point light, restricted to a cone for a spot.
+/// A point light (its intensity in W/sr per channel, on the axis for a
+/// spot), restricted to a cone for a spot.
 #[derive(Clone, Debug)]
 struct DeltaLight {
-    position: DVec3,
-    /// W/sr per channel (on the axis, for a spot).
-    intensity: DVec3,
+    light: IntensityLight,
     /// `(unit axis, cos_inner, cos_outer)` of a spot.
     cone: Option<(DVec3, f64, f64)>,
 }
@@ -86,8 +85,10 @@ impl<'a> SimLights<'a> {
                         return Err(bad());
                     }
                     out.deltas.push(DeltaLight {
-                        position: position.as_dvec3(),
-                        intensity: intensity.as_dvec3().max(DVec3::ZERO),
+                        light: IntensityLight::point(
+                            position.as_dvec3(),
+                            intensity.as_dvec3().max(DVec3::ZERO),
+                        ),
                         cone: None,
                     });
                 }
@@ -105,8 +106,10 @@ impl<'a> SimLights<'a> {
                     let (cos_inner, cos_outer) =
                         cone_cosines(f64::from(*inner_deg), f64::from(*outer_deg));
                     out.deltas.push(DeltaLight {
-                        position: position.as_dvec3(),
-                        intensity: intensity.as_dvec3().max(DVec3::ZERO),
+                        light: IntensityLight::point(
+                            position.as_dvec3(),
+                            intensity.as_dvec3().max(DVec3::ZERO),
+                        ),
                         cone: Some((axis, cos_inner, cos_outer)),
                     });
                 }
@@ -148,14 +151,6 @@ impl<'a> SimLights<'a> {
         self.environment
     }
 
-    /// True when nothing here emits.
-    pub fn is_dark(&self) -> bool {
-        self.projectors.is_empty()
-            && self.deltas.iter().all(|d| d.intensity == DVec3::ZERO)
-            && self.areas.iter().all(|a| a.radiance == DVec3::ZERO)
-            && self.environment == DVec3::ZERO
-    }
-
     /// True when some area light needs sampling.
     pub(super) fn has_areas(&self) -> bool {
         !self.areas.is_empty()
@@ -177,23 +172,14 @@ impl<'a> SimLights<'a> {
             e += p.irradiance(geometry, point, facing, shading);
         }
         for d in &self.deltas {
-            let to = d.position - point;
-            let r2 = to.length_squared();
-            if !(r2 > 0.0) {
-                continue;
+            // A spot's cone first: outside it no shadow ray is cast.
+            let falloff = d.cone.map_or(1.0, |(axis, ci, co)| {
+                let from = (point - d.light.position).normalize_or_zero();
+                spot_falloff(axis.dot(from), ci, co)
+            });
+            if falloff > 0.0 {
+                e += falloff * d.light.intensity_at(geometry, point, facing, shading);
             }
-            let l = to / r2.sqrt();
-            let cos = shading.dot(l);
-            if !(cos > 0.0 && facing.dot(l) > 0.0) {
-                continue;
-            }
-            let falloff = d
-                .cone
-                .map_or(1.0, |(axis, ci, co)| spot_falloff(axis.dot(-l), ci, co));
-            if !(falloff > 0.0) || !geometry.visible(point, facing, d.position, false) {
-                continue;
-            }
-            e += d.intensity * (falloff * cos / r2);
         }
         finite_or_zero(e)
     }

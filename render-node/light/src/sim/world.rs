@@ -411,15 +411,14 @@ impl SimWorld {
             let samples = samples.max(1);
             let mut sum = DVec3::ZERO;
             for s in 0..samples {
-                let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
-                sum += self.sample_emitters(surface.point, &seen.frame, rng);
-                let u = stratified_point(s, samples, (rng.random(), rng.random()));
+                let start = PathStart::new(s, samples, seed);
+                sum += self.sample_emitters(surface.point, &seen.frame, start.emitter);
                 sum += lights.sample_areas(
                     &self.geometry,
                     surface.point,
                     surface.facing,
                     surface.shading,
-                    u,
+                    start.area,
                 );
             }
             e += sum / f64::from(samples);
@@ -444,13 +443,15 @@ impl SimWorld {
         let paths = paths.max(1);
         let (mut sum, mut inverse) = (DVec3::ZERO, 0.0);
         for s in 0..paths {
-            let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
-            // The same draws as `sample_paths`, so both estimators share
-            // their paths for one seed.
-            let _ = (rng.random::<[f64; 3]>(), rng.random::<[f64; 2]>());
-            let first = stratified_point(s, paths, (rng.random(), rng.random()));
-            let (l, distance) =
-                self.trace_path(surface.point, seen.frame, DVec3::ONE, lights, first, rng);
+            let mut start = PathStart::new(s, paths, seed);
+            let (l, distance) = self.trace_path(
+                surface.point,
+                seen.frame,
+                DVec3::ONE,
+                lights,
+                start.first,
+                &mut start.rng,
+            );
             sum += l;
             if distance > 0.0 {
                 inverse += 1.0 / distance;
@@ -579,12 +580,12 @@ impl SimWorld {
     /// indirect radiance (already times the point's albedo), in path
     /// order.
     ///
-    /// Path `s` draws from its own stream, seeded from `(seed, s)`, and
-    /// draws the same numbers at each vertex whatever the world holds (an
-    /// emitter pick, a point on the area lights, a direction), so two
-    /// worlds traced with one seed follow the same paths as long as their
-    /// surfaces agree: their difference is then far less noisy than either
-    /// (common random numbers).
+    /// Each path starts from [`PathStart`] and draws the same numbers at
+    /// each vertex whatever the world holds (an emitter pick, a point on
+    /// the area lights, a direction), so two worlds traced with one seed
+    /// follow the same paths as long as their surfaces agree: their
+    /// difference is then far less noisy than either (common random
+    /// numbers).
     fn sample_paths(
         &self,
         seen: &Seen,
@@ -598,19 +599,20 @@ impl SimWorld {
         }
         let point = seen.point;
         let (facing, shading) = (seen.frame.facing, seen.frame.shading);
-        // The first bounce, which carries most of the indirect light, is
-        // stratified: an n x n jittered grid over the cosine hemisphere's
-        // unit square (n = floor(sqrt(spp))), the paths past n^2
-        // unstratified; so are the points on the area lights.
         for s in 0..spp {
-            let rng = &mut ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
-            let mut e = self.sample_emitters(point, &seen.frame, rng);
-            let u = stratified_point(s, spp, (rng.random(), rng.random()));
+            let mut start = PathStart::new(s, spp, seed);
+            let mut e = self.sample_emitters(point, &seen.frame, start.emitter);
             if lights.has_areas() {
-                e += lights.sample_areas(&self.geometry, point, facing, shading, u);
+                e += lights.sample_areas(&self.geometry, point, facing, shading, start.area);
             }
-            let first = stratified_point(s, spp, (rng.random(), rng.random()));
-            let (l, _) = self.trace_path(point, seen.frame, seen.rho, lights, first, rng);
+            let (l, _) = self.trace_path(
+                point,
+                seen.frame,
+                seen.rho,
+                lights,
+                start.first,
+                &mut start.rng,
+            );
             path(e, l);
         }
     }
@@ -660,7 +662,7 @@ impl SimWorld {
             }
             off_mirror = self.is_mirror(hit.object);
             if !off_mirror {
-                let mut e = self.sample_emitters(hit.point, &next, rng);
+                let mut e = self.sample_emitters(hit.point, &next, rng.random());
                 e += lights.delta_irradiance(&self.geometry, hit.point, next.facing, next.shading);
                 let u = (rng.random(), rng.random());
                 if lights.has_areas() {
@@ -693,10 +695,9 @@ impl SimWorld {
         (finite_or_zero(sum), first_distance)
     }
 
-    /// One next-event estimate of the irradiance from the emitters.
-    /// Three numbers are drawn whether or not there are emitters.
-    fn sample_emitters(&self, point: DVec3, frame: &SurfaceFrame, rng: &mut ChaCha8Rng) -> DVec3 {
-        let (u, r1, r2): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
+    /// One next-event estimate of the irradiance from the emitters, picked
+    /// by the three numbers `[u, r1, r2]` in `[0, 1)`.
+    fn sample_emitters(&self, point: DVec3, frame: &SurfaceFrame, [u, r1, r2]: [f64; 3]) -> DVec3 {
         if self.emitters.is_empty() {
             return DVec3::ZERO;
         }
@@ -724,6 +725,35 @@ impl SimWorld {
             return DVec3::ZERO;
         }
         finite_or_zero(e.radiance * (cos_x * cos_y / dist2 * e.area / p_select))
+    }
+}
+
+/// What path `s` of `count` from one surface point draws before it leaves
+/// it, on its own stream seeded from `(seed, s)`, in the one order every
+/// estimator uses (so all of them share a path's numbers for one seed):
+/// an emitter pick, a point on the area lights, and the point of the unit
+/// square that picks the first direction. The last two are stratified
+/// (an n x n jittered grid, n = floor(sqrt(count)), the paths past n^2
+/// not): the first bounce carries most of the indirect light.
+struct PathStart {
+    rng: ChaCha8Rng,
+    emitter: [f64; 3],
+    area: (f64, f64),
+    first: (f64, f64),
+}
+
+impl PathStart {
+    fn new(s: u32, count: u32, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
+        let emitter = rng.random();
+        let area = stratified_point(s, count, (rng.random(), rng.random()));
+        let first = stratified_point(s, count, (rng.random(), rng.random()));
+        Self {
+            rng,
+            emitter,
+            area,
+            first,
+        }
     }
 }
 
