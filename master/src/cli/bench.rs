@@ -16,7 +16,8 @@ pub enum BenchTarget {
     Reflectance,
     /// Radiosity.
     Radiosity,
-    /// The real-time renderer.
+    /// The real-time renderer (the projector role also in global mode:
+    /// variant `global`, the bench scene's correction solved first).
     Render,
     /// The cluster runtime.
     Cluster,
@@ -28,10 +29,10 @@ pub enum BenchTarget {
     /// The live dashboard's cost: master CPU with it off and on (4 node
     /// processes at 120 Hz, alternated runs), and eviction to `/api/state`.
     Dashboard,
-    /// Global illumination for the projectors, offline: their CPU
-    /// reference maps in direct and global mode at one frame of the walk,
-    /// judged in the physically complete world (the live cluster does not
-    /// run global mode yet).
+    /// Global illumination for the projectors, offline: their maps (the
+    /// GPU renderer, or its CPU reference without an adapter) in direct
+    /// and global mode at one frame of the walk, judged in the physically
+    /// complete world (the live cluster does not run global mode yet).
     Gi,
 }
 
@@ -252,6 +253,31 @@ fn render_options(args: &BenchArgs) -> Result<showcase_render::render::bench::Be
     Ok(opts)
 }
 
+/// The projectors' global-illumination correction of the render bench's
+/// scene at its first frame, for the projector variant `global`.
+fn render_bench_field(
+    scene: &showcase_proto::Showcase,
+    pb: &indicatif::ProgressBar,
+) -> Result<std::sync::Arc<showcase_light::render::IndirectField>> {
+    use showcase_render::render::bench::{bench_frame, bench_projector};
+    let mut s = scene.clone();
+    s.projectors = vec![bench_projector(640, 480)];
+    let frame = showcase_light::render::FrameScene::resolve(&s, &bench_frame(&s, "full", 0))?;
+    let t = std::time::Instant::now();
+    let (field, elements) = crate::radiosity_job::indirect_field(
+        &frame.showcase,
+        &frame.eyes,
+        &crate::radiosity_job::RadiosityOptions::default(),
+    )?;
+    pb.suspend(|| {
+        eprintln!(
+            "global variant: correction of {elements} elements solved in {:.1} s",
+            t.elapsed().as_secs_f64()
+        )
+    });
+    Ok(std::sync::Arc::new(field))
+}
+
 fn render(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     use showcase_render::render::bench::{bench_render, floor::bench_floor};
     let scene = crate::render_bench::bench_scene(
@@ -260,10 +286,11 @@ fn render(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     )?;
     let ctx = showcase_render::gpu::GpuContext::new_headless()?;
     pb.suspend(|| eprintln!("bench render on {}", ctx.describe()));
-    let opts = render_options(args)?;
+    let mut opts = render_options(args)?;
     if args.floor {
         return emit_bench(args, pb, &bench_floor(&ctx, &scene, &opts)?);
     }
+    opts.indirect = Some(render_bench_field(&scene, pb)?);
     let records = bench_render(&ctx, &scene, &opts)?;
     if !args.json {
         let plot = crate::render_bench::error_vs_time_plot(&records);

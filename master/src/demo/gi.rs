@@ -2,11 +2,14 @@
 //! judged in the physically complete world, offline.
 //!
 //! For each scene, at one frame of the scripted walk (the demo's
-//! resolution), the projectors' CPU reference maps in direct mode and in
-//! global mode (the hierarchical solution's indirect correction,
+//! resolution), the projectors' maps in direct mode and in global mode
+//! (the hierarchical solution's indirect correction,
 //! [`crate::radiosity_job::indirect_field`]), each seen by the cabinet's
 //! cameras and the observers in the physically complete world
-//! ([`views::Transport::Complete`]). The live cluster does not run global
+//! ([`views::Transport::Complete`]). The maps come from the projector
+//! nodes' GPU renderer where an adapter opens, else from its CPU
+//! reference; without occlusion shadows always from the CPU reference (the
+//! GPU renderer always draws them). The live cluster does not run global
 //! mode yet, so the records have no update latency, stale frames, swap
 //! skew or tracking-to-swap figures; `renderer` says what drew the maps.
 
@@ -56,7 +59,8 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     }
     let state = state.context("no frame")?;
     let resolved = showcase_light::render::FrameScene::resolve(&truth, &state)?;
-    let backend = Backend::Cpu("bench gi draws the projectors' CPU reference maps".into());
+    let gpu = Backend::open();
+    let cpu = Backend::Cpu("the GPU renderer always draws occlusion shadows".into());
     let transport = Transport::Complete(CompleteOptions {
         paths_per_point: options.truth_paths,
         seed: 24,
@@ -86,7 +90,7 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
             records.push(judge(
                 &truth,
                 &state,
-                &backend,
+                if occlusion_shadows { &gpu } else { &cpu },
                 transport,
                 (mode == "global").then(|| field.clone()),
                 occlusion_shadows,
@@ -113,7 +117,7 @@ fn judge(
     let mode = if field.is_some() { "global" } else { "direct" };
     let mut renderers = NodeRenderers::new(backend, Arc::new(truth.clone()))?;
     if let Some(field) = field {
-        renderers.set_indirect(field)?;
+        renderers.set_indirect(field);
     }
     if !occlusion_shadows {
         renderers.without_occlusion_shadows()?;
@@ -143,7 +147,7 @@ fn judge(
         "mode": mode,
         "occlusion_shadows": occlusion_shadows,
         "frame": state.frame,
-        "renderer": "cpu-reference",
+        "renderer": backend.describe(),
         "solve_s": (mode == "global").then_some(solve_s),
         "camera_consistency_rel_rmse": camera,
         "camera_consistency_rel_rmse_per_object": per_object,

@@ -7,6 +7,7 @@
 pub mod floor;
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{DVec3, Quat, Vec3};
@@ -25,6 +26,7 @@ use super::projector_gpu::ProjectorPipeline;
 use crate::gpu::{GpuContext, wait_idle};
 use showcase_light::Image;
 use showcase_light::metrics::{percentile, relative_rmse};
+use showcase_light::render::IndirectField;
 use showcase_light::render::consistency::direct_light_consistency;
 use showcase_light::render::face::{eyes_to_fill, face_image_cpu};
 use showcase_light::render::frame::FrameScene;
@@ -110,6 +112,10 @@ impl StepTimes {
         )
     }
 }
+
+/// The projector variant drawn in global mode
+/// ([`BenchOptions::indirect`]).
+pub const GLOBAL_VARIANT: &str = "global";
 
 /// The benchmark scenes' variants.
 pub const VARIANTS: [&str; 5] = [
@@ -348,6 +354,11 @@ pub struct BenchOptions {
     pub accuracy: bool,
     /// Shadow map size.
     pub shadow_res: u32,
+    /// The projectors' global-illumination correction on the `full`
+    /// scene: with it, the projector role also runs the variant `global`
+    /// (the `full` scene drawn with this field), to set global mode's
+    /// cost beside direct mode's.
+    pub indirect: Option<Arc<IndirectField>>,
 }
 
 impl Default for BenchOptions {
@@ -357,6 +368,7 @@ impl Default for BenchOptions {
             frames: 30,
             accuracy: true,
             shadow_res: DEFAULT_SHADOW_RES,
+            indirect: None,
         }
     }
 }
@@ -372,13 +384,25 @@ pub fn bench_render(
     let mut pipeline = ProjectorPipeline::new(&ctx.device, options.shadow_res);
     let mut face_pipeline = FacePipeline::new(&ctx.device, options.shadow_res);
     let mut records = Vec::new();
+    let global = options.indirect.as_ref().map(|_| GLOBAL_VARIANT);
     for &(width, height) in &options.sizes {
-        for variant in VARIANTS {
+        for variant in VARIANTS.into_iter().chain(global) {
             let mut s = variant_scene(scene, variant);
             s.projectors = vec![bench_projector(width, height)];
             let projector = s.projectors[0].clone();
+            let field = options
+                .indirect
+                .as_ref()
+                .filter(|_| variant == GLOBAL_VARIANT);
+            let resolve = |state: &FrameState| {
+                let frame = FrameScene::resolve(&s, state)?;
+                Ok::<_, RenderError>(match field {
+                    Some(f) => frame.with_indirect(f.clone()),
+                    None => frame,
+                })
+            };
             // Warm-up frame (pipeline caches, allocation), then timing.
-            let first = FrameScene::resolve(&s, &bench_frame(&s, variant, 0))?;
+            let first = resolve(&bench_frame(&s, variant, 0))?;
             let passes = PassList::for_projector(&first);
             let gpu = pipeline.render(ctx, &first, &projector, &passes)?;
             let mut last_key = Some(FrameKey::projector(
@@ -394,7 +418,7 @@ pub fn bench_render(
                 let state = bench_frame(&s, variant, n);
                 let timed = n > frames;
                 let start = Instant::now();
-                let frame = FrameScene::resolve(&s, &state)?;
+                let frame = resolve(&state)?;
                 let passes = PassList::for_projector(&frame);
                 let key = FrameKey::projector(0, &state, &passes);
                 if last_key != Some(key) {
@@ -431,12 +455,15 @@ pub fn bench_render(
                     off_edges = Some(c.rel_rmse_off_edges);
                     outliers = Some(c.outliers_off_edges);
                 }
-                let map = gpu_map_with_reference_state(&gpu, &cpu);
-                let camera = bench_camera(width, height);
-                consistency =
-                    direct_light_consistency(&first, &occluders, &projector, &map, &camera)
-                        .ok()
-                        .map(|r| r.rel_rmse);
+                // The direct-light check judges direct maps only.
+                if field.is_none() {
+                    let map = gpu_map_with_reference_state(&gpu, &cpu);
+                    let camera = bench_camera(width, height);
+                    consistency =
+                        direct_light_consistency(&first, &occluders, &projector, &map, &camera)
+                            .ok()
+                            .map(|r| r.rel_rmse);
+                }
             }
             records.push(Record {
                 role: "projector".into(),

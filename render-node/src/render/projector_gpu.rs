@@ -11,6 +11,7 @@ use super::gpu_frame::{
 };
 use super::passes::{Pass, PassList};
 use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
+use crate::gpu::irradiance_map::field::FieldBuffers;
 use crate::gpu::irradiance_map::{
     self, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass, state,
 };
@@ -41,6 +42,9 @@ pub struct ProjectorPipeline {
     irradiance: IrradianceMapPass,
     frame_uniform: UploadBuffer,
     eyes: UploadBuffer,
+    /// The global-illumination field (`FrameScene::indirect`) as the pass
+    /// reads it.
+    field: FieldBuffers,
     /// The irradiance bind group and the buffer generations and array
     /// space it names.
     irradiance_bind: Option<(([u64; 4], ArraySpace), IrradianceBindGroup)>,
@@ -104,6 +108,7 @@ impl ProjectorPipeline {
                 wgpu::BufferUsages::UNIFORM,
             ),
             eyes: UploadBuffer::with_min_size(device, "eyes", ARRAY_USAGE, eye_bytes as u64),
+            field: FieldBuffers::new(device),
             irradiance_bind: None,
             targets: None,
             blend: None,
@@ -143,6 +148,14 @@ impl ProjectorPipeline {
         let mut steps = TimedEncoder::new(ctx, timed);
         self.scene
             .update(&ctx.device, &ctx.queue, &frame.showcase)?;
+        self.field.update(
+            &ctx.device,
+            &ctx.queue,
+            frame.indirect.as_ref(),
+            self.scene.real(),
+            self.scene.real_triangles(),
+            self.scene.generation(),
+        );
         // Every tracked eye's occlusion shadows are darkened.
         let eyes = frame.eyes.iter().copied();
         let centre = projector.device.center();
@@ -254,13 +267,18 @@ impl ProjectorPipeline {
         let (Some(targets), Some((_, bind))) = (&self.targets, &self.irradiance_bind) else {
             return Err(RenderError::NothingDrawn);
         };
-        let (vertices, vertex_count) = self.scene.buffer(VertexSet::Real);
+        // Global mode draws the real set split into the field's pieces.
+        let (vertices, vertex_count) = self
+            .field
+            .vertices()
+            .unwrap_or_else(|| self.scene.buffer(VertexSet::Real));
         self.irradiance.encode(
             encoder,
             &targets.irradiance,
             &targets.value,
             bind,
             vertices,
+            self.field.values(),
             vertex_count,
         )?;
         Ok(())
@@ -355,8 +373,10 @@ fn frame_uniform(
     blending: bool,
 ) -> FrameUniform {
     let response = &projector.response;
-    let flags =
-        u32::from(inputs.shadows) | (u32::from(inputs.occlusion) << 1) | (u32::from(blending) << 2);
+    let flags = u32::from(inputs.shadows)
+        | (u32::from(inputs.occlusion) << 1)
+        | (u32::from(blending) << 2)
+        | (u32::from(frame.indirect.is_some()) << 3);
     FrameUniform {
         clip_from_world: projector
             .device

@@ -186,15 +186,14 @@ impl NodeRenderers {
         Ok(())
     }
 
-    /// Draw the projectors in global mode with `field` (the CPU references
-    /// only: the GPU projector pass has no global mode yet).
-    pub(super) fn set_indirect(&mut self, field: Arc<IndirectField>) -> Result<()> {
-        anyhow::ensure!(
-            matches!(self.kind, RenderersKind::Cpu),
-            "the GPU projector renderer has no global-illumination mode yet: use the CPU references"
-        );
+    /// Draw the projectors in global mode with `field`.
+    pub(super) fn set_indirect(&mut self, field: Arc<IndirectField>) {
+        if let RenderersKind::Gpu { projectors, .. } = &mut self.kind {
+            for r in projectors {
+                r.set_indirect(Some(field.clone()));
+            }
+        }
         self.indirect = Some(field);
-        Ok(())
     }
 
     /// Render every output for `state` (its scene version is taken as the

@@ -187,6 +187,27 @@ impl RadiosityMesh {
         self.lookup.get(&(object, triangle)).copied()
     }
 
+    /// Every leaf of `primitive`'s quadtree, in depth-first order: its
+    /// corners in the primitive's barycentric coordinates (the corner
+    /// order [`Self::interpolate`] weights the element's `vertex_ids` in)
+    /// and its element, if it has one. The leaves tile the primitive.
+    pub fn for_each_leaf(&self, primitive: u32, mut f: impl FnMut([DVec2; 3], Option<u32>)) {
+        let Some(p) = self.primitives.get(primitive as usize) else {
+            return;
+        };
+        let mut stack = vec![p.root];
+        while let Some(node) = stack.pop() {
+            let Some(n) = self.nodes.get(node as usize) else {
+                continue;
+            };
+            if n.children == NONE {
+                f(n.barycentric, (n.element != NONE).then_some(n.element));
+            } else {
+                stack.extend((0..4).rev().map(|k| n.children + k));
+            }
+        }
+    }
+
     /// The element containing barycentric point `b` of `primitive`, and the
     /// point's barycentric weights `(w0, w1, w2)` within that element.
     pub fn locate(&self, primitive: u32, b: DVec2) -> Option<(u32, DVec3)> {

@@ -5,7 +5,7 @@
 
 use crate::Hit;
 use crate::radiosity::RadiosityMesh;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
 /// A correction field over the real surfaces (W/m^2 per channel).
@@ -13,6 +13,16 @@ use std::sync::Arc;
 pub struct IndirectField {
     mesh: Arc<RadiosityMesh>,
     vertex_values: Vec<DVec3>,
+}
+
+/// A piece of a field over one scene triangle ([`IndirectField::pieces`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldPiece {
+    /// Corners in the triangle's barycentric coordinates `(u, v)` (weights
+    /// of its second and third vertex).
+    pub corners: [DVec2; 3],
+    /// The field at the corners (W/m^2 per channel).
+    pub values: [DVec3; 3],
 }
 
 /// Why a field cannot be made.
@@ -52,6 +62,31 @@ impl IndirectField {
             mesh,
             vertex_values,
         })
+    }
+
+    /// The field over scene triangle `triangle` of object `object` as
+    /// pieces a renderer draws with per-vertex values: each leaf of the
+    /// mesh's quadtree over the triangle, its corners in the triangle's
+    /// barycentric coordinates `(u, v)` and the field there. [`Self::at`]
+    /// interpolates the same values linearly inside each piece (zero in a
+    /// piece without an element). `None` off the mesh.
+    pub fn pieces(&self, object: u32, triangle: u32) -> Option<Vec<FieldPiece>> {
+        let primitive = self.mesh.primitive_of(object, triangle)?;
+        let mut out = Vec::new();
+        self.mesh.for_each_leaf(primitive, |corners, element| {
+            let values = element
+                .and_then(|e| self.mesh.elements.get(e as usize))
+                .map_or([DVec3::ZERO; 3], |e| {
+                    e.vertex_ids.map(|v| {
+                        self.vertex_values
+                            .get(v as usize)
+                            .copied()
+                            .unwrap_or(DVec3::ZERO)
+                    })
+                });
+            out.push(FieldPiece { corners, values });
+        });
+        Some(out)
     }
 
     /// The correction at `hit` (zero off the mesh).
@@ -112,9 +147,46 @@ mod tests {
             IndirectFieldError::NotFinite { index: n / 2 }
         );
         // A uniform field reads the same everywhere on the floor.
-        let field = IndirectField::new(m, &vec![DVec3::new(0.1, 0.2, 0.3); n]).unwrap();
+        let field = IndirectField::new(m.clone(), &vec![DVec3::new(0.1, 0.2, 0.3); n]).unwrap();
         let ray = Ray::new(DVec3::new(0.3, 1.0, 0.7), -DVec3::Y);
         let hit = g.closest_hit(&ray, 0.0, f64::INFINITY).unwrap();
         assert!((field.at(&hit) - DVec3::new(0.1, 0.2, 0.3)).length() < 1e-12);
+
+        // A field that differs per element: its pieces tile each triangle,
+        // and inside a piece the corner values interpolate to what `at`
+        // reads there.
+        let values: Vec<DVec3> = (0..n)
+            .map(|i| DVec3::new(i as f64, (i * i % 7) as f64, -(i as f64) / 3.0))
+            .collect();
+        let field = IndirectField::new(m, &values).unwrap();
+        assert!(field.pieces(0, 2).is_none());
+        for triangle in 0..2 {
+            let pieces = field.pieces(0, triangle).unwrap();
+            let area: f64 = pieces
+                .iter()
+                .map(|p| {
+                    0.5 * (p.corners[1] - p.corners[0])
+                        .perp_dot(p.corners[2] - p.corners[0])
+                        .abs()
+                })
+                .sum();
+            assert!((area - 0.5).abs() < 1e-12, "pieces cover {area} of 0.5");
+            for p in &pieces {
+                let w = DVec3::new(0.2, 0.3, 0.5);
+                let b = w.x * p.corners[0] + w.y * p.corners[1] + w.z * p.corners[2];
+                let expected = w.x * p.values[0] + w.y * p.values[1] + w.z * p.values[2];
+                let hit = crate::Hit {
+                    object: 0,
+                    triangle,
+                    barycentric: b,
+                    ..hit
+                };
+                assert!(
+                    (field.at(&hit) - expected).length() < 1e-9,
+                    "triangle {triangle} at {b}: {} against {expected}",
+                    field.at(&hit)
+                );
+            }
+        }
     }
 }

@@ -2,8 +2,10 @@
 // from a projector; per pixel L = E / (cos(theta_p) / r^2) in W/sr, where E
 // is the virtual lights' irradiance with shadow types 4 and 5 (distance
 // maps of the shadow views) plus ambient; occlusion shadows of every eye;
-// then device compensation. CPU reference: render::projector (the units
-// and rules are documented there).
+// in global mode the correction field of render::indirect (flag 8), drawn
+// as per-vertex values (gpu/irradiance_map/field.rs); then device
+// compensation. CPU reference: render::projector (the units and rules are
+// documented there).
 
 struct Frame {
     // PinholeDevice::clip_from_world of the projector.
@@ -15,7 +17,7 @@ struct Frame {
     // gamma, eta, black level, cos floor.
     response: vec4<f32>,
     // light samples, eyes, shadow map size, flags (1: shadows, 2: occlusion,
-    // 4: blend weights other than 1).
+    // 4: blend weights other than 1, 8: a global-illumination field).
     counts: vec4<u32>,
     // near and far plane of the shadow views.
     shadow: vec4<f32>,
@@ -36,12 +38,16 @@ struct Frame {
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
+    // The global-illumination field at the vertex (W/m^2; 0 in direct
+    // mode).
+    @location(2) field: vec3<f32>,
 }
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) normal: vec3<f32>,
+    @location(2) field: vec3<f32>,
 }
 
 struct FragmentOut {
@@ -57,6 +63,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
     out.world = v.position;
     out.normal = v.normal;
+    out.field = v.field;
     return out;
 }
 
@@ -110,6 +117,9 @@ fn fs_main(in: VertexOut) -> FragmentOut {
                 continue;
             }
             e += intensity_towards(s, -dir) * (cos_t / r2l);
+        }
+        if ((flags & 8u) != 0u) {
+            e += in.field;
         }
         // The same for every pixel of a frame, so llvmpipe skips the
         // fetch when no other projector overlaps (share 1 exactly).

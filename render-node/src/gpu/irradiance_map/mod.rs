@@ -15,7 +15,10 @@ use super::pipeline::{
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
+pub mod field;
 pub mod floor;
+
+use field::field_value_layout;
 
 /// Mirrors WGSL `struct Frame` in `irradiance_map.wgsl`.
 #[repr(C)]
@@ -30,7 +33,7 @@ pub struct FrameUniform {
     /// gamma, eta, black level, cos floor.
     pub response: [f32; 4],
     /// light samples, eyes, shadow map size, flags (1 shadows, 2 occlusion,
-    /// 4 blend weights other than 1).
+    /// 4 blend weights other than 1, 8 a global-illumination field).
     pub counts: [u32; 4],
     /// near and far plane of the shadow views (depth back to distance).
     pub shadow: [f32; 4],
@@ -176,7 +179,10 @@ impl IrradianceMapPass {
             label: "irradiance map",
             layout: &one_group_layout(device, "irradiance map", &layout),
             shader: &shader,
-            vertex: ("vs_main", &[Some(world_vertex_layout())]),
+            vertex: (
+                "vs_main",
+                &[Some(world_vertex_layout()), Some(field_value_layout())],
+            ),
             // Phantom surfaces are two-sided, as in the CPU reference.
             cull_mode: None,
             depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Less)),
@@ -237,10 +243,11 @@ impl IrradianceMapPass {
     }
 
     /// Record the pass: clear both targets to 0 and depth to 1, draw the
-    /// real phantoms (`vertex_count` of `vertices`, world space) with the
-    /// inputs of `bind_group`. `irradiance` receives `L` and the state
-    /// code, `value` the device values; both must have the projector's
-    /// size.
+    /// real phantoms (`vertex_count` of `vertices`, world space, and as
+    /// many [`field::FieldValue`]s of `field_values`) with the inputs of
+    /// `bind_group`. `irradiance` receives `L` and the state code, `value`
+    /// the device values; both must have the projector's size.
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -248,6 +255,7 @@ impl IrradianceMapPass {
         value: &OffscreenTarget,
         bind_group: &IrradianceBindGroup,
         vertices: &wgpu::Buffer,
+        field_values: &wgpu::Buffer,
         vertex_count: u32,
     ) -> Result<(), GpuError> {
         if (irradiance.width(), irradiance.height()) != (value.width(), value.height()) {
@@ -291,6 +299,7 @@ impl IrradianceMapPass {
             pass.set_pipeline(&bind_group.pipeline);
             pass.set_bind_group(0, &bind_group.group, &[]);
             pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.set_vertex_buffer(1, field_values.slice(..));
             pass.draw(0..vertex_count, 0..1);
         }
         Ok(())

@@ -12,6 +12,8 @@ pub mod shadow_stage;
 pub mod timed;
 
 pub use inputs::{FrameInputs, light_inputs, shadow_far, stable_far};
-pub use scene_buffers::{ObjectRange, SceneBuffers, VertexSet, world_vertices_by_object};
+pub use scene_buffers::{
+    ObjectRange, SceneBuffers, VertexSet, WorldVertices, world_vertices_by_object,
+};
 pub use shadow_stage::{DEFAULT_SHADOW_RES, LightOccluders, ShadowStage};
 pub use timed::{PassTimes, TimedEncoder};

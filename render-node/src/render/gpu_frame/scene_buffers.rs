@@ -33,6 +33,11 @@ pub struct SceneBuffers {
     all: Vec<WorldVertex>,
     ranges: Vec<ObjectRange>,
     kinds: Vec<ObjectKind>,
+    /// The real set's vertices (as uploaded to its buffer).
+    real: Vec<WorldVertex>,
+    /// Per triangle of the real set: its object and its index in the
+    /// object's mesh.
+    real_triangles: Vec<(u32, u32)>,
     real_count: u32,
     virtual_count: u32,
     buffers: [UploadBuffer; 3],
@@ -48,6 +53,8 @@ impl SceneBuffers {
             all: Vec::new(),
             ranges: Vec::new(),
             kinds: Vec::new(),
+            real: Vec::new(),
+            real_triangles: Vec::new(),
             real_count: 0,
             virtual_count: 0,
             buffers: [vertex(), vertex(), vertex()],
@@ -64,12 +71,31 @@ impl SceneBuffers {
         queue: &wgpu::Queue,
         showcase: &Showcase,
     ) -> Result<bool, RenderError> {
-        let (all, ranges) = world_vertices_by_object(showcase, None)?;
+        let WorldVertices {
+            vertices: all,
+            ranges,
+            triangles,
+        } = world_vertices_by_object(showcase, None)?;
         let kinds: Vec<ObjectKind> = ranges
             .iter()
             .map(|(oi, _)| showcase.objects[*oi].kind)
             .collect();
-        if self.uploaded && all == self.all && ranges == self.ranges && kinds == self.kinds {
+        let real_triangles = ranges
+            .iter()
+            .zip(&kinds)
+            .filter(|(_, k)| **k == ObjectKind::Real)
+            .flat_map(|((oi, r), _)| {
+                triangles[r.start as usize / 3..r.end as usize / 3]
+                    .iter()
+                    .map(|&t| (*oi as u32, t))
+            })
+            .collect::<Vec<_>>();
+        if self.uploaded
+            && all == self.all
+            && ranges == self.ranges
+            && kinds == self.kinds
+            && real_triangles == self.real_triangles
+        {
             return Ok(false);
         }
         let of = |kind: ObjectKind| -> Vec<WorldVertex> {
@@ -99,6 +125,8 @@ impl SceneBuffers {
         self.all = all;
         self.ranges = ranges;
         self.kinds = kinds;
+        self.real_triangles = real_triangles;
+        self.real = real;
         self.generation += 1;
         self.uploaded = true;
         Ok(true)
@@ -107,6 +135,22 @@ impl SceneBuffers {
     /// Every object's world vertices (as last updated).
     pub fn all(&self) -> &[WorldVertex] {
         &self.all
+    }
+
+    /// The vertices of [`VertexSet::Real`]'s buffer.
+    pub fn real(&self) -> &[WorldVertex] {
+        &self.real
+    }
+
+    /// Per triangle of [`VertexSet::Real`]'s buffer, in its order: the
+    /// object and the triangle's index in the object's mesh.
+    pub fn real_triangles(&self) -> &[(u32, u32)] {
+        &self.real_triangles
+    }
+
+    /// Identity of the buffers' contents: changes with every upload.
+    pub fn generation(&self) -> u64 {
+        self.generation
     }
 
     /// Each drawn object's index and its range in [`Self::all`].
@@ -149,15 +193,29 @@ impl SceneBuffers {
 /// An object index and its vertex range in a vertex buffer.
 pub type ObjectRange = (usize, std::ops::Range<u32>);
 
+/// The world-space vertices of a scene's objects
+/// ([`world_vertices_by_object`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldVertices {
+    /// Three per triangle, flat normals.
+    pub vertices: Vec<WorldVertex>,
+    /// The vertex range of each object drawn, as `(object index, range)`
+    /// in object order.
+    pub ranges: Vec<ObjectRange>,
+    /// Per triangle drawn (a third as many as `vertices`): its index in
+    /// its object's mesh.
+    pub triangles: Vec<u32>,
+}
+
 /// World-space vertices (three per triangle, flat normals) of the objects
-/// of `kind` (`None`: all), degenerate triangles left out, with the vertex
-/// range of each object drawn, as `(object index, range)` in object order.
+/// of `kind` (`None`: all), degenerate triangles left out.
 pub fn world_vertices_by_object(
     showcase: &Showcase,
     kind: Option<ObjectKind>,
-) -> Result<(Vec<WorldVertex>, Vec<ObjectRange>), RenderError> {
+) -> Result<WorldVertices, RenderError> {
     let mut out = Vec::new();
     let mut ranges = Vec::new();
+    let mut triangles = Vec::new();
     for (oi, o) in showcase.objects.iter().enumerate() {
         if kind.is_some_and(|k| k != o.kind) {
             continue;
@@ -195,6 +253,7 @@ pub fn world_vertices_by_object(
                 continue;
             }
             let normal = n.as_vec3().to_array();
+            triangles.push(ti as u32);
             out.extend(v.iter().map(|p| WorldVertex {
                 position: p.as_vec3().to_array(),
                 normal,
@@ -202,5 +261,9 @@ pub fn world_vertices_by_object(
         }
         ranges.push((oi, start..out.len() as u32));
     }
-    Ok((out, ranges))
+    Ok(WorldVertices {
+        vertices: out,
+        ranges,
+        triangles,
+    })
 }

@@ -12,6 +12,7 @@ use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
 };
 use showcase_light::digest::hash_pixels;
+use showcase_light::render::IndirectField;
 use showcase_light::render::frame::FrameScene;
 
 use super::ProjectorPipeline;
@@ -34,6 +35,9 @@ pub struct ProjectorRenderer {
     pipeline: ProjectorPipeline,
     projector: usize,
     scene_version: Option<u64>,
+    /// The global-illumination correction drawn with every frame (global
+    /// mode), if any.
+    indirect: Option<Arc<IndirectField>>,
     /// Run every pass regardless of the pass list (for comparisons).
     pub force_all_passes: bool,
     last: Option<(FrameKey, RenderOutput, f64)>,
@@ -49,10 +53,18 @@ impl ProjectorRenderer {
             pipeline,
             projector,
             scene_version: None,
+            indirect: None,
             force_all_passes: false,
             last: None,
             report: FrameReport::default(),
         }
+    }
+
+    /// Draw every following frame with the global-illumination correction
+    /// `field` (global mode), or direct light only (`None`, the default).
+    pub fn set_indirect(&mut self, field: Option<Arc<IndirectField>>) {
+        self.indirect = field;
+        self.last = None;
     }
 
     /// What the last render did.
@@ -77,7 +89,10 @@ impl ProjectorRenderer {
                 .ok_or(RenderSetupError::NoProjector {
                     index: self.projector,
                 })?;
-        let resolved = FrameScene::resolve(scene, frame)?;
+        let mut resolved = FrameScene::resolve(scene, frame)?;
+        if let Some(field) = &self.indirect {
+            resolved = resolved.with_indirect(field.clone());
+        }
         let passes = if self.force_all_passes {
             PassList::full()
         } else {
