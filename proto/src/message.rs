@@ -128,6 +128,79 @@ pub struct Bye {
     pub reason: String,
 }
 
+/// Most elements a global-illumination solution may have (the radiosity
+/// mesh's own default limit); 24 MB of values, within the codec's frame.
+pub const MAX_ILLUMINATION_ELEMENTS: usize = 2_000_000;
+
+/// Largest magnitude of a solution value (W/m^2): far above any real
+/// irradiance, far below where f32 arithmetic on the GPU overflows.
+pub const MAX_ILLUMINATION_VALUE: f32 = 1e6;
+
+/// How the real surfaces are meshed for a global-illumination solution:
+/// the radiosity mesh options a node meshes its scene with to read the
+/// solution's per-element values (`showcase_light::radiosity::MeshOptions`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IlluminationMesh {
+    /// Largest patch area (m^2).
+    pub max_patch_area: f64,
+    /// Element subdivisions per patch.
+    pub element_depth: u32,
+    /// Smallest element area (m^2).
+    pub min_element_area: f64,
+}
+
+/// Master to node: one version of the global-illumination solution, the
+/// projectors' correction per element of the scene's radiosity mesh
+/// (W/m^2 per channel). Frames name the version they are drawn with
+/// ([`FrameState::illumination_version`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Illumination {
+    /// The solution's version (increasing).
+    pub version: u64,
+    /// The scene version it was solved for (its mesh is that scene's).
+    pub scene_version: u64,
+    /// The values, whole or as changes.
+    pub body: IlluminationBody,
+}
+
+/// A solution whole, or what changed since an earlier version.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum IlluminationBody {
+    /// Every element's value.
+    Full {
+        /// How the scene is meshed.
+        mesh: IlluminationMesh,
+        /// Per element, rgb.
+        values: Vec<[f32; 3]>,
+    },
+    /// The elements that differ from version `base`, in increasing element
+    /// order; the others keep `base`'s value.
+    Delta {
+        /// The version this applies to.
+        base: u64,
+        /// The changed elements.
+        changes: Vec<ElementChange>,
+    },
+}
+
+/// One element's new value in an [`IlluminationBody::Delta`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ElementChange {
+    /// Its index in the mesh.
+    pub element: u32,
+    /// rgb.
+    pub value: [f32; 3],
+}
+
+/// Node to master: the node lacks solution `version` (a delta's base never
+/// came, or a frame names a version it was not sent); send full copies of
+/// it and the newer ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IlluminationResync {
+    /// The first version the node lacks.
+    pub version: u64,
+}
+
 /// Every message of the cluster protocol.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Message {
@@ -149,6 +222,10 @@ pub enum Message {
     ClockProbe(ClockProbe),
     /// Node to master: clock reply.
     ClockReply(ClockReply),
+    /// Master to node: a global-illumination solution, whole or a delta.
+    Illumination(Box<Illumination>),
+    /// Node to master: send full solutions from this version on.
+    IlluminationResync(IlluminationResync),
     /// Either way: leaving.
     Bye(Bye),
 }
@@ -166,6 +243,8 @@ impl Message {
             Message::NodeStats(_) => "NodeStats",
             Message::ClockProbe(_) => "ClockProbe",
             Message::ClockReply(_) => "ClockReply",
+            Message::Illumination(_) => "Illumination",
+            Message::IlluminationResync(_) => "IlluminationResync",
             Message::Bye(_) => "Bye",
         }
     }

@@ -276,6 +276,7 @@ pub fn frame_state_for(
                     .map(|(object, transform)| ObjectTransform { object, transform })
                     .collect(),
                 tracking_time_ns,
+                illumination_version: None,
             },
         )
 }
@@ -292,6 +293,46 @@ pub fn snapshot() -> impl Strategy<Value = SceneSnapshot> {
             },
         )
     })
+}
+
+/// Any valid global-illumination solution, whole or a delta.
+pub fn illumination() -> impl Strategy<Value = crate::message::Illumination> {
+    use crate::message::{ElementChange, Illumination, IlluminationBody, IlluminationMesh};
+    let value = || [-1e3f32..1e3, -1e3f32..1e3, -1e3f32..1e3];
+    let full = (
+        1e-4f64..1.0,
+        0u32..=6,
+        0.0f64..1e-2,
+        prop::collection::vec(value(), 0..64),
+    )
+        .prop_map(
+            |(max_patch_area, element_depth, min_element_area, values)| IlluminationBody::Full {
+                mesh: IlluminationMesh {
+                    max_patch_area,
+                    element_depth,
+                    min_element_area,
+                },
+                values,
+            },
+        );
+    let delta = (
+        any::<u64>(),
+        prop::collection::btree_map(any::<u32>(), value(), 0..64),
+    )
+        .prop_map(|(base, changes)| IlluminationBody::Delta {
+            base,
+            changes: changes
+                .into_iter()
+                .map(|(element, value)| ElementChange { element, value })
+                .collect(),
+        });
+    (any::<u64>(), any::<u64>(), prop_oneof![full, delta]).prop_map(
+        |(version, scene_version, body)| Illumination {
+            version,
+            scene_version,
+            body,
+        },
+    )
 }
 
 /// Any valid message.
@@ -348,5 +389,9 @@ pub fn message() -> impl Strategy<Value = Message> {
             })
         }),
         ".{0,64}".prop_map(|reason| Message::Bye(Bye { reason })),
+        illumination().prop_map(|i| Message::Illumination(Box::new(i))),
+        any::<u64>().prop_map(|version| Message::IlluminationResync(
+            crate::message::IlluminationResync { version }
+        )),
     ]
 }

@@ -2,7 +2,10 @@
 //! indices in range, matrices non-degenerate, names sane. A failure names
 //! the offending field, e.g. `objects[3].transform.scale`.
 
-use crate::message::{Hello, Message, NodeStats, Welcome};
+use crate::message::{
+    Hello, IlluminationBody, IlluminationMesh, MAX_ILLUMINATION_ELEMENTS, MAX_ILLUMINATION_VALUE,
+    Message, NodeStats, Welcome,
+};
 use crate::scene::*;
 use glam::{DMat3, DVec3, Quat, Vec3};
 use std::collections::HashSet;
@@ -508,6 +511,85 @@ impl FrameState {
     }
 }
 
+impl Validate for IlluminationMesh {
+    fn validate(&self) -> R {
+        finite(&|| "max_patch_area".into(), self.max_patch_area)?;
+        if self.max_patch_area <= 0.0 {
+            return fail("max_patch_area", "must be positive");
+        }
+        if self.element_depth > 6 {
+            return fail(
+                "element_depth",
+                format!("{} is above the maximum of 6", self.element_depth),
+            );
+        }
+        finite(&|| "min_element_area".into(), self.min_element_area)?;
+        if self.min_element_area < 0.0 {
+            return fail("min_element_area", "is negative");
+        }
+        Ok(())
+    }
+}
+
+/// A solution value: finite, at most [`MAX_ILLUMINATION_VALUE`] in
+/// magnitude.
+fn illumination_value(field: &dyn Fn() -> String, v: [f32; 3]) -> R {
+    for x in v {
+        finite(field, x as f64)?;
+        if x.abs() > MAX_ILLUMINATION_VALUE {
+            return fail(
+                field(),
+                format!("{x} W/m^2 is beyond {MAX_ILLUMINATION_VALUE}"),
+            );
+        }
+    }
+    Ok(())
+}
+
+impl Validate for IlluminationBody {
+    fn validate(&self) -> R {
+        let too_many = |field: &str, n: usize| {
+            fail(
+                field,
+                format!("{n} elements is above the limit of {MAX_ILLUMINATION_ELEMENTS}"),
+            )
+        };
+        match self {
+            IlluminationBody::Full { mesh, values } => {
+                within(|| "mesh".into(), mesh.validate())?;
+                if values.len() > MAX_ILLUMINATION_ELEMENTS {
+                    return too_many("values", values.len());
+                }
+                for (i, v) in values.iter().enumerate() {
+                    illumination_value(&|| format!("values[{i}]"), *v)?;
+                }
+                Ok(())
+            }
+            IlluminationBody::Delta { changes, .. } => {
+                if changes.len() > MAX_ILLUMINATION_ELEMENTS {
+                    return too_many("changes", changes.len());
+                }
+                let mut previous: Option<u32> = None;
+                for (i, c) in changes.iter().enumerate() {
+                    if previous.is_some_and(|p| c.element <= p) {
+                        return fail(
+                            format!("changes[{i}].element"),
+                            format!(
+                                "element {} after element {}: changes must be in increasing element order",
+                                c.element,
+                                previous.unwrap_or_default()
+                            ),
+                        );
+                    }
+                    previous = Some(c.element);
+                    illumination_value(&|| format!("changes[{i}].value"), c.value)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
 impl Validate for Message {
     fn validate(&self) -> R {
         let kind = self.kind();
@@ -565,10 +647,12 @@ impl Validate for Message {
                         Ok(())
                     }
                 }
+                Message::Illumination(i) => within(|| "body".into(), i.body.validate()),
                 Message::Ready(_)
                 | Message::Swap(_)
                 | Message::ClockProbe(_)
-                | Message::ClockReply(_) => Ok(()),
+                | Message::ClockReply(_)
+                | Message::IlluminationResync(_) => Ok(()),
             }
         };
         within(|| kind.to_string(), check())

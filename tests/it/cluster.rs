@@ -93,6 +93,12 @@ impl Renderer for Recording {
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         self.inner.present(frame)
     }
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<showcase_proto::session::Solution>>,
+    ) -> Result<(), RenderError> {
+        self.inner.set_illumination(illumination)
+    }
 }
 
 type Node = (

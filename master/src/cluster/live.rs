@@ -598,6 +598,7 @@ mod tests {
             lights: Vec::new(),
             object_transforms: Vec::new(),
             tracking_time_ns: None,
+            illumination_version: None,
         }
     }
 

@@ -101,6 +101,12 @@ impl Renderer for Counting {
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         self.inner.present(frame)
     }
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<showcase_proto::session::Solution>>,
+    ) -> Result<(), RenderError> {
+        self.inner.set_illumination(illumination)
+    }
 }
 
 type NodeTask = (

@@ -210,6 +210,7 @@ pub fn initial_frame(scene: &Showcase, frame: u64, time_s: f64, version: u64) ->
         lights: scene.lights.clone(),
         object_transforms: Vec::new(),
         tracking_time_ns: None,
+        illumination_version: None,
     }
 }
 

@@ -39,6 +39,23 @@ pub struct Showcase {
     pub observers: Vec<Observer>,
     /// Ambient irradiance blended into shadows (W/m^2 per channel).
     pub ambient: Vec3,
+    /// What the outputs show of the light: direct light only, or global
+    /// illumination.
+    #[serde(default)]
+    pub illumination: IlluminationMode,
+}
+
+/// What a scene's outputs show (scene file key `illumination`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IlluminationMode {
+    /// Direct light (paper section 5): sharp shadows and occlusion
+    /// shadows, no interreflection.
+    #[default]
+    Direct,
+    /// Direct light plus the radiosity solution's indirect light (paper
+    /// section 4), solved by the master and sent to the nodes.
+    Global,
 }
 
 impl Showcase {
@@ -79,6 +96,10 @@ pub struct FrameState {
     pub object_transforms: Vec<ObjectTransform>,
     /// Master-clock time (ns) of the newest tracking sample in this frame.
     pub tracking_time_ns: Option<u64>,
+    /// The global-illumination solution this frame is drawn with
+    /// ([`crate::message::Illumination::version`]); `None`: direct light.
+    #[serde(default)]
+    pub illumination_version: Option<u64>,
 }
 
 /// A new transform for one object.

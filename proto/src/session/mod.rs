@@ -51,7 +51,7 @@ pub use master::{
     CloseReason, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, NodeInfo,
     NodePresent, PresentReport, ReadyNode, SubmitError, SwapReport,
 };
-pub use node::{Backoff, NodeConfig, NodeCore, NodeError, NodeEvent, NodeOutput};
+pub use node::{Backoff, NodeConfig, NodeCore, NodeError, NodeEvent, NodeOutput, Solution};
 
 /// A connection handle chosen by the driver, unique among the master's
 /// connections for the master's lifetime (never reuse one).

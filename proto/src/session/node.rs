@@ -7,13 +7,19 @@
 //! Frames are rendered, swapped and presented strictly in order. Every
 //! frame carries the scene version it refers to; the core keeps each
 //! version's scene until no pending frame refers to it, so `Render` always
-//! hands out the scene the frame belongs to.
+//! hands out the scene the frame belongs to. The same holds for the
+//! global-illumination solution a frame names: a frame whose version has
+//! not arrived waits (and the frames behind it) until it does; a delta
+//! whose base the node lacks, or a frame naming a version it was never
+//! sent, makes it ask for full copies ([`IlluminationResync`]), once until
+//! one arrives.
 
 use super::{NS_PER_MS, ms};
 use crate::PROTOCOL_VERSION;
 use crate::message::{
-    Bye, Capabilities, ClockProbe, ClockReply, Hello, Message, NodeStats, Ready, Role,
-    SceneSnapshot, Swap, Welcome,
+    Bye, Capabilities, ClockProbe, ClockReply, Hello, Illumination, IlluminationBody,
+    IlluminationMesh, IlluminationResync, Message, NodeStats, Ready, Role, SceneSnapshot, Swap,
+    Welcome,
 };
 use crate::scene::{FrameState, Showcase};
 use std::collections::{BTreeMap, VecDeque};
@@ -117,6 +123,8 @@ pub enum NodeEvent {
         frame: Box<FrameState>,
         /// The scene of `frame.scene_version`.
         scene: Arc<Showcase>,
+        /// The solution of `frame.illumination_version`, if it names one.
+        illumination: Option<Arc<Solution>>,
     },
     /// Present this rendered frame now, then call [`NodeCore::presented`].
     Present {
@@ -168,10 +176,27 @@ enum Link {
     Live,
 }
 
+/// One version of the global-illumination solution, as a node holds it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solution {
+    /// Its version.
+    pub version: u64,
+    /// The scene version it was solved for.
+    pub scene_version: u64,
+    /// How that scene is meshed.
+    pub mesh: IlluminationMesh,
+    /// Per element, rgb (W/m^2).
+    pub values: Vec<[f32; 3]>,
+}
+
 #[derive(Debug)]
 struct PendingFrame {
     frame: u64,
     scene_version: u64,
+    illumination_version: Option<u64>,
+    /// The frame and its scene until its `Render` is announced (it waits
+    /// for its solution).
+    unannounced: Option<(Box<FrameState>, Arc<Showcase>)>,
     ready_at: Option<u64>,
     render_ns: u64,
     swap_at: Option<u64>,
@@ -191,6 +216,9 @@ pub struct NodeCore {
     link: Link,
     failures: u32,
     scenes: BTreeMap<u64, Arc<Showcase>>,
+    solutions: BTreeMap<u64, Arc<Solution>>,
+    /// The version asked for in an unanswered [`IlluminationResync`].
+    resync: Option<u64>,
     last_frame: Option<u64>,
     pending: VecDeque<PendingFrame>,
     presenting: VecDeque<Presenting>,
@@ -206,6 +234,8 @@ impl NodeCore {
             link: Link::Dialing,
             failures: 0,
             scenes: BTreeMap::new(),
+            solutions: BTreeMap::new(),
+            resync: None,
             last_frame: None,
             pending: VecDeque::new(),
             presenting: VecDeque::new(),
@@ -271,6 +301,9 @@ impl NodeCore {
             }
             (Link::AwaitSnapshot { .. } | Link::Live, Message::ClockProbe(p)) => {
                 self.clock_probe(now, p)
+            }
+            (Link::AwaitSnapshot { .. } | Link::Live, Message::Illumination(i)) => {
+                self.illumination(now, *i)
             }
             (Link::Live, Message::FrameState(f)) => self.frame_state(now, *f),
             (Link::Live, Message::Swap(s)) => self.swap(now, s),
@@ -371,6 +404,8 @@ impl NodeCore {
 
     fn reset_session(&mut self) {
         self.scenes.clear();
+        self.solutions.clear();
+        self.resync = None;
         self.last_frame = None;
         self.pending.clear();
         self.presenting.clear();
@@ -472,6 +507,18 @@ impl NodeCore {
             self.violation(now, format!("frame {} is invalid: {e}", f.frame));
             return;
         }
+        if let Some(s) = f
+            .illumination_version
+            .and_then(|v| self.solutions.get(&v))
+            .filter(|s| s.scene_version != f.scene_version)
+        {
+            let detail = format!(
+                "frame {} of scene version {} names illumination version {}, solved for scene version {}",
+                f.frame, f.scene_version, s.version, s.scene_version
+            );
+            self.violation(now, detail);
+            return;
+        }
         if self.pending.len() >= MAX_PENDING_FRAMES {
             let detail = format!("more than {MAX_PENDING_FRAMES} frames without a Swap");
             self.violation(now, detail);
@@ -481,14 +528,121 @@ impl NodeCore {
         self.pending.push_back(PendingFrame {
             frame: f.frame,
             scene_version: f.scene_version,
+            illumination_version: f.illumination_version,
+            unannounced: Some((Box::new(f), scene)),
             ready_at: None,
             render_ns: 0,
             swap_at: None,
         });
-        self.event(NodeEvent::Render {
-            frame: Box::new(f),
-            scene,
-        });
+        self.announce();
+    }
+
+    /// Announce `Render`, in order, for every waiting frame whose solution
+    /// is held; ask for full copies when the first waiting frame names a
+    /// version that will not come by itself.
+    fn announce(&mut self) {
+        let mut renders = Vec::new();
+        let mut missing = None;
+        for p in self.pending.iter_mut() {
+            if p.unannounced.is_none() {
+                continue;
+            }
+            let illumination = match p.illumination_version {
+                None => None,
+                Some(v) => match self.solutions.get(&v) {
+                    Some(s) => Some(s.clone()),
+                    None => {
+                        missing = Some(v);
+                        break;
+                    }
+                },
+            };
+            if let Some((frame, scene)) = p.unannounced.take() {
+                renders.push(NodeEvent::Render {
+                    frame,
+                    scene,
+                    illumination,
+                });
+            }
+        }
+        for r in renders {
+            self.event(r);
+        }
+        // The master sends a solution before any frame naming it: a frame
+        // that names one not held means it was lost (or its delta could
+        // not be applied).
+        if let Some(v) = missing {
+            self.request_resync(v);
+        }
+    }
+
+    fn request_resync(&mut self, version: u64) {
+        if self.resync.is_some_and(|r| r <= version) {
+            return;
+        }
+        self.resync = Some(version);
+        tracing::info!(node = %self.config.name, version, "asking for full illumination copies");
+        self.transmit(Message::IlluminationResync(IlluminationResync { version }));
+    }
+
+    fn illumination(&mut self, now: u64, i: Illumination) {
+        let solution = match i.body {
+            IlluminationBody::Full { mesh, values } => Solution {
+                version: i.version,
+                scene_version: i.scene_version,
+                mesh,
+                values,
+            },
+            IlluminationBody::Delta { base, changes } => {
+                if base >= i.version {
+                    let detail = format!(
+                        "illumination version {} is a delta on the later version {base}",
+                        i.version
+                    );
+                    self.violation(now, detail);
+                    return;
+                }
+                let Some(old) = self.solutions.get(&base).cloned() else {
+                    // Its base never came: wait for the full copies.
+                    self.request_resync(i.version);
+                    return;
+                };
+                if old.scene_version != i.scene_version {
+                    let detail = format!(
+                        "illumination version {} of scene version {} is a delta on version {base} of scene version {}",
+                        i.version, i.scene_version, old.scene_version
+                    );
+                    self.violation(now, detail);
+                    return;
+                }
+                let mut values = old.values.clone();
+                for c in &changes {
+                    let Some(v) = values.get_mut(c.element as usize) else {
+                        let detail = format!(
+                            "illumination version {} changes element {} of {}",
+                            i.version,
+                            c.element,
+                            old.values.len()
+                        );
+                        self.violation(now, detail);
+                        return;
+                    };
+                    *v = c.value;
+                }
+                Solution {
+                    version: i.version,
+                    scene_version: i.scene_version,
+                    mesh: old.mesh,
+                    values,
+                }
+            }
+        };
+        if self.resync.is_some_and(|r| solution.version >= r) {
+            self.resync = None;
+        }
+        self.solutions.insert(solution.version, Arc::new(solution));
+        self.announce();
+        self.prune_solutions();
     }
 
     fn swap(&mut self, now: u64, s: Swap) {
@@ -526,6 +680,16 @@ impl NodeCore {
             self.event(NodeEvent::Present { frame: p.frame });
         }
         self.prune_scenes();
+        self.prune_solutions();
+    }
+
+    /// Keep the newest solution and those pending frames name.
+    fn prune_solutions(&mut self) {
+        let newest = self.solutions.last_key_value().map(|(v, _)| *v);
+        let pending = &self.pending;
+        self.solutions.retain(|v, _| {
+            Some(*v) == newest || pending.iter().any(|p| p.illumination_version == Some(*v))
+        });
     }
 
     /// Keep the newest scene and those pending frames refer to.

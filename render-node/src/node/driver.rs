@@ -256,8 +256,13 @@ fn handle_event<R: Renderer + ?Sized>(
             info!(target_hz, "joined the master");
         }
         NodeEvent::SceneChanged { version, scene } => renderer.set_scene(version, scene)?,
-        NodeEvent::Render { frame, scene } => {
+        NodeEvent::Render {
+            frame,
+            scene,
+            illumination,
+        } => {
             let t0 = Instant::now();
+            renderer.set_illumination(illumination.as_ref())?;
             let out = renderer.render(&frame, &scene)?;
             let render_ns = t0.elapsed().as_nanos() as u64;
             if let (Some((dir, frames)), Some(img)) = (&rt.write_frames, &out.image)

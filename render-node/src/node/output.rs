@@ -126,6 +126,17 @@ impl Renderer for OutputRenderer {
         }
     }
 
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<showcase_proto::session::Solution>>,
+    ) -> Result<(), RenderError> {
+        match &mut self.inner {
+            Inner::Projector(r) => r.set_illumination(illumination),
+            Inner::Face(r) => r.set_illumination(illumination),
+            Inner::None => Ok(()),
+        }
+    }
+
     fn render(
         &mut self,
         frame: &FrameState,

@@ -54,6 +54,13 @@ impl<R: Renderer, S: FrameSink> Renderer for Presenting<R, S> {
         Ok(out)
     }
 
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<showcase_proto::session::Solution>>,
+    ) -> Result<(), RenderError> {
+        self.inner.set_illumination(illumination)
+    }
+
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         self.inner.present(frame)?;
         match self.pending.take() {
@@ -113,6 +120,7 @@ mod tests {
             lights: Vec::new(),
             object_transforms: Vec::new(),
             tracking_time_ns: None,
+            illumination_version: None,
         }
     }
 

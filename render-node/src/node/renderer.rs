@@ -8,18 +8,22 @@ pub use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
 };
 use showcase_light::digest::Fnv64;
+use showcase_proto::session::Solution;
 use showcase_proto::{FrameState, Role, Showcase};
 use std::sync::Arc;
 
 /// A renderer that draws nothing and digests exactly the state a real one
 /// would draw for its output: the frame number, the scene version, the
-/// heads, the lights and the object transforms, bit for bit. Used by the
-/// cluster tests and replay checks, which must not wait on a GPU.
+/// heads, the lights, the object transforms and the global-illumination
+/// solution (its version and values), bit for bit. Used by the cluster
+/// tests and replay checks, which must not wait on a GPU.
 #[derive(Debug)]
 pub struct StateHashRenderer {
     output: String,
     role: Role,
     scene_version: Option<u64>,
+    /// The solution's version and a digest of its values.
+    illumination: Option<(u64, u64)>,
 }
 
 impl StateHashRenderer {
@@ -29,6 +33,7 @@ impl StateHashRenderer {
             output: output.into(),
             role,
             scene_version: None,
+            illumination: None,
         }
     }
 }
@@ -36,6 +41,17 @@ impl StateHashRenderer {
 impl Renderer for StateHashRenderer {
     fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
         self.scene_version = Some(version);
+        Ok(())
+    }
+
+    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+        self.illumination = illumination.map(|s| {
+            let mut h = Fnv64::default();
+            for c in s.values.iter().flatten() {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+            (s.version, h.finish())
+        });
         Ok(())
     }
 
@@ -74,6 +90,10 @@ impl Renderer for StateHashRenderer {
                 h.write(&c.to_bits().to_le_bytes());
             }
         }
+        if let Some((version, values)) = self.illumination {
+            h.write(&version.to_le_bytes());
+            h.write(&values.to_le_bytes());
+        }
         Ok(RenderOutput {
             hash: h.finish(),
             image: None,
@@ -102,6 +122,7 @@ mod tests {
             lights: vec![],
             object_transforms: vec![],
             tracking_time_ns: Some(7),
+            illumination_version: None,
         };
         assert!(r.render(&f, &scene).is_err(), "no scene yet");
         r.set_scene(1, scene.clone()).unwrap();

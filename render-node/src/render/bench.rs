@@ -325,6 +325,7 @@ pub fn bench_frame(scene: &Showcase, variant: &str, n: u64) -> FrameState {
         lights: vec![bench_light(t)],
         object_transforms: Vec::new(),
         tracking_time_ns: None,
+        illumination_version: None,
     }
 }
 

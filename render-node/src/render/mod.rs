@@ -14,6 +14,7 @@ pub mod bench;
 pub mod compare;
 pub mod face_gpu;
 pub mod gpu_frame;
+pub mod illumination;
 pub mod passes;
 pub mod projector_gpu;
 pub mod renderer;

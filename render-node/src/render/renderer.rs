@@ -6,6 +6,7 @@
 
 use std::sync::Arc;
 
+use showcase_proto::session::Solution;
 use showcase_proto::{FrameState, Role, Showcase};
 
 use crate::gpu::GpuError;
@@ -117,6 +118,14 @@ pub enum RenderError {
     /// The window the frames are shown in was closed.
     #[error("the window was closed")]
     WindowClosed,
+    /// A global-illumination solution cannot be drawn.
+    #[error("illumination version {version}: {problem}")]
+    Illumination {
+        /// The solution's version.
+        version: u64,
+        /// Why.
+        problem: String,
+    },
 }
 
 impl From<showcase_light::GeometryError> for RenderError {
@@ -140,6 +149,14 @@ pub trait Renderer: Send {
     -> Result<RenderOutput, RenderError>;
     /// Show the last rendered frame (the swap).
     fn present(&mut self, frame: u64) -> Result<(), RenderError>;
+    /// The global-illumination solution the next frames are drawn with
+    /// (`None`: direct light), given before each frame that names one. A
+    /// renderer that draws no global illumination (the face role, for
+    /// now) ignores it; a wrapper must pass it on.
+    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+        let _ = illumination;
+        Ok(())
+    }
 }
 
 /// The error of a renderer (`output`, e.g. "projector 0") asked to draw
@@ -171,6 +188,9 @@ impl<R: Renderer + ?Sized> Renderer for Box<R> {
         scene: &Showcase,
     ) -> Result<RenderOutput, RenderError> {
         (**self).render(frame, scene)
+    }
+    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+        (**self).set_illumination(illumination)
     }
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         (**self).present(frame)

@@ -49,6 +49,7 @@ fn frame_of(scene: &Showcase, n: u64) -> FrameState {
         lights: scene.lights.clone(),
         object_transforms: vec![],
         tracking_time_ns: None,
+        illumination_version: None,
     }
 }
 

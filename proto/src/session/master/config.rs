@@ -111,6 +111,17 @@ pub enum SubmitError {
         /// The current scene version.
         current: u64,
     },
+    /// The frame names a global-illumination version other than the
+    /// current one.
+    #[error("frame {frame} names illumination version {version:?}, the current one is {current:?}")]
+    WrongIllumination {
+        /// The refused frame.
+        frame: u64,
+        /// The version it names.
+        version: Option<u64>,
+        /// The current version.
+        current: Option<u64>,
+    },
     /// The frame breaks an invariant against the scene.
     #[error("frame is invalid: {0}")]
     Invalid(#[from] ValidationError),

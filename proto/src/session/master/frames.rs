@@ -75,8 +75,13 @@ impl MasterCore {
 
     /// Release every frame that can swap, then emit finished present reports.
     pub(super) fn advance(&mut self, now: u64) {
+        let mut swapped = false;
         while let Some(release) = self.barrier.poll_release(now) {
             self.swap(now, release);
+            swapped = true;
+        }
+        if swapped {
+            self.prune_illumination();
         }
         self.flush_presents(false);
     }

@@ -31,8 +31,11 @@ use std::sync::Arc;
 
 mod config;
 mod frames;
+mod illumination;
 mod peers;
 mod report;
+
+use illumination::IlluminationState;
 
 pub use config::{MasterConfig, MasterError, SubmitError};
 pub use report::{
@@ -89,6 +92,8 @@ pub struct MasterCore {
     next_frame: Option<u64>,
     swapped_upto: Option<u64>,
     presents: VecDeque<PresentWait>,
+    /// The global-illumination solution's versions.
+    illumination: IlluminationState,
     out: VecDeque<MasterOutput>,
 }
 
@@ -108,6 +113,7 @@ impl MasterCore {
             next_frame: None,
             swapped_upto: None,
             presents: VecDeque::new(),
+            illumination: IlluminationState::default(),
             out: VecDeque::new(),
         })
     }
@@ -220,6 +226,7 @@ impl MasterCore {
             (Peer::Live(_), Message::Ready(r)) => self.ready(now, conn, r),
             (Peer::Live(_), Message::NodeStats(s)) => self.stats(conn, s),
             (Peer::Live(_), Message::ClockReply(r)) => self.clock_reply(now, conn, r),
+            (Peer::Live(_), Message::IlluminationResync(r)) => self.illumination_resync(conn, r),
             (Peer::Live(_), Message::Hello(_)) => self.violation(conn, "Hello twice".into()),
             (Peer::AwaitHello { .. }, m) => {
                 self.violation(conn, format!("{} before Hello", m.kind()))
@@ -276,6 +283,15 @@ impl MasterCore {
                 current: self.scene_version,
             });
         }
+        if frame.illumination_version.is_some()
+            && frame.illumination_version != self.illumination_version()
+        {
+            return Err(SubmitError::WrongIllumination {
+                frame: frame.frame,
+                version: frame.illumination_version,
+                current: self.illumination_version(),
+            });
+        }
         frame.validate_against(&self.scene)?;
         let n = frame.frame;
         let live: Vec<ConnId> = self.live_conns().collect();
@@ -289,7 +305,9 @@ impl MasterCore {
         }
         self.barrier.push(now, n, frame.tracking_time_ns, live);
         self.next_frame = n.checked_add(1);
+        let version = frame.illumination_version;
         self.latest = Some(frame);
+        self.frame_names_illumination(n, version);
         self.advance(now);
         Ok(())
     }

@@ -97,6 +97,11 @@ impl MasterCore {
                 deadline_ms: ms(self.config.deadline_ns) as f32,
             }),
         );
+        // The solutions its first frames name come first, so the
+        // snapshot's current frame finds them.
+        for m in self.illumination_for_joiner(current.as_ref()) {
+            self.transmit(conn, m);
+        }
         self.transmit(
             conn,
             Message::SceneSnapshot(Box::new(SceneSnapshot {

@@ -68,7 +68,8 @@ impl Cluster {
             return;
         }
         let n = m.next_frame().unwrap_or(0);
-        let frame = test_frame(n, m.scene_version(), now);
+        let mut frame = test_frame(n, m.scene_version(), now);
+        frame.illumination_version = m.illumination_version();
         if m.submit_frame(now, frame.clone()).is_ok() {
             self.log.submitted.insert(n, frame);
         }
@@ -175,6 +176,10 @@ impl Cluster {
                 let Some(&node) = self.conn_owner.get(&conn) else {
                     return;
                 };
+                if let Some(k) = self.drops.iter().position(|d| *d == (node, message.kind())) {
+                    self.drops.remove(k);
+                    return;
+                }
                 if let Ok(bytes) = encode_frame(&message, MAX_FRAME_LEN) {
                     let at = now + self.nodes[node].spec.down_ns;
                     self.schedule(at, Delivery::ToNode { node, conn, bytes });
@@ -229,6 +234,9 @@ impl Cluster {
                 let Some(conn) = n.conn else {
                     return;
                 };
+                if let Message::IlluminationResync(r) = &message {
+                    n.log.resyncs.push(r.version);
+                }
                 if let Ok(bytes) = encode_frame(&message, MAX_FRAME_LEN) {
                     let at = now + n.spec.up_ns;
                     self.schedule(at, Delivery::ToMaster { conn, bytes });
@@ -243,7 +251,15 @@ impl Cluster {
             NodeOutput::Event(e) => match e {
                 NodeEvent::Connected { .. } => n.log.connected.push(now),
                 NodeEvent::SceneChanged { version, .. } => n.log.scenes.push(version),
-                NodeEvent::Render { frame, .. } => {
+                NodeEvent::Render {
+                    frame,
+                    illumination,
+                    ..
+                } => {
+                    if let Some(s) = illumination {
+                        let digest = values_digest(&s.values);
+                        n.log.illuminated.push((frame.frame, s.version, digest));
+                    }
                     let done = now.max(n.busy_until) + n.spec.render_ns;
                     n.busy_until = done;
                     let hash = frame_hash(&frame);

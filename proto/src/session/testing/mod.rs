@@ -76,6 +76,11 @@ pub struct NodeLog {
     pub connected: Vec<u64>,
     /// Disconnect reasons.
     pub disconnects: Vec<String>,
+    /// Per rendered frame that named a global-illumination solution: the
+    /// frame, the solution's version and a digest of its values.
+    pub illuminated: Vec<(u64, u64, u64)>,
+    /// The versions of each illumination resync the node asked for.
+    pub resyncs: Vec<u64>,
 }
 
 /// A simulated node process.
@@ -179,6 +184,9 @@ pub struct Cluster {
     seq: u64,
     next_conn: u64,
     conn_owner: BTreeMap<ConnId, usize>,
+    /// Per node: drop the next master-to-node message of this kind (a
+    /// lost message).
+    drops: Vec<(usize, &'static str)>,
 }
 
 /// A scene with one observer, so frames carry a head pose.
@@ -215,6 +223,7 @@ pub fn test_frame(n: u64, scene_version: u64, time_ns: u64) -> FrameState {
         }],
         object_transforms: Vec::new(),
         tracking_time_ns: Some(time_ns),
+        illumination_version: None,
     }
 }
 
@@ -224,6 +233,16 @@ pub fn frame_hash(frame: &FrameState) -> u64 {
         .unwrap_or_default();
     let h = blake3::hash(&bytes);
     u64::from_le_bytes(h.as_bytes()[..8].try_into().unwrap_or_default())
+}
+
+/// A digest of a global-illumination solution's values (BLAKE3 of their
+/// bits).
+pub fn values_digest(values: &[[f32; 3]]) -> u64 {
+    let mut h = blake3::Hasher::new();
+    for v in values.iter().flatten() {
+        h.update(&v.to_le_bytes());
+    }
+    u64::from_le_bytes(h.finalize().as_bytes()[..8].try_into().unwrap_or_default())
 }
 
 impl Cluster {
@@ -256,6 +275,51 @@ impl Cluster {
             seq: 0,
             next_conn: 1,
             conn_owner: BTreeMap::new(),
+            drops: Vec::new(),
+        }
+    }
+
+    /// Publish a global-illumination solution of `values` (on a fixed
+    /// mesh) at the master; frames from the next tick name it.
+    pub fn set_illumination(&mut self, values: Vec<[f32; 3]>) -> Option<u64> {
+        let now = self.now;
+        let mesh = crate::message::IlluminationMesh {
+            max_patch_area: 0.01,
+            element_depth: 1,
+            min_element_area: 0.0,
+        };
+        self.master
+            .as_mut()?
+            .set_illumination(now, mesh, values)
+            .ok()
+    }
+
+    /// Lose the next master-to-node message of kind `kind`
+    /// ([`Message::kind`]) on its way to node `i`.
+    pub fn drop_next_to_node(&mut self, i: usize, kind: &'static str) {
+        self.drops.push((i, kind));
+    }
+
+    /// Send `bytes` on node `i`'s connection from the master, bypassing the
+    /// master's core.
+    pub fn inject_bytes_to_node(&mut self, i: usize, bytes: Vec<u8>) {
+        if let Some(conn) = self.nodes[i].conn {
+            let at = self.now + self.nodes[i].spec.down_ns;
+            self.schedule(
+                at,
+                Delivery::ToNode {
+                    node: i,
+                    conn,
+                    bytes,
+                },
+            );
+        }
+    }
+
+    /// Send `message` to node `i` from the master, bypassing its core.
+    pub fn inject_message_to_node(&mut self, i: usize, message: &Message) {
+        if let Ok(bytes) = encode_frame(message, MAX_FRAME_LEN) {
+            self.inject_bytes_to_node(i, bytes);
         }
     }
 

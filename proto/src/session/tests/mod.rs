@@ -6,6 +6,7 @@ use crate::session::MasterConfig;
 mod cluster;
 mod direct;
 mod fuzz;
+mod illumination;
 
 const MS: u64 = 1_000_000;
 /// 120 Hz.

@@ -7,6 +7,8 @@ use showcase_proto::{FrameState, Showcase};
 
 use crate::gpu::GpuContext;
 use crate::render::RenderSetupError;
+use crate::render::illumination::FieldCache;
+use showcase_proto::session::Solution;
 use crate::render::passes::{FrameKey, Pass, PassList};
 use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
@@ -35,9 +37,14 @@ pub struct ProjectorRenderer {
     pipeline: ProjectorPipeline,
     projector: usize,
     scene_version: Option<u64>,
+    /// The scene of `scene_version`.
+    scene: Option<Arc<Showcase>>,
     /// The global-illumination correction drawn with every frame (global
     /// mode), if any.
     indirect: Option<Arc<IndirectField>>,
+    /// The version of the master's solution `indirect` was made from.
+    illumination_version: Option<u64>,
+    fields: FieldCache,
     /// Run every pass regardless of the pass list (for comparisons).
     pub force_all_passes: bool,
     last: Option<(FrameKey, RenderOutput, f64)>,
@@ -53,7 +60,10 @@ impl ProjectorRenderer {
             pipeline,
             projector,
             scene_version: None,
+            scene: None,
             indirect: None,
+            illumination_version: None,
+            fields: FieldCache::default(),
             force_all_passes: false,
             last: None,
             report: FrameReport::default(),
@@ -132,9 +142,32 @@ impl ProjectorRenderer {
 }
 
 impl Renderer for ProjectorRenderer {
-    fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
         self.scene_version = Some(version);
+        self.scene = Some(scene);
         self.last = None;
+        Ok(())
+    }
+
+    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+        let Some(solution) = illumination else {
+            if self.illumination_version.take().is_some() {
+                self.set_indirect(None);
+            }
+            return Ok(());
+        };
+        if self.illumination_version == Some(solution.version) {
+            return Ok(());
+        }
+        let (Some(scene), Some(version)) = (&self.scene, self.scene_version) else {
+            return Err(RenderError::Illumination {
+                version: solution.version,
+                problem: "it arrived before any scene".into(),
+            });
+        };
+        let field = self.fields.field(scene, version, solution)?;
+        self.set_indirect(Some(field));
+        self.illumination_version = Some(solution.version);
         Ok(())
     }
 

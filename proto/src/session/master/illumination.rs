@@ -1,0 +1,200 @@
+//! The master's global-illumination solution: the versions it holds (the
+//! newest, and every one a frame in flight or the newest frame names), how
+//! a new version travels (a delta against the previous one when few
+//! elements changed, else whole), what a joiner gets, and the full copies
+//! a node that lost a delta asks for.
+
+use super::*;
+use crate::message::{
+    ElementChange, Illumination, IlluminationBody, IlluminationMesh, IlluminationResync,
+};
+
+/// A delta is sent only when at most this fraction of the elements
+/// changed; above it the whole solution is barely larger.
+const DELTA_FRACTION: usize = 4;
+
+/// One version of the solution, as the master holds it.
+#[derive(Debug)]
+pub(super) struct HeldSolution {
+    pub(super) version: u64,
+    pub(super) scene_version: u64,
+    pub(super) mesh: IlluminationMesh,
+    pub(super) values: Arc<Vec<[f32; 3]>>,
+}
+
+impl HeldSolution {
+    fn full(&self) -> Message {
+        Message::Illumination(Box::new(Illumination {
+            version: self.version,
+            scene_version: self.scene_version,
+            body: IlluminationBody::Full {
+                mesh: self.mesh,
+                values: (*self.values).clone(),
+            },
+        }))
+    }
+}
+
+/// The solution's versions and which frames name them.
+#[derive(Debug, Default)]
+pub(super) struct IlluminationState {
+    /// By version: the newest, and those frames kept below name.
+    held: BTreeMap<u64, Arc<HeldSolution>>,
+    /// The version each unswapped frame (and the newest frame) names.
+    frames: BTreeMap<u64, u64>,
+    next_version: u64,
+}
+
+impl MasterCore {
+    /// Publish a new version of the global-illumination solution for the
+    /// current scene: per element of the scene meshed as `mesh`, the
+    /// projectors' correction. Every live node gets it before any frame
+    /// that names it: as a delta against the previous version when at most
+    /// a quarter of the elements changed (same scene, mesh and size), else
+    /// whole. Frames submitted from now on must name the returned version
+    /// ([`Self::illumination_version`]).
+    pub fn set_illumination(
+        &mut self,
+        _now: u64,
+        mesh: IlluminationMesh,
+        values: Vec<[f32; 3]>,
+    ) -> Result<u64, MasterError> {
+        let body = IlluminationBody::Full { mesh, values };
+        crate::validate::Validate::validate(&body)?;
+        let IlluminationBody::Full { mesh, values } = body else {
+            unreachable!("built as Full above");
+        };
+        self.illumination.next_version += 1;
+        let version = self.illumination.next_version;
+        let new = Arc::new(HeldSolution {
+            version,
+            scene_version: self.scene_version,
+            mesh,
+            values: Arc::new(values),
+        });
+        let previous = self.illumination.held.values().next_back().cloned();
+        let message = match previous.filter(|p| {
+            p.scene_version == new.scene_version
+                && p.mesh == new.mesh
+                && p.values.len() == new.values.len()
+        }) {
+            Some(p) => {
+                let changes: Vec<ElementChange> = p
+                    .values
+                    .iter()
+                    .zip(new.values.iter())
+                    .enumerate()
+                    .filter(|(_, (a, b))| a != b)
+                    .map(|(i, (_, b))| ElementChange {
+                        element: i as u32,
+                        value: *b,
+                    })
+                    .collect();
+                if changes.len() <= new.values.len() / DELTA_FRACTION {
+                    Message::Illumination(Box::new(Illumination {
+                        version,
+                        scene_version: new.scene_version,
+                        body: IlluminationBody::Delta {
+                            base: p.version,
+                            changes,
+                        },
+                    }))
+                } else {
+                    new.full()
+                }
+            }
+            None => new.full(),
+        };
+        self.illumination.held.insert(version, new);
+        let live: Vec<ConnId> = self.live_conns().collect();
+        for conn in live {
+            self.transmit(conn, message.clone());
+        }
+        self.prune_illumination();
+        Ok(version)
+    }
+
+    /// The version frames of the current scene must name: the newest
+    /// solution, if it belongs to the current scene version.
+    pub fn illumination_version(&self) -> Option<u64> {
+        self.illumination
+            .held
+            .values()
+            .next_back()
+            .filter(|s| s.scene_version == self.scene_version)
+            .map(|s| s.version)
+    }
+
+    /// Record the version `frame` names (after it was sent).
+    pub(super) fn frame_names_illumination(&mut self, frame: u64, version: Option<u64>) {
+        if let Some(v) = version {
+            self.illumination.frames.insert(frame, v);
+        }
+        self.prune_illumination();
+    }
+
+    /// Full copies, oldest first, of the version `frame` (a joiner's
+    /// current frame) names and of the newest version of the current
+    /// scene: what a node must hold before it draws anything.
+    pub(super) fn illumination_for_joiner(&self, frame: Option<&FrameState>) -> Vec<Message> {
+        let mut versions: Vec<u64> = frame
+            .and_then(|f| f.illumination_version)
+            .into_iter()
+            .chain(self.illumination_version())
+            .collect();
+        versions.dedup();
+        versions
+            .iter()
+            .filter_map(|v| self.illumination.held.get(v))
+            .map(|s| s.full())
+            .collect()
+    }
+
+    /// A node lacks `version`: send it full copies of every held version
+    /// from `version` on. A version never published closes the node.
+    pub(super) fn illumination_resync(&mut self, conn: ConnId, r: IlluminationResync) {
+        let newest = self.illumination.held.keys().next_back().copied();
+        if newest.is_none_or(|n| r.version > n) {
+            let detail = format!(
+                "IlluminationResync for version {}, the newest is {}",
+                r.version,
+                opt_text(newest)
+            );
+            self.violation(conn, detail);
+            return;
+        }
+        let copies: Vec<Message> = self
+            .illumination
+            .held
+            .range(r.version..)
+            .map(|(_, s)| s.full())
+            .collect();
+        tracing::info!(%conn, from = r.version, copies = copies.len(), "illumination resync");
+        for m in copies {
+            self.transmit(conn, m);
+        }
+    }
+
+    /// Forget the versions no frame that can still be drawn or joined
+    /// names, keeping the newest.
+    pub(super) fn prune_illumination(&mut self) {
+        let keep_from = self
+            .barrier
+            .oldest()
+            .or(self.latest.as_ref().map(|f| f.frame));
+        let state = &mut self.illumination;
+        state
+            .frames
+            .retain(|f, _| keep_from.is_some_and(|k| *f >= k));
+        let oldest = state.frames.values().min().copied();
+        let newest = state.held.keys().next_back().copied();
+        state
+            .held
+            .retain(|v, _| Some(*v) == newest || oldest.is_some_and(|o| *v >= o));
+    }
+
+    /// Versions held (for tests and reports).
+    pub fn illumination_versions_held(&self) -> usize {
+        self.illumination.held.len()
+    }
+}
