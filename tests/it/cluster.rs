@@ -681,3 +681,140 @@ async fn a_live_node_keeps_a_count_not_every_frame() {
         }
     }
 }
+
+/// Digests like the state-hash renderer and keeps, per rendered frame, the
+/// global-illumination solution it was drawn with: its version and a
+/// digest of its values.
+struct Lit {
+    inner: StateHashRenderer,
+    solution: Option<(u64, u64)>,
+    drawn: Arc<Mutex<Vec<Drawn>>>,
+}
+
+/// A rendered frame and its solution's version and values digest.
+type Drawn = (u64, Option<(u64, u64)>);
+
+impl Renderer for Lit {
+    fn set_scene(&mut self, v: u64, s: Arc<Showcase>) -> Result<(), RenderError> {
+        self.inner.set_scene(v, s)
+    }
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<showcase_proto::session::Solution>>,
+    ) -> Result<(), RenderError> {
+        self.solution = illumination.map(|s| {
+            let mut h = showcase_light::digest::Fnv64::default();
+            for v in s.values.iter().flatten() {
+                h.write(&v.to_bits().to_le_bytes());
+            }
+            (s.version, h.finish())
+        });
+        self.inner.set_illumination(illumination)
+    }
+    fn render(&mut self, f: &FrameState, s: &Showcase) -> Result<RenderOutput, RenderError> {
+        self.drawn.lock().unwrap().push((f.frame, self.solution));
+        self.inner.render(f, s)
+    }
+    fn present(&mut self, frame: u64) -> Result<(), RenderError> {
+        self.inner.present(frame)
+    }
+}
+
+/// Global mode over real QUIC: the figure-3 scene with its ceiling light
+/// moving along the scripted walk. The master solves the first solution
+/// before frame 0 and re-solves off the frame loop as the light moves;
+/// both projector nodes draw every frame with the version the master
+/// named, with the same values, and later versions reach them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn global_mode_draws_every_frame_with_the_named_solution() {
+    use showcase_master::cluster::commands::walk_tracking;
+    const GI_FRAMES: u64 = 600;
+    let mut scene =
+        showcase_master::scene_file::load_any(std::path::Path::new("builtin:figure3")).unwrap();
+    scene.illumination = showcase_proto::IlluminationMode::Global;
+    let names: Vec<String> = scene.projectors.iter().map(|p| p.name.clone()).collect();
+    assert_eq!(names.len(), 2);
+    let c = certs::generate(&names).unwrap();
+    let tracker = Tracker::new(&walk_tracking(&scene, TrackingSource::Scripted), &scene).unwrap();
+    let show = Show::new(Tracking::Scripted(tracker), HZ as f64);
+    let server = Server::bind(settings(
+        &c,
+        &names,
+        "127.0.0.1:0".parse().unwrap(),
+        Some(GI_FRAMES),
+    ))
+    .unwrap();
+    let addr = server.local_addr();
+    let stop = CancellationToken::new();
+    let master = tokio::spawn(server.run(scene, show, stop.clone()));
+    let mut nodes = Vec::new();
+    for name in &names {
+        let rt = NodeRuntime {
+            name: name.clone(),
+            role: Role::Projector,
+            master: addr,
+            identity: identity(&c, name),
+            bind: "127.0.0.1:0".parse().unwrap(),
+            capabilities: Default::default(),
+            write_frames: None,
+            keep_presented: true,
+        };
+        let drawn = Arc::new(Mutex::new(Vec::new()));
+        let mut r = Lit {
+            inner: StateHashRenderer::new(name, Role::Projector),
+            solution: None,
+            drawn: drawn.clone(),
+        };
+        let s = CancellationToken::new();
+        let token = s.clone();
+        nodes.push((
+            tokio::spawn(async move { run_node(rt, &mut r, token).await.unwrap() }),
+            s,
+            drawn,
+        ));
+    }
+    let run = timeout(Duration::from_secs(120), master)
+        .await
+        .unwrap()
+        .unwrap()
+        .unwrap();
+    let mut drawn = Vec::new();
+    for (h, s, d) in nodes {
+        s.cancel();
+        let log = timeout(Duration::from_secs(5), h).await.unwrap().unwrap();
+        let frames: Vec<u64> = log.presented.iter().map(|p| p.0).collect();
+        assert_eq!(frames, (0..GI_FRAMES).collect::<Vec<_>>());
+        drawn.push(d.lock().unwrap().clone());
+    }
+    assert!(
+        run.illumination_failures.is_empty(),
+        "{:?}",
+        run.illumination_failures
+    );
+    // Frame 0 already has a solution; the moving light brought updates.
+    assert!(drawn[0][0].1.is_some(), "frame 0 is drawn in global mode");
+    assert!(
+        !run.illumination_updates.is_empty(),
+        "no update was published in {GI_FRAMES} frames"
+    );
+    eprintln!(
+        "{} updates; first {:?}; last {:?}",
+        run.illumination_updates.len(),
+        run.illumination_updates.first(),
+        run.illumination_updates.last()
+    );
+    for u in &run.illumination_updates {
+        assert!(u.first_frame > u.solved_frame, "{u:?}");
+        assert!(u.latency_ms >= u.solve_ms, "{u:?}");
+    }
+    // Both nodes drew every frame with the same solution, and versions
+    // only go forward.
+    assert_eq!(drawn[0], drawn[1]);
+    let versions: Vec<u64> = drawn[0].iter().map(|d| d.1.unwrap().0).collect();
+    assert!(versions.windows(2).all(|w| w[0] <= w[1]));
+    assert!(
+        versions.last() > versions.first(),
+        "versions drawn: {:?}",
+        versions.first()
+    );
+}

@@ -6,6 +6,7 @@ pub mod commands;
 pub mod dashboard;
 pub mod faults;
 pub mod identity;
+pub mod illumination;
 pub mod live;
 pub mod loopback;
 pub mod metrics;

@@ -81,6 +81,10 @@ pub enum ServerError {
     /// Metrics could not be written.
     #[error("writing metrics: {0}")]
     Metrics(std::io::Error),
+    /// The scene is in global-illumination mode and its solver could not
+    /// start (its first solution failed, or its thread).
+    #[error("global illumination: {0}")]
+    Illumination(String),
 }
 
 /// What a run did.
@@ -114,7 +118,16 @@ pub struct ClusterRun {
     /// Swap skew and latency over the run, from the live histograms
     /// (constant memory; kept whether or not `keep_frames` is set).
     pub stats: LiveSummary,
+    /// Global-illumination updates published during the run (the first
+    /// solution, before frame 0, is not one), at most
+    /// [`MAX_KEPT_UPDATES`].
+    pub illumination_updates: Vec<super::illumination::Update>,
+    /// Solves that failed, with why (the frames keep the last solution).
+    pub illumination_failures: Vec<String>,
 }
+
+/// Updates a run keeps (a live show's memory must not grow with the day).
+pub const MAX_KEPT_UPDATES: usize = 100_000;
 
 enum Inbound {
     Connected(ConnId, mpsc::UnboundedSender<Outbound>),
@@ -230,6 +243,7 @@ impl Server {
         let roster = Arc::new(std::mem::take(&mut settings.roster));
         let mut live = LiveStats::new(&roster, settings.core.target_hz, origin_unix_ms);
         let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
+        let mut gi = GlobalIllumination::start(&mut core, now()).await?;
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -388,6 +402,10 @@ impl Server {
                     let tick_ns = (tick_at.into_std().saturating_duration_since(start).as_nanos() as u64).min(t);
                     let (mut state, sample) = show.frame_state(next_frame, t as f64 / 1e9, core.scene(), core.scene_version());
                     state.tracking_time_ns = sample.map(|s| (s * 1e9) as u64);
+                    state.illumination_version = core.illumination_version();
+                    if let Some(g) = gi.as_mut() {
+                        g.frame(&core, &state, &mut run);
+                    }
                     if show.is_live() || state.tracking_time_ns.is_none() {
                         // Live samples are already on the master clock.
                     } else {
@@ -409,8 +427,19 @@ impl Server {
                     }
                 }
                 _ = timer.fired() => core.handle_timeout(now()),
+                Some(solved) = async {
+                    match gi.as_mut() {
+                        Some(g) => g.results.recv().await,
+                        None => std::future::pending().await,
+                    }
+                } => {
+                    if let Some(g) = gi.as_mut() {
+                        g.publish(&mut core, now(), solved, &mut run);
+                    }
+                }
             }
         }
+        drop(gi);
         run.finished_ns = now();
         run.stats = live.summary();
         if let Some(p) = publisher.as_mut() {
@@ -439,6 +468,107 @@ impl Server {
         endpoint.close(0u32.into(), b"master shutting down");
         let _ = tokio::time::timeout(Duration::from_secs(1), endpoint.wait_idle()).await;
         Ok(run)
+    }
+}
+
+/// The master's global illumination while a run lasts: the solver
+/// thread, its results, and the update being timed.
+struct GlobalIllumination {
+    solver: super::illumination::Solver,
+    results: mpsc::UnboundedReceiver<Result<super::illumination::Solved, String>>,
+    /// The state last asked for.
+    asked: Option<FrameState>,
+    /// A published update not yet named by a frame: the frame it solved,
+    /// its version, request-to-publish and solve times (ms).
+    published: Option<(u64, u64, f64, f64)>,
+}
+
+impl GlobalIllumination {
+    /// For a scene in global mode: solve its first state (the frame clock
+    /// waits for this one only), publish it, and start the solver thread.
+    async fn start(core: &mut MasterCore, now: u64) -> Result<Option<Self>, ServerError> {
+        use super::illumination::{Request, Solver, initial_state, solve};
+        if core.scene().illumination != showcase_proto::IlluminationMode::Global {
+            return Ok(None);
+        }
+        let options = crate::radiosity_job::RadiosityOptions::default();
+        let scene = core.scene().clone();
+        let state = initial_state(&scene, core.scene_version());
+        let first = {
+            let options = options.clone();
+            tokio::task::spawn_blocking(move || {
+                Request::of(&scene, &state).and_then(|r| solve(r, &options))
+            })
+            .await
+            .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?
+            .map_err(|e| ServerError::Illumination(format!("the first solution: {e:#}")))?
+        };
+        info!(
+            elements = first.values.len(),
+            solve_s = first.solve_s,
+            "global illumination: first solution"
+        );
+        core.set_illumination(now, first.mesh, first.values)?;
+        let (solver, results) = Solver::start(options).map_err(|e| {
+            ServerError::Illumination(format!("cannot start the solver thread: {e}"))
+        })?;
+        Ok(Some(Self {
+            solver,
+            results,
+            asked: None,
+            published: None,
+        }))
+    }
+
+    /// `state` is about to be submitted: time the update it is the first
+    /// frame of, and ask for a new solution when its inputs moved.
+    fn frame(&mut self, core: &MasterCore, state: &FrameState, run: &mut ClusterRun) {
+        use super::illumination::{Request, Update, inputs_differ};
+        if let Some((solved_frame, version, latency_ms, solve_ms)) = self.published
+            && state.illumination_version == Some(version)
+        {
+            self.published = None;
+            if run.illumination_updates.len() < MAX_KEPT_UPDATES {
+                run.illumination_updates.push(Update {
+                    solved_frame,
+                    first_frame: state.frame,
+                    latency_ms,
+                    solve_ms,
+                });
+            }
+        }
+        if self.asked.as_ref().is_none_or(|a| inputs_differ(a, state)) {
+            match Request::of(core.scene(), state) {
+                Ok(r) => self.solver.ask(r),
+                Err(e) => warn!(error = %e, frame = state.frame, "cannot ask for illumination"),
+            }
+            self.asked = Some(state.clone());
+        }
+    }
+
+    /// A solve finished: publish it (or record why it failed).
+    fn publish(
+        &mut self,
+        core: &mut MasterCore,
+        now: u64,
+        solved: Result<super::illumination::Solved, String>,
+        run: &mut ClusterRun,
+    ) {
+        let s = match solved {
+            Ok(s) => s,
+            Err(e) => {
+                warn!(error = %e, "illumination solve failed; frames keep the last solution");
+                if run.illumination_failures.len() < MAX_KEPT_UPDATES {
+                    run.illumination_failures.push(e);
+                }
+                return;
+            }
+        };
+        let latency_ms = s.asked_at.elapsed().as_secs_f64() * 1e3;
+        match core.set_illumination(now, s.mesh, s.values) {
+            Ok(version) => self.published = Some((s.frame, version, latency_ms, s.solve_s * 1e3)),
+            Err(e) => warn!(error = %e, "illumination solution refused"),
+        }
     }
 }
 

@@ -273,6 +273,19 @@ pub fn indirect_field(
     eyes: &[glam::DVec3],
     options: &RadiosityOptions,
 ) -> anyhow::Result<(showcase_light::render::IndirectField, usize)> {
+    let (mesh, delta) = indirect_values(showcase, eyes, options)?;
+    let elements = mesh.elements.len();
+    let field = showcase_light::render::IndirectField::new(std::sync::Arc::new(mesh), &delta)?;
+    Ok((field, elements))
+}
+
+/// [`indirect_field`]'s mesh and per-element values (what the cluster
+/// sends the nodes; [`RadiosityOptions::hierarchical_mesh`] meshes it).
+pub fn indirect_values(
+    showcase: &Showcase,
+    eyes: &[glam::DVec3],
+    options: &RadiosityOptions,
+) -> anyhow::Result<(RadiosityMesh, Vec<DVec3>)> {
     use rayon::prelude::*;
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
@@ -312,9 +325,7 @@ pub fn indirect_field(
         &options.hierarchy(),
     )
     .context("solving the global-illumination correction")?;
-    let elements = mesh.elements.len();
-    let field = showcase_light::render::IndirectField::new(std::sync::Arc::new(mesh), &delta)?;
-    Ok((field, elements))
+    Ok((mesh, delta))
 }
 
 /// Mesh, solve with one round of adaptive refinement, and run the augmented

@@ -23,6 +23,9 @@
 //! ```toml
 //! name = "demo"                 # required
 //! ambient = [0.0, 0.0, 0.0]     # W/m^2 per channel; default 0
+//! illumination = "global"       # "direct" (default: direct light only) or
+//!                               # "global" (the master solves radiosity, the
+//!                               # projectors add its indirect light)
 //!
 //! [[object]]
 //! name = "room"                 # one scene object per part: "room/floor", ...
@@ -263,6 +266,7 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
     let mut showcase = Showcase {
         name: def.name.clone(),
         ambient: def.ambient.map_or(glam::Vec3::ZERO, device::v3),
+        illumination: def.illumination,
         ..Showcase::default()
     };
     let mut labels = Labels::default();

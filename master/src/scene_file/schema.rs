@@ -42,6 +42,9 @@ pub(crate) struct SceneDef {
     pub(crate) name: String,
     #[serde(default)]
     pub(crate) ambient: Option<N3>,
+    /// `"direct"` (the default) or `"global"`.
+    #[serde(default)]
+    pub(crate) illumination: showcase_proto::IlluminationMode,
     #[serde(default, rename = "object")]
     pub(crate) objects: Vec<ObjectDef>,
     #[serde(default, rename = "light")]

@@ -13,7 +13,18 @@ fn empty_scene_gets_defaults() {
     let s = load("name = \"empty\"").unwrap();
     assert_eq!(s.name, "empty");
     assert_eq!(s.ambient, glam::Vec3::ZERO);
+    assert_eq!(s.illumination, showcase_proto::IlluminationMode::Direct);
     assert!(s.objects.is_empty());
+}
+
+#[test]
+fn illumination_is_direct_or_global() {
+    let s = load("name = \"g\"\nillumination = \"global\"").unwrap();
+    assert_eq!(s.illumination, showcase_proto::IlluminationMode::Global);
+    let err = load("name = \"g\"\nillumination = \"radiosity\"")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("direct") && err.contains("global"), "{err}");
 }
 
 #[test]

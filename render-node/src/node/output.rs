@@ -90,11 +90,16 @@ impl Renderer for OutputRenderer {
                         name: self.output.clone(),
                         have: scene.projectors.iter().map(|p| p.name.clone()).collect(),
                     })?;
-                Inner::Projector(Box::new(ProjectorRenderer::new(
-                    self.ctx.clone(),
-                    index,
-                    self.shadow_res,
-                )))
+                // Its scene mesh outlives a rejoin: meshing again would make
+                // the node late for its first frames.
+                let fields = match &mut self.inner {
+                    Inner::Projector(r) => r.take_fields(),
+                    _ => Default::default(),
+                };
+                Inner::Projector(Box::new(
+                    ProjectorRenderer::new(self.ctx.clone(), index, self.shadow_res)
+                        .with_fields(fields),
+                ))
             }
             _ => {
                 let index = scene

@@ -44,7 +44,10 @@ impl Renderer for StateHashRenderer {
         Ok(())
     }
 
-    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<Solution>>,
+    ) -> Result<(), RenderError> {
         self.illumination = illumination.map(|s| {
             let mut h = Fnv64::default();
             for c in s.values.iter().flatten() {

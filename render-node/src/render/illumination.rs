@@ -3,8 +3,9 @@
 //! field a projector draws ([`IndirectField`]). The node meshes its own
 //! copy of the scene with the solution's mesh options, which gives the
 //! master's elements in the master's order; the mesh is kept while the
-//! scene version and options are, so a new version only re-averages the
-//! values to the vertices.
+//! scene (its content, not only its version: a restarted master starts
+//! again at version 1) and the options are, so a new version only
+//! re-averages the values to the vertices.
 
 use std::sync::Arc;
 
@@ -21,7 +22,7 @@ use super::RenderError;
 /// The mesh of the last solution's scene, kept across versions.
 #[derive(Debug, Default)]
 pub struct FieldCache {
-    mesh: Option<((u64, IlluminationMesh), Arc<RadiosityMesh>)>,
+    mesh: Option<(Arc<Showcase>, IlluminationMesh, Arc<RadiosityMesh>)>,
 }
 
 impl FieldCache {
@@ -29,7 +30,7 @@ impl FieldCache {
     /// which must be the solution's).
     pub fn field(
         &mut self,
-        scene: &Showcase,
+        scene: &Arc<Showcase>,
         scene_version: u64,
         solution: &Solution,
     ) -> Result<Arc<IndirectField>, RenderError> {
@@ -43,9 +44,12 @@ impl FieldCache {
                 solution.scene_version
             )));
         }
-        let key = (scene_version, solution.mesh);
         let mesh = match &self.mesh {
-            Some((k, m)) if *k == key => m.clone(),
+            Some((s, options, m))
+                if *options == solution.mesh && (Arc::ptr_eq(s, scene) || **s == **scene) =>
+            {
+                m.clone()
+            }
             _ => {
                 let geometry = SceneGeometry::build(scene, &ObjectFilter::All)?;
                 let options = MeshOptions {
@@ -57,7 +61,7 @@ impl FieldCache {
                 let m = RadiosityMesh::build(scene, &geometry, &options)
                     .map_err(|e| problem(format!("meshing the scene: {e}")))?;
                 let m = Arc::new(m);
-                self.mesh = Some((key, m.clone()));
+                self.mesh = Some((scene.clone(), solution.mesh, m.clone()));
                 m
             }
         };

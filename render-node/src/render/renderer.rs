@@ -153,7 +153,10 @@ pub trait Renderer: Send {
     /// (`None`: direct light), given before each frame that names one. A
     /// renderer that draws no global illumination (the face role, for
     /// now) ignores it; a wrapper must pass it on.
-    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<Solution>>,
+    ) -> Result<(), RenderError> {
         let _ = illumination;
         Ok(())
     }
@@ -189,7 +192,10 @@ impl<R: Renderer + ?Sized> Renderer for Box<R> {
     ) -> Result<RenderOutput, RenderError> {
         (**self).render(frame, scene)
     }
-    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<Solution>>,
+    ) -> Result<(), RenderError> {
         (**self).set_illumination(illumination)
     }
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {

@@ -8,7 +8,6 @@ use showcase_proto::{FrameState, Showcase};
 use crate::gpu::GpuContext;
 use crate::render::RenderSetupError;
 use crate::render::illumination::FieldCache;
-use showcase_proto::session::Solution;
 use crate::render::passes::{FrameKey, Pass, PassList};
 use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
@@ -16,6 +15,7 @@ use crate::render::renderer::{
 use showcase_light::digest::hash_pixels;
 use showcase_light::render::IndirectField;
 use showcase_light::render::frame::FrameScene;
+use showcase_proto::session::Solution;
 
 use super::ProjectorPipeline;
 
@@ -68,6 +68,19 @@ impl ProjectorRenderer {
             last: None,
             report: FrameReport::default(),
         }
+    }
+
+    /// The mesh cache of the master's solutions, to hand to the renderer
+    /// that replaces this one (a new scene or a rejoin), so a rejoining
+    /// node does not mesh the scene again.
+    pub fn take_fields(&mut self) -> FieldCache {
+        std::mem::take(&mut self.fields)
+    }
+
+    /// This renderer with `fields` (from [`Self::take_fields`]).
+    pub fn with_fields(mut self, fields: FieldCache) -> Self {
+        self.fields = fields;
+        self
     }
 
     /// Draw every following frame with the global-illumination correction
@@ -149,7 +162,10 @@ impl Renderer for ProjectorRenderer {
         Ok(())
     }
 
-    fn set_illumination(&mut self, illumination: Option<&Arc<Solution>>) -> Result<(), RenderError> {
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<Solution>>,
+    ) -> Result<(), RenderError> {
         let Some(solution) = illumination else {
             if self.illumination_version.take().is_some() {
                 self.set_indirect(None);

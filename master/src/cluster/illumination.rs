@@ -1,0 +1,201 @@
+//! Global illumination in the live cluster (a scene with
+//! `illumination = "global"`): the master solves the projectors'
+//! correction ([`crate::radiosity_job::indirect_values`]) on its own
+//! thread, off the frame loop, for the newest state the loop asked for;
+//! the loop publishes each solution ([`MasterCore::set_illumination`]) as
+//! it lands, and frames name the version they are drawn with. The frame
+//! clock never waits for the solver, except once at start: frame 0 is
+//! drawn with a solution.
+//!
+//! [`MasterCore::set_illumination`]: showcase_proto::session::MasterCore::set_illumination
+
+use crate::radiosity_job::{RadiosityOptions, indirect_values};
+use glam::DVec3;
+use showcase_light::render::FrameScene;
+use showcase_proto::message::IlluminationMesh;
+use showcase_proto::{FrameState, Showcase};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Instant;
+use tokio::sync::mpsc;
+
+/// What the solver is asked to solve: the scene as a frame left it.
+#[derive(Debug)]
+pub struct Request {
+    /// The frame whose state this is.
+    pub frame: u64,
+    /// When the loop asked.
+    pub asked_at: Instant,
+    /// The scene with the frame's lights and transforms.
+    pub showcase: Showcase,
+    /// The frame's eyes.
+    pub eyes: Vec<DVec3>,
+}
+
+impl Request {
+    /// The request for `state` of `scene`.
+    pub fn of(scene: &Showcase, state: &FrameState) -> anyhow::Result<Self> {
+        let resolved = FrameScene::resolve(scene, state)?;
+        Ok(Self {
+            frame: state.frame,
+            asked_at: Instant::now(),
+            showcase: resolved.showcase,
+            eyes: resolved.eyes,
+        })
+    }
+}
+
+/// A solution, ready to publish.
+#[derive(Debug)]
+pub struct Solved {
+    /// The frame whose state it was solved for.
+    pub frame: u64,
+    /// When the loop asked for it.
+    pub asked_at: Instant,
+    /// How the scene was meshed.
+    pub mesh: IlluminationMesh,
+    /// Per element, rgb (W/m^2).
+    pub values: Vec<[f32; 3]>,
+    /// The solve's own time (s).
+    pub solve_s: f64,
+}
+
+/// Solve `request` (the scene meshed by `options`' hierarchical mesh).
+pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Solved> {
+    let t = Instant::now();
+    let (_, values) = indirect_values(&request.showcase, &request.eyes, options)?;
+    let m = options.hierarchical_mesh();
+    Ok(Solved {
+        frame: request.frame,
+        asked_at: request.asked_at,
+        mesh: IlluminationMesh {
+            max_patch_area: m.max_patch_area,
+            element_depth: m.element_depth,
+            min_element_area: m.min_element_area,
+        },
+        values: values.iter().map(|v| v.as_vec3().to_array()).collect(),
+        solve_s: t.elapsed().as_secs_f64(),
+    })
+}
+
+#[derive(Debug, Default)]
+struct Slot {
+    /// The newest request not yet taken (older ones are replaced).
+    request: Option<Request>,
+    stop: bool,
+}
+
+/// The solver thread: takes the newest request, solves, sends the result;
+/// stops (after the solve in hand) when dropped.
+#[derive(Debug)]
+pub struct Solver {
+    slot: Arc<(Mutex<Slot>, Condvar)>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Solver {
+    /// Start the thread; results (or why a solve failed) arrive on the
+    /// returned receiver.
+    pub fn start(
+        options: RadiosityOptions,
+    ) -> std::io::Result<(Self, mpsc::UnboundedReceiver<Result<Solved, String>>)> {
+        let slot = Arc::new((Mutex::new(Slot::default()), Condvar::new()));
+        let (tx, rx) = mpsc::unbounded_channel();
+        let shared = slot.clone();
+        let thread = std::thread::Builder::new()
+            .name("illumination".into())
+            .spawn(move || {
+                loop {
+                    let request = {
+                        let (lock, ready) = &*shared;
+                        let Ok(mut s) = lock.lock() else { return };
+                        loop {
+                            if s.stop {
+                                return;
+                            }
+                            if let Some(r) = s.request.take() {
+                                break r;
+                            }
+                            let Ok(next) = ready.wait(s) else { return };
+                            s = next;
+                        }
+                    };
+                    let result = solve(request, &options).map_err(|e| format!("{e:#}"));
+                    if tx.send(result).is_err() {
+                        return;
+                    }
+                }
+            })?;
+        Ok((
+            Self {
+                slot,
+                thread: Some(thread),
+            },
+            rx,
+        ))
+    }
+
+    /// Ask for `request`, replacing any request not yet taken.
+    pub fn ask(&self, request: Request) {
+        let (lock, ready) = &*self.slot;
+        if let Ok(mut s) = lock.lock() {
+            s.request = Some(request);
+            ready.notify_one();
+        }
+    }
+}
+
+impl Drop for Solver {
+    fn drop(&mut self) {
+        let (lock, ready) = &*self.slot;
+        if let Ok(mut s) = lock.lock() {
+            s.stop = true;
+            ready.notify_one();
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// What moved between two frames, as the solution sees it: the lights,
+/// the object transforms and the heads (the eyes' occlusion shadows).
+pub fn inputs_differ(a: &FrameState, b: &FrameState) -> bool {
+    a.lights != b.lights || a.object_transforms != b.object_transforms || a.heads != b.heads
+}
+
+/// One published update: the frame it was solved for, the first frame
+/// drawn with it, and the time from the loop's request to publishing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Update {
+    /// The frame whose state was solved.
+    pub solved_frame: u64,
+    /// The first frame that names the update.
+    pub first_frame: u64,
+    /// Request to publish (ms).
+    pub latency_ms: f64,
+    /// The solve alone (ms).
+    pub solve_ms: f64,
+}
+
+impl Update {
+    /// Frames from the state this update solves to the first frame drawn
+    /// with it: 1 when the very next frame has it.
+    pub fn frames_stale(&self) -> u64 {
+        self.first_frame.saturating_sub(self.solved_frame)
+    }
+}
+
+/// The first frame's state of `scene`: its observers' initial heads and
+/// its own lights, what the solution is solved for before frame 0.
+pub fn initial_state(scene: &Showcase, scene_version: u64) -> FrameState {
+    FrameState {
+        frame: 0,
+        time_s: 0.0,
+        scene_version,
+        heads: scene.observers.iter().map(|o| o.head).collect(),
+        lights: scene.lights.clone(),
+        object_transforms: Vec::new(),
+        tracking_time_ns: None,
+        illumination_version: None,
+    }
+}
