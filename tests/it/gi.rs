@@ -16,6 +16,7 @@ fn global_mode_brings_figure3_at_least_three_times_closer_to_the_complete_target
             frame: 10,
             truth_paths: 256,
             without_occlusion: false,
+            live_frames: 240,
         },
     )
     .unwrap();
@@ -41,6 +42,27 @@ fn global_mode_brings_figure3_at_least_three_times_closer_to_the_complete_target
             r["compared_noise_rel_rmse"].as_f64().unwrap(),
         )
     };
+    // The live cluster: the walk moves the ceiling light, so global mode
+    // publishes updates; direct mode has none.
+    let live = |mode: &str| records.iter().find(|r| r["mode"] == mode).unwrap();
+    for key in [
+        "move",
+        "update_ms_p50",
+        "update_ms_p99",
+        "frames_stale_max",
+        "swap_skew_ms_p99",
+        "tracking_to_swap_ms_p99",
+    ] {
+        assert!(live("global").get(key).is_some(), "global lacks {key}");
+    }
+    assert_eq!(live("direct")["updates"], 0);
+    assert!(live("direct")["update_ms_p50"].is_null());
+    assert!(
+        live("global")["updates"].as_u64().unwrap() >= 1,
+        "{}",
+        live("global")
+    );
+    assert!(live("global")["frames_stale_max"].as_u64().unwrap() >= 1);
     let (direct, noise) = figure("direct");
     let (global, _) = figure("global");
     assert!(direct > 5.0 * noise, "direct {direct}, noise {noise}");
@@ -64,6 +86,7 @@ fn bench_gi_names_what_a_scene_lacks() {
             frame: 1,
             truth_paths: 8,
             without_occlusion: false,
+            live_frames: 0,
         },
     )
     .unwrap_err();

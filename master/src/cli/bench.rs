@@ -108,6 +108,10 @@ pub struct BenchArgs {
     /// Gi only: also judge the projectors' maps without occlusion shadows.
     #[arg(long)]
     pub without_occlusion: bool,
+    /// Gi only: frames of the live loopback cluster per mode, direct and
+    /// global side by side (default 600 at 60 Hz; 0: offline figures only).
+    #[arg(long)]
+    pub live_frames: Option<u64>,
 }
 
 /// Run the bench `args.target` names, with its progress on a terminal: a
@@ -393,6 +397,7 @@ fn gi(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         frame: args.frames.unwrap_or(60),
         truth_paths: args.truth_paths.unwrap_or(crate::demo::TRUTH_PATHS),
         without_occlusion: args.without_occlusion,
+        live_frames: args.live_frames.unwrap_or(600),
     };
     let mut records = Vec::new();
     for scene in &scenes {

@@ -9,9 +9,11 @@
 //! ([`views::Transport::Complete`]). The maps come from the projector
 //! nodes' GPU renderer where an adapter opens, else from its CPU
 //! reference; without occlusion shadows always from the CPU reference (the
-//! GPU renderer always draws them). The live cluster does not run global
-//! mode yet, so the records have no update latency, stale frames, swap
-//! skew or tracking-to-swap figures; `renderer` says what drew the maps.
+//! GPU renderer always draws them); `renderer` says what drew the maps.
+//! Beside them, the live figures of each mode ([`live_figures`]): the
+//! scripted walk over a loopback cluster of state-hash nodes, direct and
+//! global one after the other, with the global-illumination updates'
+//! latency and frames stale, swap skew and tracking-to-swap.
 
 use super::INTERACTIVE_HZ;
 use super::views::{self, Backend, NodeRenderers, Transport};
@@ -37,6 +39,79 @@ pub struct GiBenchOptions {
     /// patches they leave cost in the complete world, where they would
     /// have lit the rest of the room).
     pub without_occlusion: bool,
+    /// Frames of the live loopback cluster per mode (0: none): the
+    /// scripted walk at [`INTERACTIVE_HZ`] with one state-hash node per
+    /// output, in direct and in global mode, one after the other.
+    pub live_frames: u64,
+}
+
+/// What the live cluster measured in one mode.
+#[derive(Clone, Debug, Default)]
+pub struct LiveFigures {
+    /// Global-illumination updates: request to publish (ms), p50.
+    pub update_ms_p50: Option<f64>,
+    /// The same, p99.
+    pub update_ms_p99: Option<f64>,
+    /// Frames from a moved state to the first frame drawn with its
+    /// update, at most.
+    pub frames_stale_max: Option<u64>,
+    /// Updates published.
+    pub updates: usize,
+    /// Swap skew p99 (ms).
+    pub swap_skew_ms_p99: Option<f64>,
+    /// Tracking to swap p99 (ms).
+    pub tracking_to_swap_ms_p99: Option<f64>,
+    /// Frame-clock ticks dropped.
+    pub dropped_frames: u64,
+}
+
+/// Run the scripted walk on `scene` in `mode` over a loopback cluster for
+/// `frames` frames (one state-hash node per face and projector).
+pub fn live_figures(
+    scene: &showcase_proto::Showcase,
+    mode: showcase_proto::IlluminationMode,
+    frames: u64,
+) -> Result<LiveFigures> {
+    use crate::cluster::commands::{bench_record, output_nodes, state_hash_renderers};
+    use crate::cluster::{LoopbackPlan, run_loopback};
+    let mut scene = scene.clone();
+    scene.illumination = mode;
+    let tracker =
+        crate::tracking::Tracker::new(&walk_tracking(&scene, TrackingSource::Scripted), &scene)?;
+    let nodes = output_nodes(&scene);
+    let count = nodes.len();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let result = runtime.block_on(run_loopback(LoopbackPlan {
+        scene,
+        show: Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64),
+        nodes,
+        frames,
+        core: showcase_proto::session::MasterConfig {
+            target_hz: INTERACTIVE_HZ,
+            ..crate::cluster::cluster_core_defaults()
+        },
+        renderers: state_hash_renderers(),
+        restart: None,
+        metrics: None,
+        write_frames: None,
+        keep_frames: true,
+        keep_presented: false,
+    }))?;
+    let rec = bench_record(count, INTERACTIVE_HZ, frames, &result);
+    let updates = &result.run.illumination_updates;
+    let latency: Vec<f64> = updates.iter().map(|u| u.latency_ms).collect();
+    Ok(LiveFigures {
+        update_ms_p50: percentile(&latency, 50.0),
+        update_ms_p99: percentile(&latency, 99.0),
+        frames_stale_max: updates.iter().map(|u| u.frames_stale()).max(),
+        updates: updates.len(),
+        swap_skew_ms_p99: rec.swap_skew_ms_p99,
+        tracking_to_swap_ms_p99: rec.tracking_to_swap_ms_p99,
+        dropped_frames: rec.dropped_frames,
+    })
 }
 
 /// The records of one scene: one per mode (`direct`, `global`), and with
@@ -65,6 +140,17 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
         paths_per_point: options.truth_paths,
         seed: 24,
     });
+    // The live cluster first, each mode on its own: the offline judging
+    // below would compete with it for the cores.
+    let mut live = Vec::new();
+    if options.live_frames > 0 {
+        for mode in [
+            showcase_proto::IlluminationMode::Direct,
+            showcase_proto::IlluminationMode::Global,
+        ] {
+            live.push(live_figures(&truth, mode, options.live_frames)?);
+        }
+    }
     let mut records = Vec::new();
     let occlusion: &[bool] = if options.without_occlusion {
         &[true, false]
@@ -86,8 +172,8 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
         )?;
         let solve_s = t.elapsed().as_secs_f64();
         let field = Arc::new(field);
-        for mode in ["direct", "global"] {
-            records.push(judge(
+        for (m, mode) in ["direct", "global"].into_iter().enumerate() {
+            let mut record = judge(
                 &truth,
                 &state,
                 if occlusion_shadows { &gpu } else { &cpu },
@@ -96,7 +182,25 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
                 occlusion_shadows,
                 elements,
                 solve_s,
-            )?);
+            )?;
+            if let (Some(l), true, Some(map)) =
+                (live.get(m), occlusion_shadows, record.as_object_mut())
+            {
+                // The walk moves the light and the observers' heads.
+                map.insert("move".into(), json!("light"));
+                map.insert("live_frames".into(), json!(options.live_frames));
+                map.insert("updates".into(), json!(l.updates));
+                map.insert("update_ms_p50".into(), json!(l.update_ms_p50));
+                map.insert("update_ms_p99".into(), json!(l.update_ms_p99));
+                map.insert("frames_stale_max".into(), json!(l.frames_stale_max));
+                map.insert("swap_skew_ms_p99".into(), json!(l.swap_skew_ms_p99));
+                map.insert(
+                    "tracking_to_swap_ms_p99".into(),
+                    json!(l.tracking_to_swap_ms_p99),
+                );
+                map.insert("dropped_frames".into(), json!(l.dropped_frames));
+            }
+            records.push(record);
         }
     }
     Ok(records)
