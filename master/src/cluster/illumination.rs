@@ -94,13 +94,21 @@ pub struct Solver {
 
 impl Solver {
     /// Start the thread; results (or why a solve failed) arrive on the
-    /// returned receiver.
+    /// returned receiver. The solves run on their own pool of one thread
+    /// fewer than the machine has (at least one), so the frame loop and
+    /// the connections keep a core.
     pub fn start(
         options: RadiosityOptions,
     ) -> std::io::Result<(Self, mpsc::UnboundedReceiver<Result<Solved, String>>)> {
         let slot = Arc::new((Mutex::new(Slot::default()), Condvar::new()));
         let (tx, rx) = mpsc::unbounded_channel();
         let shared = slot.clone();
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(cores.saturating_sub(1).max(1))
+            .thread_name(|i| format!("illumination-{i}"))
+            .build()
+            .map_err(std::io::Error::other)?;
         let thread = std::thread::Builder::new()
             .name("illumination".into())
             .spawn(move || {
@@ -119,7 +127,9 @@ impl Solver {
                             s = next;
                         }
                     };
-                    let result = solve(request, &options).map_err(|e| format!("{e:#}"));
+                    let result = pool
+                        .install(|| solve(request, &options))
+                        .map_err(|e| format!("{e:#}"));
                     if tx.send(result).is_err() {
                         return;
                     }
