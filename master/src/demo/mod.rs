@@ -559,7 +559,10 @@ const INTERACTIVE_HZ: f32 = 60.0;
 
 /// The loopback cluster: master plus one node per face and projector,
 /// frame-locked over QUIC, driven by the built-in walk (recorded to
-/// `session.jsonl` for `replay`).
+/// `session.jsonl` for `replay`), in global-illumination mode: the master
+/// solves before frame 0 and again as the walk moves the light and the
+/// heads. The same walk in direct mode runs after it, for the figures of
+/// both modes side by side (`*_direct_mode`).
 fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Result<StageOutcome> {
     use crate::cluster::commands::{
         bench_record, output_nodes, state_hash_renderers, walk_tracking,
@@ -593,8 +596,10 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         .build()
         .context("cannot start the async runtime")?;
     let started = Instant::now();
+    let mut global_scene = scene.clone();
+    global_scene.illumination = showcase_proto::IlluminationMode::Global;
     let result = runtime.block_on(run_loopback(LoopbackPlan {
-        scene: scene.clone(),
+        scene: global_scene,
         show,
         nodes,
         frames: opts.frames,
@@ -636,13 +641,56 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         "dropped_frames".into(),
         serde_json::json!(rec.dropped_frames),
     );
+    let updates = &result.run.illumination_updates;
+    let latency: Vec<f64> = updates.iter().map(|u| u.latency_ms).collect();
+    let update_p50 = showcase_light::metrics::percentile(&latency, 50.0);
+    let update_p99 = showcase_light::metrics::percentile(&latency, 99.0);
+    let stale = updates.iter().map(|u| u.frames_stale()).max();
+    figures.insert(
+        "illumination_updates".into(),
+        serde_json::json!(updates.len()),
+    );
+    figures.insert(
+        "illumination_update_ms_p50".into(),
+        serde_json::json!(update_p50),
+    );
+    figures.insert(
+        "illumination_update_ms_p99".into(),
+        serde_json::json!(update_p99),
+    );
+    figures.insert(
+        "illumination_frames_stale_max".into(),
+        serde_json::json!(stale),
+    );
+    if !result.run.illumination_failures.is_empty() {
+        anyhow::bail!(
+            "interactive stage: global-illumination solves failed: {:?}",
+            result.run.illumination_failures
+        );
+    }
+    eprintln!("[demo] interactive: the same walk in direct mode, for comparison...");
+    let direct = gi::live_figures(scene, showcase_proto::IlluminationMode::Direct, opts.frames)?;
+    figures.insert(
+        "swap_skew_ms_p99_direct_mode".into(),
+        serde_json::json!(direct.swap_skew_ms_p99),
+    );
+    figures.insert(
+        "tracking_to_swap_ms_p99_direct_mode".into(),
+        serde_json::json!(direct.tracking_to_swap_ms_p99),
+    );
     Ok(StageOutcome {
         detail: format!(
-            "{} frames on {node_count} nodes, {fps:.1} frames/s, swap skew p99 {:.3} ms, tracking-to-swap p99 {:.3} ms, {} ticks dropped; session in {}",
+            "{} frames on {node_count} nodes in global mode, {fps:.1} frames/s, swap skew p99 {:.3} ms (direct mode {:.3}), tracking-to-swap p99 {:.3} ms (direct mode {:.3}), {} ticks dropped; {} illumination updates, p50 {:.0} ms, p99 {:.0} ms, at most {} frames stale; session in {}",
             opts.frames,
             rec.swap_skew_ms_p99.unwrap_or(f64::NAN),
+            direct.swap_skew_ms_p99.unwrap_or(f64::NAN),
             rec.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),
+            direct.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),
             rec.dropped_frames,
+            updates.len(),
+            update_p50.unwrap_or(f64::NAN),
+            update_p99.unwrap_or(f64::NAN),
+            stale.map_or("no".to_string(), |s| s.to_string()),
             session.display()
         ),
         figures,

@@ -226,7 +226,16 @@ const FIGURES: &[(&str, Figure)] = &[
             "Swap skew, p99",
             "ms",
             Some(Target::AtMost(1.0)),
-            "spread of the nodes' present times per frame, clock offsets estimated NTP-style",
+            "global mode: spread of the nodes' present times per frame, clock offsets estimated NTP-style",
+        ),
+    ),
+    (
+        "swap_skew_ms_p99_direct_mode",
+        fig(
+            "Swap skew, p99, direct mode",
+            "ms",
+            Some(Target::AtMost(1.0)),
+            "the same walk with the scene in direct mode, run after the global one",
         ),
     ),
     (
@@ -235,7 +244,52 @@ const FIGURES: &[(&str, Figure)] = &[
             "Tracking to swap, p99",
             "ms",
             None,
-            "from the newest tracking sample to the frame's swap",
+            "global mode: from the newest tracking sample to the frame's swap",
+        ),
+    ),
+    (
+        "tracking_to_swap_ms_p99_direct_mode",
+        fig(
+            "Tracking to swap, p99, direct mode",
+            "ms",
+            None,
+            "the same walk with the scene in direct mode",
+        ),
+    ),
+    (
+        "illumination_updates",
+        fig(
+            "Illumination updates",
+            "count",
+            None,
+            "global-illumination solutions the master published during the walk (after the first, before frame 0)",
+        ),
+    ),
+    (
+        "illumination_update_ms_p50",
+        fig(
+            "Illumination update, p50",
+            "ms",
+            None,
+            "from the frame whose light or heads moved to the master publishing its solution",
+        ),
+    ),
+    (
+        "illumination_update_ms_p99",
+        fig(
+            "Illumination update, p99",
+            "ms",
+            Some(Target::AtMost(8.0)),
+            "the same, p99",
+        ),
+    ),
+    (
+        "illumination_frames_stale_max",
+        fig(
+            "Frames stale, max",
+            "frames",
+            Some(Target::AtMost(1.0)),
+            "from a moved frame to the first frame drawn with its solution",
         ),
     ),
     (
