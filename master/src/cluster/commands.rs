@@ -382,6 +382,7 @@ pub async fn run_master(
         None => (server, None),
     };
     showcase_render::node::cancel_on_stop_signal(stop.clone());
+    let scene_is_global = scene.illumination == showcase_proto::IlluminationMode::Global;
     let run = server.run(scene, show, stop.clone()).await;
     stop.cancel();
     if let Some(task) = page {
@@ -393,6 +394,13 @@ pub async fn run_master(
         run.submitted, run.dropped_ticks, run.evictions
     );
     eprintln!("{}", run.stats.line());
+    if scene_is_global {
+        let summary = super::illumination::UpdateSummary::of(&run.illumination_updates);
+        eprintln!("{}", summary.line());
+        for e in &run.illumination_failures {
+            eprintln!("global illumination: a solve failed: {e}");
+        }
+    }
     Ok(())
 }
 

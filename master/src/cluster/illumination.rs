@@ -195,6 +195,47 @@ impl Update {
     }
 }
 
+/// What a run's updates amount to.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpdateSummary {
+    /// Updates published.
+    pub updates: usize,
+    /// Request to publish (ms), p50 (nearest rank).
+    pub latency_ms_p50: Option<f64>,
+    /// The same, p99.
+    pub latency_ms_p99: Option<f64>,
+    /// [`Update::frames_stale`], at most.
+    pub frames_stale_max: Option<u64>,
+}
+
+impl UpdateSummary {
+    /// The summary of `updates`.
+    pub fn of(updates: &[Update]) -> Self {
+        let latency: Vec<f64> = updates.iter().map(|u| u.latency_ms).collect();
+        Self {
+            updates: updates.len(),
+            latency_ms_p50: showcase_light::metrics::percentile(&latency, 50.0),
+            latency_ms_p99: showcase_light::metrics::percentile(&latency, 99.0),
+            frames_stale_max: updates.iter().map(Update::frames_stale).max(),
+        }
+    }
+
+    /// One line for the end of a run.
+    pub fn line(&self) -> String {
+        match (
+            self.latency_ms_p50,
+            self.latency_ms_p99,
+            self.frames_stale_max,
+        ) {
+            (Some(a), Some(b), Some(s)) => format!(
+                "global illumination: {} updates, request to publish p50 {a:.0} / p99 {b:.0} ms, at most {s} frames stale",
+                self.updates
+            ),
+            _ => "global illumination: no update after the first solution".to_owned(),
+        }
+    }
+}
+
 /// The first frame's state of `scene`: its observers' initial heads and
 /// its own lights, what the solution is solved for before frame 0.
 pub fn initial_state(scene: &Showcase, scene_version: u64) -> FrameState {
@@ -207,5 +248,51 @@ pub fn initial_state(scene: &Showcase, scene_version: u64) -> FrameState {
         object_transforms: Vec::new(),
         tracking_time_ns: None,
         illumination_version: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn updates_summarise_to_latency_quantiles_and_the_worst_staleness() {
+        let u = |solved_frame, first_frame, latency_ms| Update {
+            solved_frame,
+            first_frame,
+            latency_ms,
+            solve_ms: latency_ms / 2.0,
+        };
+        // The very next frame drawn with it: 1 frame stale.
+        assert_eq!(u(10, 11, 5.0).frames_stale(), 1);
+        let s = UpdateSummary::of(&[u(0, 3, 30.0), u(5, 30, 400.0), u(40, 42, 20.0)]);
+        assert_eq!(s.updates, 3);
+        assert_eq!(s.latency_ms_p50, Some(30.0));
+        assert_eq!(s.latency_ms_p99, Some(400.0));
+        assert_eq!(s.frames_stale_max, Some(25));
+        assert!(s.line().contains("3 updates"), "{}", s.line());
+        let none = UpdateSummary::of(&[]);
+        assert_eq!(none.frames_stale_max, None);
+        assert!(none.line().contains("no update"));
+    }
+
+    #[test]
+    fn only_lights_transforms_and_heads_ask_for_a_solve() {
+        let scene = Showcase {
+            observers: vec![showcase_proto::Observer {
+                name: "o".into(),
+                head: Default::default(),
+                ipd: 0.064,
+            }],
+            ..Showcase::default()
+        };
+        let a = initial_state(&scene, 1);
+        let mut b = a.clone();
+        b.frame = 7;
+        b.time_s = 1.0;
+        b.tracking_time_ns = Some(3);
+        assert!(!inputs_differ(&a, &b), "time alone moves nothing");
+        b.heads[0].position.x += 0.01;
+        assert!(inputs_differ(&a, &b));
     }
 }

@@ -101,13 +101,12 @@ pub fn live_figures(
         keep_presented: false,
     }))?;
     let rec = bench_record(count, INTERACTIVE_HZ, frames, &result);
-    let updates = &result.run.illumination_updates;
-    let latency: Vec<f64> = updates.iter().map(|u| u.latency_ms).collect();
+    let u = crate::cluster::illumination::UpdateSummary::of(&result.run.illumination_updates);
     Ok(LiveFigures {
-        update_ms_p50: percentile(&latency, 50.0),
-        update_ms_p99: percentile(&latency, 99.0),
-        frames_stale_max: updates.iter().map(|u| u.frames_stale()).max(),
-        updates: updates.len(),
+        update_ms_p50: u.latency_ms_p50,
+        update_ms_p99: u.latency_ms_p99,
+        frames_stale_max: u.frames_stale_max,
+        updates: u.updates,
         swap_skew_ms_p99: rec.swap_skew_ms_p99,
         tracking_to_swap_ms_p99: rec.tracking_to_swap_ms_p99,
         dropped_frames: rec.dropped_frames,

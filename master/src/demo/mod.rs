@@ -641,26 +641,22 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         "dropped_frames".into(),
         serde_json::json!(rec.dropped_frames),
     );
-    let updates = &result.run.illumination_updates;
-    let latency: Vec<f64> = updates.iter().map(|u| u.latency_ms).collect();
-    let update_p50 = showcase_light::metrics::percentile(&latency, 50.0);
-    let update_p99 = showcase_light::metrics::percentile(&latency, 99.0);
-    let stale = updates.iter().map(|u| u.frames_stale()).max();
+    let updates = crate::cluster::illumination::UpdateSummary::of(&result.run.illumination_updates);
     figures.insert(
         "illumination_updates".into(),
-        serde_json::json!(updates.len()),
+        serde_json::json!(updates.updates),
     );
     figures.insert(
         "illumination_update_ms_p50".into(),
-        serde_json::json!(update_p50),
+        serde_json::json!(updates.latency_ms_p50),
     );
     figures.insert(
         "illumination_update_ms_p99".into(),
-        serde_json::json!(update_p99),
+        serde_json::json!(updates.latency_ms_p99),
     );
     figures.insert(
         "illumination_frames_stale_max".into(),
-        serde_json::json!(stale),
+        serde_json::json!(updates.frames_stale_max),
     );
     if !result.run.illumination_failures.is_empty() {
         anyhow::bail!(
@@ -680,17 +676,14 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
     );
     Ok(StageOutcome {
         detail: format!(
-            "{} frames on {node_count} nodes in global mode, {fps:.1} frames/s, swap skew p99 {:.3} ms (direct mode {:.3}), tracking-to-swap p99 {:.3} ms (direct mode {:.3}), {} ticks dropped; {} illumination updates, p50 {:.0} ms, p99 {:.0} ms, at most {} frames stale; session in {}",
+            "{} frames on {node_count} nodes in global mode, {fps:.1} frames/s, swap skew p99 {:.3} ms (direct mode {:.3}), tracking-to-swap p99 {:.3} ms (direct mode {:.3}), {} ticks dropped; {}; session in {}",
             opts.frames,
             rec.swap_skew_ms_p99.unwrap_or(f64::NAN),
             direct.swap_skew_ms_p99.unwrap_or(f64::NAN),
             rec.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),
             direct.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),
             rec.dropped_frames,
-            updates.len(),
-            update_p50.unwrap_or(f64::NAN),
-            update_p99.unwrap_or(f64::NAN),
-            stale.map_or("no".to_string(), |s| s.to_string()),
+            updates.line(),
             session.display()
         ),
         figures,
