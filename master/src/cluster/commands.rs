@@ -153,6 +153,7 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
         write_frames: None,
         keep_frames: false,
         keep_presented: false,
+        illumination_lag: None,
     })
 }
 
@@ -217,6 +218,12 @@ pub struct ReplayNode {
     pub hashes: Vec<(u64, u64)>,
 }
 
+/// In a replay of a scene in global mode, each solution is first drawn
+/// this many frames after the frame whose state it solves (the master
+/// holds the frame clock for a late solver), so a replay is bit-exact at
+/// any speed.
+pub const REPLAY_ILLUMINATION_LAG: u64 = 30;
+
 /// Replay a recorded session through a loopback cluster of the scene's
 /// outputs and return each node's per-frame output hashes.
 pub async fn replay(
@@ -258,6 +265,7 @@ pub async fn replay(
         keep_frames: false,
         // The replay's result is every node's per-frame hashes.
         keep_presented: true,
+        illumination_lag: Some(REPLAY_ILLUMINATION_LAG),
     })
     .await?;
     let nodes = r
@@ -363,6 +371,7 @@ pub async fn run_master(
         tracking: tracking_addr,
         metrics: metrics_out,
         keep_frames: false,
+        illumination_lag: None,
     })?;
     eprintln!(
         "master listening on {} for {} nodes; Ctrl-C or SIGTERM stops",

@@ -46,6 +46,8 @@ pub struct LoopbackPlan {
     /// Keep every node's per-frame `(frame, hash)` in its log (see
     /// `NodeRuntime::keep_presented`).
     pub keep_presented: bool,
+    /// See `ServerSettings::illumination_lag`.
+    pub illumination_lag: Option<u64>,
 }
 
 /// What happened.
@@ -144,6 +146,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
         tracking: None,
         metrics: plan.metrics,
         keep_frames: plan.keep_frames,
+        illumination_lag: plan.illumination_lag,
     })?;
     let addr = server.local_addr();
     let stop = CancellationToken::new();

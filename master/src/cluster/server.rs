@@ -54,6 +54,11 @@ pub struct ServerSettings {
     /// the demo, tests). A live show leaves it off, so its memory does not
     /// grow with the length of the day.
     pub keep_frames: bool,
+    /// Global mode only: publish each update exactly this many frames
+    /// after the frame it solves, waiting for the solver when it is late,
+    /// so the same frames get the same solutions at any machine speed
+    /// (`replay`); `None`: publish as soon as a solve lands (live).
+    pub illumination_lag: Option<u64>,
 }
 
 /// Why the master could not run.
@@ -124,6 +129,9 @@ pub struct ClusterRun {
     pub illumination_updates: Vec<super::illumination::Update>,
     /// Solves that failed, with why (the frames keep the last solution).
     pub illumination_failures: Vec<String>,
+    /// Lockstep (`illumination_lag`): frame-clock ticks skipped waiting for
+    /// a late solve.
+    pub illumination_waits: u64,
 }
 
 /// Updates a run keeps (a live show's memory must not grow with the day).
@@ -243,7 +251,7 @@ impl Server {
         let roster = Arc::new(std::mem::take(&mut settings.roster));
         let mut live = LiveStats::new(&roster, settings.core.target_hz, origin_unix_ms);
         let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
-        let mut gi = GlobalIllumination::start(&mut core, now()).await?;
+        let mut gi = GlobalIllumination::start(&mut core, now(), settings.illumination_lag).await?;
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -400,6 +408,13 @@ impl Server {
                     // tokio's whole-millisecond timer got round to it: else a
                     // 17 ms tick gap adds to the stall behind a dead node.
                     let tick_ns = (tick_at.into_std().saturating_duration_since(start).as_nanos() as u64).min(t);
+                    if let Some(g) = gi.as_mut()
+                        && !g.due(&mut core, next_frame, now(), &mut run)
+                    {
+                        // A replay's solution is late: this frame waits.
+                        run.illumination_waits += 1;
+                        continue 'run;
+                    }
                     let (mut state, sample) = show.frame_state(next_frame, t as f64 / 1e9, core.scene(), core.scene_version());
                     state.tracking_time_ns = sample.map(|s| (s * 1e9) as u64);
                     state.illumination_version = core.illumination_version();
@@ -478,6 +493,11 @@ struct GlobalIllumination {
     results: mpsc::UnboundedReceiver<Result<super::illumination::Solved, String>>,
     /// The state last asked for.
     asked: Option<FrameState>,
+    /// Lockstep ([`ServerSettings::illumination_lag`]): the lag, the frame
+    /// whose solve is awaited, and a solve that landed before its frame.
+    lag: Option<u64>,
+    outstanding: Option<u64>,
+    early: Option<Result<super::illumination::Solved, String>>,
     /// A published update not yet named by a frame: the frame it solved,
     /// its version, request-to-publish and solve times (ms).
     published: Option<(u64, u64, f64, f64)>,
@@ -486,7 +506,11 @@ struct GlobalIllumination {
 impl GlobalIllumination {
     /// For a scene in global mode: solve its first state (the frame clock
     /// waits for this one only), publish it, and start the solver thread.
-    async fn start(core: &mut MasterCore, now: u64) -> Result<Option<Self>, ServerError> {
+    async fn start(
+        core: &mut MasterCore,
+        now: u64,
+        lag: Option<u64>,
+    ) -> Result<Option<Self>, ServerError> {
         use super::illumination::{Request, Solver, initial_state, solve};
         if core.scene().illumination != showcase_proto::IlluminationMode::Global {
             return Ok(None);
@@ -516,8 +540,30 @@ impl GlobalIllumination {
             solver,
             results,
             asked: None,
+            lag,
+            outstanding: None,
+            early: None,
             published: None,
         }))
+    }
+
+    /// Lockstep only: before frame `frame` is built, publish the solve due
+    /// at it. False while that solve has not landed: the frame must wait
+    /// (the loop skips the tick and stays responsive, so no node misses a
+    /// deadline while the solver is late).
+    fn due(&mut self, core: &mut MasterCore, frame: u64, now: u64, run: &mut ClusterRun) -> bool {
+        let (Some(lag), Some(asked)) = (self.lag, self.outstanding) else {
+            return true;
+        };
+        if frame < asked.saturating_add(lag) {
+            return true;
+        }
+        let Some(solved) = self.early.take() else {
+            return false;
+        };
+        self.outstanding = None;
+        self.publish_now(core, now, solved, run);
+        true
     }
 
     /// `state` is about to be submitted: time the update it is the first
@@ -537,17 +583,40 @@ impl GlobalIllumination {
                 });
             }
         }
+        // In lockstep one solve at a time, each published at its frame.
+        if self.lag.is_some() && self.outstanding.is_some() {
+            return;
+        }
         if self.asked.as_ref().is_none_or(|a| inputs_differ(a, state)) {
             match Request::of(core.scene(), state) {
-                Ok(r) => self.solver.ask(r),
+                Ok(r) => {
+                    self.solver.ask(r);
+                    self.outstanding = Some(state.frame);
+                }
                 Err(e) => warn!(error = %e, frame = state.frame, "cannot ask for illumination"),
             }
             self.asked = Some(state.clone());
         }
     }
 
-    /// A solve finished: publish it (or record why it failed).
+    /// A solve finished: publish it now (live), or keep it for its frame
+    /// (lockstep).
     fn publish(
+        &mut self,
+        core: &mut MasterCore,
+        now: u64,
+        solved: Result<super::illumination::Solved, String>,
+        run: &mut ClusterRun,
+    ) {
+        if self.lag.is_some() {
+            self.early = Some(solved);
+        } else {
+            self.publish_now(core, now, solved, run);
+        }
+    }
+
+    /// Publish a finished solve (or record why it failed).
+    fn publish_now(
         &mut self,
         core: &mut MasterCore,
         now: u64,

@@ -99,6 +99,7 @@ pub fn live_figures(
         write_frames: None,
         keep_frames: true,
         keep_presented: false,
+        illumination_lag: None,
     }))?;
     let rec = bench_record(count, INTERACTIVE_HZ, frames, &result);
     let u = crate::cluster::illumination::UpdateSummary::of(&result.run.illumination_updates);

@@ -613,6 +613,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         write_frames: None,
         keep_frames: true,
         keep_presented: false,
+        illumination_lag: None,
     }))?;
     let seconds = started.elapsed().as_secs_f64();
     let rec = bench_record(node_count, HZ, opts.frames, &result);
