@@ -546,28 +546,33 @@ fn illumination_value(field: &dyn Fn() -> String, v: [f32; 3]) -> R {
     Ok(())
 }
 
+fn too_many_elements(field: &str, n: usize) -> R {
+    fail(
+        field,
+        format!("{n} elements is above the limit of {MAX_ILLUMINATION_ELEMENTS}"),
+    )
+}
+
+/// The rules of a whole solution ([`IlluminationBody::Full`]), for the
+/// master that publishes one as for the node that receives it.
+pub(crate) fn full_solution(mesh: &IlluminationMesh, values: &[[f32; 3]]) -> R {
+    within(|| "mesh".into(), mesh.validate())?;
+    if values.len() > MAX_ILLUMINATION_ELEMENTS {
+        return too_many_elements("values", values.len());
+    }
+    for (i, v) in values.iter().enumerate() {
+        illumination_value(&|| format!("values[{i}]"), *v)?;
+    }
+    Ok(())
+}
+
 impl Validate for IlluminationBody {
     fn validate(&self) -> R {
-        let too_many = |field: &str, n: usize| {
-            fail(
-                field,
-                format!("{n} elements is above the limit of {MAX_ILLUMINATION_ELEMENTS}"),
-            )
-        };
         match self {
-            IlluminationBody::Full { mesh, values } => {
-                within(|| "mesh".into(), mesh.validate())?;
-                if values.len() > MAX_ILLUMINATION_ELEMENTS {
-                    return too_many("values", values.len());
-                }
-                for (i, v) in values.iter().enumerate() {
-                    illumination_value(&|| format!("values[{i}]"), *v)?;
-                }
-                Ok(())
-            }
+            IlluminationBody::Full { mesh, values } => full_solution(mesh, values),
             IlluminationBody::Delta { changes, .. } => {
                 if changes.len() > MAX_ILLUMINATION_ELEMENTS {
-                    return too_many("changes", changes.len());
+                    return too_many_elements("changes", changes.len());
                 }
                 let mut previous: Option<u32> = None;
                 for (i, c) in changes.iter().enumerate() {

@@ -10,7 +10,6 @@
 //! [`MasterCore::set_illumination`]: showcase_proto::session::MasterCore::set_illumination
 
 use crate::radiosity_job::{RadiosityOptions, indirect_values};
-use glam::DVec3;
 use showcase_light::render::FrameScene;
 use showcase_proto::message::IlluminationMesh;
 use showcase_proto::{FrameState, Showcase};
@@ -18,29 +17,27 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 use tokio::sync::mpsc;
 
-/// What the solver is asked to solve: the scene as a frame left it.
+/// What the solver is asked to solve: the scene as a frame left it. The
+/// frame loop only shares the scene and copies the (small) state; the
+/// solver resolves them on its own thread.
 #[derive(Debug)]
 pub struct Request {
-    /// The frame whose state this is.
-    pub frame: u64,
     /// When the loop asked.
     pub asked_at: Instant,
-    /// The scene with the frame's lights and transforms.
-    pub showcase: Showcase,
-    /// The frame's eyes.
-    pub eyes: Vec<DVec3>,
+    /// The scene the frame refers to.
+    pub scene: Arc<Showcase>,
+    /// The frame's state: its lights, transforms and heads.
+    pub state: FrameState,
 }
 
 impl Request {
-    /// The request for `state` of `scene`.
-    pub fn of(scene: &Showcase, state: &FrameState) -> anyhow::Result<Self> {
-        let resolved = FrameScene::resolve(scene, state)?;
-        Ok(Self {
-            frame: state.frame,
+    /// The request for `state` of `scene`, asked now.
+    pub fn of(scene: &Arc<Showcase>, state: &FrameState) -> Self {
+        Self {
             asked_at: Instant::now(),
-            showcase: resolved.showcase,
-            eyes: resolved.eyes,
-        })
+            scene: scene.clone(),
+            state: state.clone(),
+        }
     }
 }
 
@@ -62,10 +59,11 @@ pub struct Solved {
 /// Solve `request` (the scene meshed by `options`' hierarchical mesh).
 pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Solved> {
     let t = Instant::now();
-    let (_, values) = indirect_values(&request.showcase, &request.eyes, options)?;
+    let resolved = FrameScene::resolve(&request.scene, &request.state)?;
+    let (_, values) = indirect_values(&resolved.showcase, &resolved.eyes, options)?;
     let m = options.hierarchical_mesh();
     Ok(Solved {
-        frame: request.frame,
+        frame: request.state.frame,
         asked_at: request.asked_at,
         mesh: IlluminationMesh {
             max_patch_area: m.max_patch_area,

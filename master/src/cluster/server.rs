@@ -520,12 +520,10 @@ impl GlobalIllumination {
         let state = initial_state(&scene, core.scene_version());
         let first = {
             let options = options.clone();
-            tokio::task::spawn_blocking(move || {
-                Request::of(&scene, &state).and_then(|r| solve(r, &options))
-            })
-            .await
-            .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?
-            .map_err(|e| ServerError::Illumination(format!("the first solution: {e:#}")))?
+            tokio::task::spawn_blocking(move || solve(Request::of(&scene, &state), &options))
+                .await
+                .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?
+                .map_err(|e| ServerError::Illumination(format!("the first solution: {e:#}")))?
         };
         info!(
             elements = first.values.len(),
@@ -588,13 +586,8 @@ impl GlobalIllumination {
             return;
         }
         if self.asked.as_ref().is_none_or(|a| inputs_differ(a, state)) {
-            match Request::of(core.scene(), state) {
-                Ok(r) => {
-                    self.solver.ask(r);
-                    self.outstanding = Some(state.frame);
-                }
-                Err(e) => warn!(error = %e, frame = state.frame, "cannot ask for illumination"),
-            }
+            self.solver.ask(Request::of(core.scene(), state));
+            self.outstanding = Some(state.frame);
             self.asked = Some(state.clone());
         }
     }

@@ -72,35 +72,22 @@ pub fn live_figures(
     mode: showcase_proto::IlluminationMode,
     frames: u64,
 ) -> Result<LiveFigures> {
-    use crate::cluster::commands::{bench_record, output_nodes, state_hash_renderers};
+    use crate::cluster::commands::{bench_record, output_nodes, walk_plan};
     use crate::cluster::{LoopbackPlan, run_loopback};
     let mut scene = scene.clone();
     scene.illumination = mode;
-    let tracker =
-        crate::tracking::Tracker::new(&walk_tracking(&scene, TrackingSource::Scripted), &scene)?;
     let nodes = output_nodes(&scene);
     let count = nodes.len();
+    let plan = LoopbackPlan {
+        nodes,
+        keep_frames: true,
+        ..walk_plan(&scene, 0, INTERACTIVE_HZ, frames)?
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
-    let result = runtime.block_on(run_loopback(LoopbackPlan {
-        scene,
-        show: Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64),
-        nodes,
-        frames,
-        core: showcase_proto::session::MasterConfig {
-            target_hz: INTERACTIVE_HZ,
-            ..crate::cluster::cluster_core_defaults()
-        },
-        renderers: state_hash_renderers(),
-        restart: None,
-        metrics: None,
-        write_frames: None,
-        keep_frames: true,
-        keep_presented: false,
-        illumination_lag: None,
-    }))?;
+    let result = runtime.block_on(run_loopback(plan))?;
     let rec = bench_record(count, INTERACTIVE_HZ, frames, &result);
     let u = crate::cluster::illumination::UpdateSummary::of(&result.run.illumination_updates);
     Ok(LiveFigures {

@@ -59,11 +59,7 @@ impl MasterCore {
         mesh: IlluminationMesh,
         values: Vec<[f32; 3]>,
     ) -> Result<u64, MasterError> {
-        let body = IlluminationBody::Full { mesh, values };
-        crate::validate::Validate::validate(&body)?;
-        let IlluminationBody::Full { mesh, values } = body else {
-            unreachable!("built as Full above");
-        };
+        crate::validate::full_solution(&mesh, &values)?;
         self.illumination.next_version += 1;
         let version = self.illumination.next_version;
         let new = Arc::new(HeldSolution {
