@@ -29,10 +29,11 @@ pub enum BenchTarget {
     /// The live dashboard's cost: master CPU with it off and on (4 node
     /// processes at 120 Hz, alternated runs), and eviction to `/api/state`.
     Dashboard,
-    /// Global illumination for the projectors, offline: their maps (the
-    /// GPU renderer, or its CPU reference without an adapter) in direct
-    /// and global mode at one frame of the walk, judged in the physically
-    /// complete world (the live cluster does not run global mode yet).
+    /// Global illumination: the projectors' maps and the faces' views
+    /// (the GPU renderers, or their CPU references without an adapter) in
+    /// direct and global mode at one frame of the walk, judged in the
+    /// physically complete world; and the live loopback cluster's update
+    /// latency and cost in both modes (`--live-frames`).
     Gi,
 }
 

@@ -15,6 +15,7 @@
 
 pub mod cube_map;
 pub mod face_view;
+pub mod field;
 pub mod flat_lambert;
 pub mod frame_arrays;
 pub mod hemicube;

@@ -8,6 +8,7 @@
 use super::renderer::{RenderError, RenderOutput, Renderer};
 use crate::gpu::GpuContext;
 use crate::render::face_gpu::FaceRenderer;
+use crate::render::illumination::FieldCache;
 use crate::render::projector_gpu::ProjectorRenderer;
 use showcase_proto::{FrameState, Role, Showcase};
 use std::sync::Arc;
@@ -54,6 +55,17 @@ impl std::fmt::Debug for OutputRenderer {
 }
 
 impl OutputRenderer {
+    /// The current renderer's mesh cache of the master's solutions: its
+    /// scene mesh outlives a rejoin (meshing again would make the node
+    /// late for its first frames).
+    fn take_fields(&mut self) -> FieldCache {
+        match &mut self.inner {
+            Inner::Projector(r) => r.take_fields(),
+            Inner::Face(r) => r.take_fields(),
+            Inner::None => FieldCache::default(),
+        }
+    }
+
     /// A renderer for `output` (a projector's or a face's name) in `role`
     /// on `ctx`, with shadow maps of `shadow_res` texels a side. Cameras
     /// capture rather than render: `role` must be a projector or a face.
@@ -90,12 +102,7 @@ impl Renderer for OutputRenderer {
                         name: self.output.clone(),
                         have: scene.projectors.iter().map(|p| p.name.clone()).collect(),
                     })?;
-                // Its scene mesh outlives a rejoin: meshing again would make
-                // the node late for its first frames.
-                let fields = match &mut self.inner {
-                    Inner::Projector(r) => r.take_fields(),
-                    _ => Default::default(),
-                };
+                let fields = self.take_fields();
                 Inner::Projector(Box::new(
                     ProjectorRenderer::new(self.ctx.clone(), index, self.shadow_res)
                         .with_fields(fields),
@@ -115,12 +122,11 @@ impl Renderer for OutputRenderer {
                     observer_in_front(&scene, index).ok_or_else(|| RenderError::NoObserver {
                         face: self.output.clone(),
                     })?;
-                Inner::Face(Box::new(FaceRenderer::new(
-                    self.ctx.clone(),
-                    index,
-                    observer,
-                    self.shadow_res,
-                )))
+                let fields = self.take_fields();
+                Inner::Face(Box::new(
+                    FaceRenderer::new(self.ctx.clone(), index, observer, self.shadow_res)
+                        .with_fields(fields),
+                ))
             }
         };
         self.inner = inner;

@@ -22,6 +22,7 @@ use crate::gpu::cube_map::{CubeDraws, CubeMapFrames};
 use crate::gpu::face_view::{
     self, FaceBindGroup, FaceBindings, FaceDraws, FaceFrameUniform, FaceViewPass, NO_OWN_EYE,
 };
+use crate::gpu::field::FieldBuffers;
 use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
 use crate::gpu::shadow_lookup::EyeGpu;
 use crate::gpu::shadow_views::SHADOW_NEAR;
@@ -50,6 +51,9 @@ pub const FACE_FAR: f64 = 20.0;
 #[derive(Debug)]
 pub struct FacePipeline {
     scene: SceneBuffers,
+    /// Every object as the face view draws it: split into the
+    /// global-illumination field's pieces in global mode.
+    field: FieldBuffers,
     shadow: ShadowStage,
     face: FaceViewPass,
     albedos: UploadBuffer,
@@ -110,8 +114,9 @@ struct FaceFrame {
 
 impl Instances {
     /// The instances of the objects of `ranges` (the scene buffers'), with
-    /// a cube map per reflective virtual object when `cubes`.
-    fn new(frame: &FrameScene, ranges: &[ObjectRange], cubes: bool) -> Self {
+    /// a cube map per reflective virtual object when `cubes`; each range
+    /// as `field` draws it.
+    fn new(frame: &FrameScene, ranges: &[ObjectRange], field: &FieldBuffers, cubes: bool) -> Self {
         let centres = if cubes {
             reflective_centres(frame)
         } else {
@@ -121,6 +126,7 @@ impl Instances {
         let mut phantom_albedos = Vec::new();
         for (oi, r) in ranges {
             let o = &frame.showcase.objects[*oi];
+            let r = &field.range(r);
             // w: 1 + the object's cube map, 0 for none (face_view.wgsl).
             let map = centres.iter().position(|(c, _)| c == oi);
             let a = o
@@ -168,6 +174,7 @@ impl FacePipeline {
         };
         Self {
             scene: SceneBuffers::new(device),
+            field: FieldBuffers::new(device),
             shadow: ShadowStage::new(device, shadow_res, face_view::capacity),
             face: FaceViewPass::new(device),
             albedos: array("face albedos", "albedos", size_of::<[f32; 4]>()),
@@ -222,6 +229,14 @@ impl FacePipeline {
         let mut steps = TimedEncoder::new(ctx, timed);
         self.scene
             .update(&ctx.device, &ctx.queue, &frame.showcase)?;
+        self.field.update(
+            &ctx.device,
+            &ctx.queue,
+            frame.indirect.as_ref(),
+            self.scene.all(),
+            self.scene.all_triangles(),
+            self.scene.generation(),
+        );
         // Every tracked eye but the drawn one casts occlusion shadows this
         // view fills: the other observers' eyes, then this observer's own
         // eyes (each eye's uniform names its own entry, which it skips).
@@ -249,7 +264,7 @@ impl FacePipeline {
     /// The instances, base uniform and array space of a frame of
     /// `inputs`, with cube maps when `cubes`.
     fn face_frame(&self, frame: &FrameScene, inputs: FrameInputs, cubes: bool) -> FaceFrame {
-        let instances = Instances::new(frame, self.scene.ranges(), cubes);
+        let instances = Instances::new(frame, self.scene.ranges(), &self.field, cubes);
         let base = FaceFrameUniform {
             clip_from_world: [[0.0; 4]; 4],
             eye: [0.0; 4],
@@ -440,7 +455,7 @@ impl FacePipeline {
             cube_maps: None,
             space: f.space,
         };
-        let (vertices, _) = self.scene.buffer(VertexSet::All);
+        let (vertices, _) = drawn_vertices(&self.field, &self.scene);
         let draws = CubeDraws {
             vertices,
             phantoms: &f.instances.phantoms,
@@ -459,9 +474,10 @@ impl FacePipeline {
         // occlusion shadow to fill (the eyes' views are empty), so they
         // would draw the clear colour: skip them (the image is the same).
         let nothing_virtual = instances.virtuals.iter().all(|r| r.is_empty());
-        let (vertices, _) = self.scene.buffer(VertexSet::All);
+        let (vertices, _) = drawn_vertices(&self.field, &self.scene);
         let draws = FaceDraws {
             vertices,
+            values: self.field.values(),
             phantoms: if nothing_virtual {
                 &[]
             } else {
@@ -503,6 +519,14 @@ impl FacePipeline {
         self.draw(ctx, frame, face, eyes, other_eyes, passes, false)?;
         self.read(ctx)
     }
+}
+
+/// Every object's vertices as the instances' ranges name them: split
+/// into the field's pieces in global mode.
+fn drawn_vertices<'a>(field: &'a FieldBuffers, scene: &'a SceneBuffers) -> (&'a wgpu::Buffer, u32) {
+    field
+        .vertices()
+        .unwrap_or_else(|| scene.buffer(VertexSet::All))
 }
 
 /// The eyes of every observer but `observer` (two per head, in order).

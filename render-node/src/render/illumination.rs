@@ -1,6 +1,6 @@
 //! A node's side of global illumination: the master's solution
 //! ([`Solution`], per element of the scene's radiosity mesh) made into the
-//! field a projector draws ([`IndirectField`]). The node meshes its own
+//! field a projector or a face draws ([`IndirectField`]). The node meshes its own
 //! copy of the scene with the solution's mesh options, which gives the
 //! master's elements in the master's order; the mesh is kept while the
 //! scene (its content, not only its version: a restarted master starts
@@ -76,5 +76,75 @@ impl FieldCache {
             ))
         })?;
         Ok(Arc::new(field))
+    }
+}
+
+/// A renderer's global-illumination state: the field drawn with every
+/// frame, the solution version it was made from, and the mesh cache.
+/// Both roles hold one ([`super::ProjectorRenderer`],
+/// [`super::FaceRenderer`]).
+#[derive(Debug, Default)]
+pub struct LiveIllumination {
+    /// The field drawn with every frame (global mode), if any.
+    field: Option<Arc<IndirectField>>,
+    /// The version of the master's solution `field` was made from.
+    version: Option<u64>,
+    fields: FieldCache,
+}
+
+impl LiveIllumination {
+    /// No field, with the mesh cache `fields` (from [`Self::take_fields`]).
+    pub fn with_fields(fields: FieldCache) -> Self {
+        Self {
+            fields,
+            ..Self::default()
+        }
+    }
+
+    /// The mesh cache, to hand to the renderer that replaces this one (a
+    /// new scene or a rejoin), so a rejoining node does not mesh the
+    /// scene again.
+    pub fn take_fields(&mut self) -> FieldCache {
+        std::mem::take(&mut self.fields)
+    }
+
+    /// The field drawn with every frame.
+    pub fn field(&self) -> Option<&Arc<IndirectField>> {
+        self.field.as_ref()
+    }
+
+    /// Draw `field` (not from a master's solution: benches and tests).
+    pub fn set_field(&mut self, field: Option<Arc<IndirectField>>) {
+        self.field = field;
+        self.version = None;
+    }
+
+    /// Follow the master: `solution` (`None`: direct light) on `scene`,
+    /// the renderer's scene and its version. Returns whether the field
+    /// changed, so the renderer draws its next frame afresh.
+    pub fn update(
+        &mut self,
+        scene: Option<(&Arc<Showcase>, u64)>,
+        solution: Option<&Arc<Solution>>,
+    ) -> Result<bool, RenderError> {
+        let Some(solution) = solution else {
+            if self.version.take().is_some() {
+                self.field = None;
+                return Ok(true);
+            }
+            return Ok(false);
+        };
+        if self.version == Some(solution.version) {
+            return Ok(false);
+        }
+        let Some((scene, version)) = scene else {
+            return Err(RenderError::Illumination {
+                version: solution.version,
+                problem: "it arrived before any scene".into(),
+            });
+        };
+        self.field = Some(self.fields.field(scene, version, solution)?);
+        self.version = Some(solution.version);
+        Ok(true)
     }
 }

@@ -10,8 +10,8 @@ use super::gpu_frame::{
     FrameInputs, LightOccluders, PassTimes, SceneBuffers, ShadowStage, TimedEncoder, VertexSet,
 };
 use super::passes::{Pass, PassList};
+use crate::gpu::field::FieldBuffers;
 use crate::gpu::frame_arrays::{ARRAY_USAGE, ArraySpace};
-use crate::gpu::irradiance_map::field::FieldBuffers;
 use crate::gpu::irradiance_map::{
     self, FrameUniform, IrradianceBindGroup, IrradianceBindings, IrradianceMapPass, state,
 };

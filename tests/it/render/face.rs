@@ -66,12 +66,56 @@ fn gpu_face_view_matches_the_cpu_reference() -> Result<()> {
     };
     let scene = bench()?;
     let frame = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
-    let occ = Occluders::new(&frame)?;
+    check_gpu_face_against_cpu(&ctx, &frame, &bench_face(320, 240))?;
+    Ok(())
+}
+
+/// Global mode: the face adds the global-illumination field to what it
+/// shades (the virtual objects' indirect light, and the filled occlusion
+/// shadows' correction), on the GPU as in the CPU reference, and the
+/// field changes the image far more than GPU and CPU differ.
+#[test]
+fn gpu_face_global_mode_matches_the_cpu_reference() -> Result<()> {
+    use showcase_master::radiosity_job::{RadiosityOptions, indirect_field};
+    let Some(ctx) = gpu_or_skip("gpu_face_global_mode_matches_the_cpu_reference")? else {
+        return Ok(());
+    };
+    let scene = bench()?;
+    let direct = FrameScene::resolve(&scene, &bench_frame(&scene, "full", 0))?;
+    let (field, elements) =
+        indirect_field(&direct.showcase, &direct.eyes, &RadiosityOptions::default())?;
+    ensure!(elements > 100, "{elements} elements");
+    let global = direct.clone().with_indirect(Arc::new(field));
     let face = bench_face(320, 240);
-    let BothEyes { eyes, others, gpu } = gpu_both_eyes(&ctx, &frame, &face, 1024)?;
+    let occ = Occluders::new(&direct)?;
+    for &eye in &direct.eyes[..2] {
+        let d = face_image_cpu(&direct, &occ, &face, eye, &[])?;
+        let g = face_image_cpu(&global, &occ, &face, eye, &[])?;
+        let drawn = d.state.map(|s| !s.masked);
+        let effect = relative_rmse(&d.radiance, &g.radiance, Some(&drawn))?;
+        eprintln!("eye {eye}: the field changes the face by {effect}");
+        ensure!(
+            effect > 10.0 * GPU_CPU_REL_RMSE,
+            "the field changes the face by only {effect}"
+        );
+    }
+    check_gpu_face_against_cpu(&ctx, &global, &face)?;
+    // Back to direct light: the same kind of pipeline without the field.
+    check_gpu_face_against_cpu(&ctx, &direct, &face)?;
+    Ok(())
+}
+
+/// Both eyes of observer 0 through `face` on the GPU against the CPU
+/// reference: off edges within [`GPU_CPU_REL_RMSE`] and
+/// [`OFF_EDGE_OUTLIERS`], the other observer's occlusion shadows filled
+/// in, and no virtual object drawn behind a phantom.
+fn check_gpu_face_against_cpu(ctx: &GpuContext, frame: &FrameScene, face: &CrtFace) -> Result<()> {
+    let scene = &frame.showcase;
+    let occ = Occluders::new(frame)?;
+    let BothEyes { eyes, others, gpu } = gpu_both_eyes(ctx, frame, face, 1024)?;
     for (k, (eye, image)) in eyes.iter().zip(&gpu).enumerate() {
         let filled = eyes_to_fill(&eyes, k, &others);
-        let cpu = face_image_cpu(&frame, &occ, &face, *eye, &filled)?;
+        let cpu = face_image_cpu(frame, &occ, face, *eye, &filled)?;
         let g = Image {
             width: face.width,
             height: face.height,

@@ -186,10 +186,13 @@ impl NodeRenderers {
         Ok(())
     }
 
-    /// Draw the projectors in global mode with `field`.
+    /// Draw the projectors and the faces in global mode with `field`.
     pub(super) fn set_indirect(&mut self, field: Arc<IndirectField>) {
-        if let RenderersKind::Gpu { projectors, .. } = &mut self.kind {
+        if let RenderersKind::Gpu { projectors, faces } = &mut self.kind {
             for r in projectors {
+                r.set_indirect(Some(field.clone()));
+            }
+            for (_, _, r) in faces {
                 r.set_indirect(Some(field.clone()));
             }
         }

@@ -242,11 +242,14 @@ pub fn augmented_radiosity_hierarchical(
     )
 }
 
-/// The irradiance (W/m^2 per channel, per element; zero on virtual
-/// elements) that the projectors must add to the virtual lights' direct
-/// irradiance so that the real surfaces show the target's global
-/// illumination in a real cabinet, where light bounces between the real
-/// surfaces alone:
+/// The irradiance (W/m^2 per channel, per element) that the displays
+/// must add to the virtual lights' direct irradiance so that every
+/// surface shows the target's global illumination. On a virtual element
+/// (drawn by the CRT faces) it is the whole indirect irradiance
+/// `E_indirect(B0)`. On a real element (lit by the projectors, or drawn
+/// by a face in an occluding occlusion shadow) it is what the target's
+/// indirect light lacks in a real cabinet, where light bounces between
+/// the real surfaces alone:
 ///
 /// `dE = E_indirect(B0) - E_real(B0_real)`
 ///
@@ -311,9 +314,8 @@ pub fn indirect_correction(
         .zip(bounce_all.iter().zip(&bounce_real))
         .map(|(e, (all, real))| {
             let rho = e.reflectance;
-            if !e.real {
-                return DVec3::ZERO;
-            }
+            // On a virtual element `real` is zero (the real-only links
+            // leave it inactive): its whole indirect irradiance.
             let per = |c: usize| {
                 if rho[c] > RHO_F_FLOOR {
                     (all[c] - real[c]) / rho[c]

@@ -19,6 +19,13 @@
 //! normal `n` facing the eye, `C` the distance-corrected lookup
 //! ([`CubeMap::reflection_direction`]).
 //!
+//! In global mode ([`FrameScene::indirect`]) every diffuse surface drawn
+//! adds the field to `E`: on a virtual object its indirect light from
+//! the real room and the other virtual objects, on a real surface in an
+//! occluding occlusion shadow what the target's indirect light has beyond
+//! the real surfaces' own interreflection, which still reaches the dark
+//! surface in the cabinet ([`crate::radiosity::augmented::indirect_correction`]).
+//!
 //! Pixel `(u, v)` of the CRT is drawn at its centre: the eye's ray goes
 //! through the pixel centre's *reflected* position (`mirror_view`), so a
 //! drawn point lies on the line of sight through its reflection.
@@ -164,7 +171,10 @@ fn face_pixel(
         let lit = reflected_state(map, r);
         return (finite_or_zero(l), PixelState { lit, ..state });
     }
-    let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    let (mut e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    if let Some(field) = &frame.indirect {
+        e += field.at(&hit);
+    }
     let rho = o
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))

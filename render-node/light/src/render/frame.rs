@@ -156,8 +156,9 @@ pub struct FrameScene {
     pub samples: Vec<LightSample>,
     /// Eye positions of every tracked head (two per head).
     pub eyes: Vec<DVec3>,
-    /// The global-illumination correction the projectors add to the
-    /// direct target (`illumination = "global"`); `None`: direct light
+    /// The global-illumination field the displays add to the direct
+    /// target (the projectors on real surfaces, the faces on what they
+    /// shade) (`illumination = "global"`); `None`: direct light
     /// only.
     pub indirect: Option<Arc<IndirectField>>,
 }
@@ -195,7 +196,7 @@ impl FrameScene {
         })
     }
 
-    /// This frame with the projectors' global-illumination correction.
+    /// This frame with the global-illumination field.
     pub fn with_indirect(self, indirect: Arc<IndirectField>) -> Self {
         Self {
             indirect: Some(indirect),

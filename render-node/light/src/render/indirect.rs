@@ -1,7 +1,9 @@
-//! The global-illumination correction a projector adds to its direct
-//! target ([`crate::radiosity::augmented::indirect_correction`]), as the
-//! frame model carries it: per vertex of the radiosity mesh it was solved
-//! on, interpolated at the surface point a projector pixel lights.
+//! The global-illumination field the displays add to their direct target
+//! ([`crate::radiosity::augmented::indirect_correction`]: the projectors
+//! on the real surfaces, the faces on the virtual ones and on filled
+//! occlusion shadows), as the frame model carries it: per vertex of the
+//! radiosity mesh it was solved on, interpolated at the surface point a
+//! pixel shows.
 
 use crate::Hit;
 use crate::radiosity::RadiosityMesh;

@@ -62,23 +62,40 @@ struct VertexOut {
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) normal: vec3<f32>,
     @location(2) @interpolate(flat) object: u32,
+    // The global-illumination field (W/m^2), added to E.
+    @location(3) field: vec3<f32>,
 }
 
-@vertex
-fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
+fn vertex_out(v: VertexIn, object: u32, field: vec3<f32>) -> VertexOut {
     var out: VertexOut;
     out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
     out.world = v.position;
     out.normal = v.normal;
     out.object = object;
+    out.field = field;
     return out;
+}
+
+// The cube-map pass's vertices: no field.
+@vertex
+fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
+    return vertex_out(v, object, vec3<f32>(0.0));
+}
+
+// The face view's vertices, with the global-illumination field per
+// vertex (gpu::field; zeros in direct mode), interpolated linearly
+// inside each piece as IndirectField::at does.
+@vertex
+fn vs_field(v: VertexIn, @location(2) field: vec3<f32>, @builtin(instance_index) object: u32) -> VertexOut {
+    return vertex_out(v, object, field);
 }
 
 // LightSample, Eye, ShadowView, cube_face, visible_from_light,
 // visible_from_eye, intensity_towards: gpu/shadow_lookup.part.wgsl.
 
-// rho / pi * E at p with unit normal n (the side facing the eye).
-fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
+// rho / pi * E at p with unit normal n (the side facing the eye), E the
+// virtual lights' direct irradiance, the ambient and `field`.
+fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>, field: vec3<f32>) -> vec3<f32> {
     var e = max(frame.ambient.rgb, vec3<f32>(0.0));
     for (var i = 0u; i < frame.counts.x; i++) {
         let s = lights[i];
@@ -97,7 +114,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, rho: vec3<f32>) -> vec3<f32> {
         }
         e += intensity_towards(s, -dir) * (cos_t / r2);
     }
-    return rho * e * 0.31830988618379067;
+    return rho * (e + field) * 0.31830988618379067;
 }
 
 fn facing(in: VertexOut) -> vec3<f32> {
@@ -126,7 +143,7 @@ fn fs_phantom(in: VertexOut) -> @location(0) vec4<f32> {
     if (!occluded) {
         return vec4<f32>(0.0, 0.0, 0.0, 0.0);
     }
-    return vec4<f32>(shade(p, n, albedos[in.object].rgb), 1.0);
+    return vec4<f32>(shade(p, n, albedos[in.object].rgb, in.field), 1.0);
 }
 
 
@@ -252,7 +269,7 @@ fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
 @fragment
 fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
     let a = albedos[in.object];
-    return vec4<f32>(shade(in.world, facing(in), a.rgb), 1.0);
+    return vec4<f32>(shade(in.world, facing(in), a.rgb, in.field), 1.0);
 }
 
 // A reflective virtual object: its albedo times its cube map (w: 1 + the
@@ -273,5 +290,5 @@ fn fs_virtual_mirror(in: VertexOut) -> @location(0) vec4<f32> {
 @fragment
 fn fs_environment(in: VertexOut) -> @location(0) vec4<f32> {
     let n = facing(in);
-    return vec4<f32>(shade(in.world, n, albedos[in.object].rgb), length(in.world - frame.eye.xyz));
+    return vec4<f32>(shade(in.world, n, albedos[in.object].rgb, in.field), length(in.world - frame.eye.xyz));
 }

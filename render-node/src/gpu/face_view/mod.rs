@@ -10,6 +10,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::frame_arrays::{ArraySpace, uniform_capacity};
 
+use super::field::field_value_layout;
 use super::pipeline::{self, TrianglePipeline, opaque, texture, uniform_buffer};
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
@@ -68,8 +69,12 @@ pub struct FaceBindings<'a> {
 /// What the pass draws: ranges of one world-space vertex buffer.
 #[derive(Debug)]
 pub struct FaceDraws<'a> {
-    /// World vertices of every object.
+    /// World vertices of every object (in global mode split into the
+    /// field's pieces, [`super::field`]).
     pub vertices: &'a wgpu::Buffer,
+    /// The global-illumination field at each of `vertices` (zeros in
+    /// direct mode).
+    pub values: &'a wgpu::Buffer,
     /// Vertex range of each phantom (instances after the virtual objects).
     pub phantoms: &'a [std::ops::Range<u32>],
     /// Vertex range of each virtual object (instances from 0).
@@ -191,7 +196,7 @@ impl Variants {
         });
         let pipelines = entries
             .iter()
-            .map(|fs| render_pipeline(device, &shader, &pipeline_layout, fs))
+            .map(|fs| render_pipeline(device, &shader, &pipeline_layout, fs, cube_maps))
             .collect();
         Variant { layout, pipelines }
     }
@@ -292,18 +297,26 @@ pub fn bind_group(
 
 /// A pipeline of the face view shader with fragment entry point `fs`
 /// into [`OffscreenTarget`]'s formats (depth tested and written, no
-/// culling): the face view's and the cube-map pass's.
+/// culling): the face view's (`field`: with the global-illumination field
+/// as a second vertex buffer, `vs_field`) and the cube-map pass's
+/// (`vs_main`, the field 0).
 pub fn render_pipeline(
     device: &wgpu::Device,
     shader: &wgpu::ShaderModule,
     pipeline_layout: &wgpu::PipelineLayout,
     fs: &str,
+    field: bool,
 ) -> wgpu::RenderPipeline {
+    let with_field = [Some(world_vertex_layout()), Some(field_value_layout())];
     TrianglePipeline {
         label: fs,
         layout: pipeline_layout,
         shader,
-        vertex: ("vs_main", &[Some(world_vertex_layout())]),
+        vertex: if field {
+            ("vs_field", &with_field)
+        } else {
+            ("vs_main", &with_field[..1])
+        },
         // Two-sided, as in the CPU reference (so the mirror's winding
         // flip needs no special case).
         cull_mode: None,
@@ -373,6 +386,7 @@ impl FaceViewPass {
         };
         pass.set_bind_group(0, bind_group.group(), &[]);
         pass.set_vertex_buffer(0, draws.vertices.slice(..));
+        pass.set_vertex_buffer(1, draws.values.slice(..));
         pass.set_pipeline(phantom);
         let first_phantom = draws.virtuals.len() as u32;
         for (i, r) in draws.phantoms.iter().enumerate() {

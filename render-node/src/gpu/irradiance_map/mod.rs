@@ -15,10 +15,9 @@ use super::pipeline::{
 use super::shadow_views::{ShadowMaps, world_vertex_layout};
 use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 
-pub mod field;
 pub mod floor;
 
-use field::field_value_layout;
+use super::field::field_value_layout;
 
 /// Mirrors WGSL `struct Frame` in `irradiance_map.wgsl`.
 #[repr(C)]
@@ -244,7 +243,7 @@ impl IrradianceMapPass {
 
     /// Record the pass: clear both targets to 0 and depth to 1, draw the
     /// real phantoms (`vertex_count` of `vertices`, world space, and as
-    /// many [`field::FieldValue`]s of `field_values`) with the inputs of
+    /// many [`super::field::FieldValue`]s of `field_values`) with the inputs of
     /// `bind_group`. `irradiance` receives `L` and the state code, `value`
     /// the device values; both must have the projector's size.
     #[allow(clippy::too_many_arguments)]

@@ -8,12 +8,15 @@ use showcase_proto::{FrameState, Showcase};
 
 use super::{FacePipeline, other_eyes};
 use crate::gpu::GpuContext;
+use crate::render::illumination::{FieldCache, LiveIllumination};
 use crate::render::passes::{FrameKey, Pass, PassList};
 use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
 };
 use showcase_light::digest::hash_pixels;
+use showcase_light::render::IndirectField;
 use showcase_light::render::frame::FrameScene;
+use showcase_proto::session::Solution;
 
 /// The [`Renderer`] of a face node: both eyes of one observer through one
 /// face, left eye in the left half of the output image.
@@ -24,6 +27,10 @@ pub struct FaceRenderer {
     face: usize,
     observer: usize,
     scene_version: Option<u64>,
+    /// The scene of `scene_version`.
+    scene: Option<Arc<Showcase>>,
+    /// The global-illumination field drawn with every frame.
+    illumination: LiveIllumination,
     last_passes: Vec<Pass>,
     last: Option<(FrameKey, RenderOutput)>,
 }
@@ -38,9 +45,30 @@ impl FaceRenderer {
             face,
             observer,
             scene_version: None,
+            scene: None,
+            illumination: LiveIllumination::default(),
             last_passes: Vec::new(),
             last: None,
         }
+    }
+
+    /// The mesh cache of the master's solutions, to hand to the renderer
+    /// that replaces this one (a new scene or a rejoin).
+    pub fn take_fields(&mut self) -> FieldCache {
+        self.illumination.take_fields()
+    }
+
+    /// This renderer with `fields` (from [`Self::take_fields`]).
+    pub fn with_fields(mut self, fields: FieldCache) -> Self {
+        self.illumination = LiveIllumination::with_fields(fields);
+        self
+    }
+
+    /// Draw every following frame with the global-illumination field
+    /// `field` (global mode), or direct light only (`None`, the default).
+    pub fn set_indirect(&mut self, field: Option<Arc<IndirectField>>) {
+        self.illumination.set_field(field);
+        self.last = None;
     }
 
     /// Passes the last frame ran (empty when it reused the frame before).
@@ -73,7 +101,10 @@ impl FaceRenderer {
             self.last_passes.clear();
             return Ok(output.clone());
         }
-        let resolved = FrameScene::resolve(scene, frame)?;
+        let mut resolved = FrameScene::resolve(scene, frame)?;
+        if let Some(field) = self.illumination.field() {
+            resolved = resolved.with_indirect(field.clone());
+        }
         let other_eyes = other_eyes(&resolved, self.observer);
         let passes = PassList::for_face(&resolved, other_eyes.len() + eyes.len() - 1);
         let images =
@@ -101,9 +132,21 @@ impl FaceRenderer {
 }
 
 impl Renderer for FaceRenderer {
-    fn set_scene(&mut self, version: u64, _scene: Arc<Showcase>) -> Result<(), RenderError> {
+    fn set_scene(&mut self, version: u64, scene: Arc<Showcase>) -> Result<(), RenderError> {
         self.scene_version = Some(version);
+        self.scene = Some(scene);
         self.last = None;
+        Ok(())
+    }
+
+    fn set_illumination(
+        &mut self,
+        illumination: Option<&Arc<Solution>>,
+    ) -> Result<(), RenderError> {
+        let scene = self.scene.as_ref().zip(self.scene_version);
+        if self.illumination.update(scene, illumination)? {
+            self.last = None;
+        }
         Ok(())
     }
 

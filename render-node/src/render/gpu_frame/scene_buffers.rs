@@ -35,8 +35,10 @@ pub struct SceneBuffers {
     kinds: Vec<ObjectKind>,
     /// The real set's vertices (as uploaded to its buffer).
     real: Vec<WorldVertex>,
-    /// Per triangle of the real set: its object and its index in the
-    /// object's mesh.
+    /// Per triangle of `all`: its object and its index in the object's
+    /// mesh.
+    all_triangles: Vec<(u32, u32)>,
+    /// The same for the real set.
     real_triangles: Vec<(u32, u32)>,
     real_count: u32,
     virtual_count: u32,
@@ -54,6 +56,7 @@ impl SceneBuffers {
             ranges: Vec::new(),
             kinds: Vec::new(),
             real: Vec::new(),
+            all_triangles: Vec::new(),
             real_triangles: Vec::new(),
             real_count: 0,
             virtual_count: 0,
@@ -80,11 +83,9 @@ impl SceneBuffers {
             .iter()
             .map(|(oi, _)| showcase.objects[*oi].kind)
             .collect();
-        let real_triangles = ranges
+        let all_triangles = ranges
             .iter()
-            .zip(&kinds)
-            .filter(|(_, k)| **k == ObjectKind::Real)
-            .flat_map(|((oi, r), _)| {
+            .flat_map(|(oi, r)| {
                 triangles[r.start as usize / 3..r.end as usize / 3]
                     .iter()
                     .map(|&t| (*oi as u32, t))
@@ -94,10 +95,20 @@ impl SceneBuffers {
             && all == self.all
             && ranges == self.ranges
             && kinds == self.kinds
-            && real_triangles == self.real_triangles
+            && all_triangles == self.all_triangles
         {
             return Ok(false);
         }
+        let real_triangles = ranges
+            .iter()
+            .zip(&kinds)
+            .filter(|(_, k)| **k == ObjectKind::Real)
+            .flat_map(|((_, r), _)| {
+                all_triangles[r.start as usize / 3..r.end as usize / 3]
+                    .iter()
+                    .copied()
+            })
+            .collect::<Vec<_>>();
         let of = |kind: ObjectKind| -> Vec<WorldVertex> {
             ranges
                 .iter()
@@ -125,6 +136,7 @@ impl SceneBuffers {
         self.all = all;
         self.ranges = ranges;
         self.kinds = kinds;
+        self.all_triangles = all_triangles;
         self.real_triangles = real_triangles;
         self.real = real;
         self.generation += 1;
@@ -146,6 +158,12 @@ impl SceneBuffers {
     /// object and the triangle's index in the object's mesh.
     pub fn real_triangles(&self) -> &[(u32, u32)] {
         &self.real_triangles
+    }
+
+    /// Per triangle of [`Self::all`], in its order: the object and the
+    /// triangle's index in the object's mesh.
+    pub fn all_triangles(&self) -> &[(u32, u32)] {
+        &self.all_triangles
     }
 
     /// Identity of the buffers' contents: changes with every upload.

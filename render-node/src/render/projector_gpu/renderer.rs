@@ -7,7 +7,7 @@ use showcase_proto::{FrameState, Showcase};
 
 use crate::gpu::GpuContext;
 use crate::render::RenderSetupError;
-use crate::render::illumination::FieldCache;
+use crate::render::illumination::{FieldCache, LiveIllumination};
 use crate::render::passes::{FrameKey, Pass, PassList};
 use crate::render::renderer::{
     OutputImage, RenderError, RenderOutput, Renderer, check_scene_version,
@@ -39,12 +39,8 @@ pub struct ProjectorRenderer {
     scene_version: Option<u64>,
     /// The scene of `scene_version`.
     scene: Option<Arc<Showcase>>,
-    /// The global-illumination correction drawn with every frame (global
-    /// mode), if any.
-    indirect: Option<Arc<IndirectField>>,
-    /// The version of the master's solution `indirect` was made from.
-    illumination_version: Option<u64>,
-    fields: FieldCache,
+    /// The global-illumination field drawn with every frame.
+    illumination: LiveIllumination,
     /// Run every pass regardless of the pass list (for comparisons).
     pub force_all_passes: bool,
     last: Option<(FrameKey, RenderOutput, f64)>,
@@ -61,9 +57,7 @@ impl ProjectorRenderer {
             projector,
             scene_version: None,
             scene: None,
-            indirect: None,
-            illumination_version: None,
-            fields: FieldCache::default(),
+            illumination: LiveIllumination::default(),
             force_all_passes: false,
             last: None,
             report: FrameReport::default(),
@@ -74,19 +68,19 @@ impl ProjectorRenderer {
     /// that replaces this one (a new scene or a rejoin), so a rejoining
     /// node does not mesh the scene again.
     pub fn take_fields(&mut self) -> FieldCache {
-        std::mem::take(&mut self.fields)
+        self.illumination.take_fields()
     }
 
     /// This renderer with `fields` (from [`Self::take_fields`]).
     pub fn with_fields(mut self, fields: FieldCache) -> Self {
-        self.fields = fields;
+        self.illumination = LiveIllumination::with_fields(fields);
         self
     }
 
     /// Draw every following frame with the global-illumination correction
     /// `field` (global mode), or direct light only (`None`, the default).
     pub fn set_indirect(&mut self, field: Option<Arc<IndirectField>>) {
-        self.indirect = field;
+        self.illumination.set_field(field);
         self.last = None;
     }
 
@@ -113,7 +107,7 @@ impl ProjectorRenderer {
                     index: self.projector,
                 })?;
         let mut resolved = FrameScene::resolve(scene, frame)?;
-        if let Some(field) = &self.indirect {
+        if let Some(field) = self.illumination.field() {
             resolved = resolved.with_indirect(field.clone());
         }
         let passes = if self.force_all_passes {
@@ -166,24 +160,10 @@ impl Renderer for ProjectorRenderer {
         &mut self,
         illumination: Option<&Arc<Solution>>,
     ) -> Result<(), RenderError> {
-        let Some(solution) = illumination else {
-            if self.illumination_version.take().is_some() {
-                self.set_indirect(None);
-            }
-            return Ok(());
-        };
-        if self.illumination_version == Some(solution.version) {
-            return Ok(());
+        let scene = self.scene.as_ref().zip(self.scene_version);
+        if self.illumination.update(scene, illumination)? {
+            self.last = None;
         }
-        let (Some(scene), Some(version)) = (&self.scene, self.scene_version) else {
-            return Err(RenderError::Illumination {
-                version: solution.version,
-                problem: "it arrived before any scene".into(),
-            });
-        };
-        let field = self.fields.field(scene, version, solution)?;
-        self.set_indirect(Some(field));
-        self.illumination_version = Some(solution.version);
         Ok(())
     }
 

@@ -292,6 +292,7 @@ fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_t
         &HierarchyOptions::default(),
     )
     .unwrap();
+    virtual_elements_carry_their_path_traced_indirect_light(&scene, &mesh, &delta);
     let field = Arc::new(IndirectField::new(Arc::new(mesh), &delta).unwrap());
     let cam = camera();
     let judge = |frame: &FrameScene| {
@@ -345,5 +346,63 @@ fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_t
     assert!(
         global < direct / 3.0,
         "global maps {global} against direct {direct}"
+    );
+}
+
+/// On the virtual elements (drawn by the CRT faces) the field is their
+/// whole indirect irradiance: each face of the virtual block, its
+/// elements' values averaged by area, against the sim's path-traced
+/// indirect irradiance at the same element centres (independent of the
+/// radiosity), within 10 % (or 2 % of the largest face's, for faces that
+/// get little), and the face towards the lit wall gets several times what
+/// the top gets.
+fn virtual_elements_carry_their_path_traced_indirect_light(
+    scene: &Showcase,
+    mesh: &crate::radiosity::RadiosityMesh,
+    delta: &[DVec3],
+) {
+    let world = SimWorld::new(scene, &ObjectFilter::All, true).unwrap();
+    let lights = SimLights::virtual_lights(&scene.lights, scene.ambient).unwrap();
+    // Per face of the block (by normal): area-weighted sums of the field
+    // and of the path-traced indirect irradiance (red: the block's colour
+    // bleeds least into it, the grey room's most).
+    let mut faces: Vec<(DVec3, f64, f64, f64)> = Vec::new();
+    for (i, e) in mesh.elements.iter().enumerate().filter(|(_, e)| !e.real) {
+        let ray = crate::Ray::new(e.center + 0.01 * e.normal, -e.normal);
+        let Some(surface) = world.surface_along(&ray, &lights).surface else {
+            continue;
+        };
+        let (traced, _) = world.indirect_irradiance(&surface, &lights, 256, i as u64);
+        let k = match faces.iter().position(|f| f.0.dot(e.normal) > 0.99) {
+            Some(k) => k,
+            None => {
+                faces.push((e.normal, 0.0, 0.0, 0.0));
+                faces.len() - 1
+            }
+        };
+        faces[k].1 += e.area;
+        faces[k].2 += e.area * delta[i].y;
+        faces[k].3 += e.area * traced.y;
+    }
+    assert_eq!(faces.len(), 6, "the block has six faces");
+    let largest = faces.iter().map(|f| f.3 / f.1).fold(0.0, f64::max);
+    assert!(largest > 0.0);
+    for (n, area, field, traced) in &faces {
+        let (field, traced) = (field / area, traced / area);
+        eprintln!("block face {n}: field {field:.4}, path-traced {traced:.4} W/m^2");
+        assert!(
+            (field - traced).abs() <= (0.1 * traced).max(0.02 * largest),
+            "face {n}: field {field} against path-traced {traced}"
+        );
+    }
+    let mean = |n: DVec3| {
+        let f = faces.iter().find(|f| f.0.dot(n) > 0.99).unwrap();
+        f.2 / f.1
+    };
+    assert!(
+        mean(-DVec3::X) > 3.0 * mean(DVec3::Y),
+        "towards the wall {} against the top {}",
+        mean(-DVec3::X),
+        mean(DVec3::Y)
     );
 }

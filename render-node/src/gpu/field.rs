@@ -1,7 +1,7 @@
-//! The projectors' global-illumination correction
-//! ([`showcase_light::render::IndirectField`]) as the irradiance map pass
-//! draws it: in global mode the real set is drawn split into the field's
-//! pieces ([`IndirectField::pieces`]: the radiosity mesh's leaves inside
+//! The global-illumination field
+//! ([`showcase_light::render::IndirectField`]) as the passes draw it: in
+//! global mode the irradiance map pass draws the real set, and the face
+//! view every object, split into the field's pieces ([`IndirectField::pieces`]: the radiosity mesh's leaves inside
 //! each scene triangle), each vertex carrying the field, so the rasteriser
 //! interpolates it as `RadiosityMesh::interpolate` does, linearly inside
 //! each piece. The pieces' corners are placed on the scene triangle as it
@@ -38,18 +38,32 @@ pub fn field_value_layout() -> wgpu::VertexBufferLayout<'static> {
     }
 }
 
-/// The real set (`real`: three vertices per triangle; `triangles`: each
+/// A vertex set split into a field's pieces ([`field_geometry`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FieldGeometry {
+    /// Three per piece.
+    pub vertices: Vec<WorldVertex>,
+    /// The field at each of `vertices`.
+    pub values: Vec<FieldValue>,
+    /// Per input triangle, the first of `vertices` its pieces hold, and
+    /// after the last `vertices.len()`.
+    pub starts: Vec<u32>,
+}
+
+/// A vertex set (`set`: three vertices per triangle; `triangles`: each
 /// one's object and mesh triangle) split into `field`'s pieces, with the
 /// field at every vertex. A triangle off the field's mesh stays whole,
 /// with the field 0.
 pub fn field_geometry(
     field: &IndirectField,
-    real: &[WorldVertex],
+    set: &[WorldVertex],
     triangles: &[(u32, u32)],
-) -> (Vec<WorldVertex>, Vec<FieldValue>) {
-    let mut vertices = Vec::with_capacity(real.len());
-    let mut values = Vec::with_capacity(real.len());
-    for (corners, &(object, triangle)) in real.chunks_exact(3).zip(triangles) {
+) -> FieldGeometry {
+    let mut vertices = Vec::with_capacity(set.len());
+    let mut values = Vec::with_capacity(set.len());
+    let mut starts = Vec::with_capacity(triangles.len() + 1);
+    for (corners, &(object, triangle)) in set.chunks_exact(3).zip(triangles) {
+        starts.push(vertices.len() as u32);
         let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(corners[k].position));
         let normal = corners[0].normal;
         let Some(pieces) = field.pieces(object, triangle) else {
@@ -70,17 +84,25 @@ pub fn field_geometry(
             }
         }
     }
-    (vertices, values)
+    starts.push(vertices.len() as u32);
+    FieldGeometry {
+        vertices,
+        values,
+        starts,
+    }
 }
 
-/// The real set as the pass draws it in global mode, kept across frames
-/// and rebuilt only when the field or the scene's vertices change; without
-/// a field, zeros beside the scene's own real set.
+/// A vertex set as a pass draws it in global mode (the projectors' real
+/// set, the faces' every object), kept across frames and rebuilt only
+/// when the field or the scene's vertices change; without a field, zeros
+/// beside the scene's own set.
 #[derive(Debug)]
 pub struct FieldBuffers {
     vertices: UploadBuffer,
     values: UploadBuffer,
     count: u32,
+    /// [`FieldGeometry::starts`] of the split set (empty without a field).
+    starts: Vec<u32>,
     /// The field drawn and the scene buffers' generation it was matched
     /// with.
     key: Option<(Option<Arc<IndirectField>>, u64)>,
@@ -94,18 +116,19 @@ impl FieldBuffers {
             vertices: vertex("field vertices"),
             values: vertex("field values"),
             count: 0,
+            starts: Vec::new(),
             key: None,
         }
     }
 
-    /// Bring the buffers up to `field` on the real set `real` with
+    /// Bring the buffers up to `field` on the vertex set `set` with
     /// `triangles` (the scene buffers' `generation`).
     pub fn update(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         field: Option<&Arc<IndirectField>>,
-        real: &[WorldVertex],
+        set: &[WorldVertex],
         triangles: &[(u32, u32)],
         generation: u64,
     ) {
@@ -123,22 +146,40 @@ impl FieldBuffers {
         }
         match field {
             Some(f) => {
-                let (vertices, values) = field_geometry(f, real, triangles);
-                self.vertices.write(device, queue, &vertices);
-                self.values.write(device, queue, &values);
-                self.count = vertices.len() as u32;
+                let g = field_geometry(f, set, triangles);
+                self.vertices.write(device, queue, &g.vertices);
+                self.values.write(device, queue, &g.values);
+                self.count = g.vertices.len() as u32;
+                self.starts = g.starts;
             }
             None => {
                 self.values
-                    .write(device, queue, &vec![FieldValue::zeroed(); real.len()]);
-                self.count = real.len() as u32;
+                    .write(device, queue, &vec![FieldValue::zeroed(); set.len()]);
+                self.count = set.len() as u32;
+                self.starts.clear();
             }
         }
         self.key = Some((field.cloned(), generation));
     }
 
-    /// The split real set (in global mode; `None` without a field: draw
-    /// the scene's own real set) and its vertex count.
+    /// Where the vertices of `range` of the scene's own set (whole
+    /// triangles) lie in the split set: `range` itself without a field.
+    pub fn range(&self, range: &std::ops::Range<u32>) -> std::ops::Range<u32> {
+        let at = |v: u32| {
+            if self.starts.is_empty() {
+                v
+            } else {
+                self.starts
+                    .get(v as usize / 3)
+                    .copied()
+                    .unwrap_or(self.count)
+            }
+        };
+        at(range.start)..at(range.end)
+    }
+
+    /// The split set (in global mode; `None` without a field: draw the
+    /// scene's own set) and its vertex count.
     pub fn vertices(&self) -> Option<(&wgpu::Buffer, u32)> {
         self.key
             .as_ref()
