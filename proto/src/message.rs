@@ -149,9 +149,8 @@ pub struct IlluminationMesh {
     pub min_element_area: f64,
 }
 
-/// Master to node: one version of the global-illumination solution, the
-/// projectors' correction per element of the scene's radiosity mesh
-/// (W/m^2 per channel). Frames name the version they are drawn with
+/// Master to node: one version of the global-illumination solution, per
+/// element of the scene's radiosity mesh ([`ElementLight`]). Frames name the version they are drawn with
 /// ([`FrameState::illumination_version`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Illumination {
@@ -170,8 +169,8 @@ pub enum IlluminationBody {
     Full {
         /// How the scene is meshed.
         mesh: IlluminationMesh,
-        /// Per element, rgb.
-        values: Vec<[f32; 3]>,
+        /// Per element.
+        values: Vec<ElementLight>,
     },
     /// The elements that differ from version `base`, in increasing element
     /// order; the others keep `base`'s value.
@@ -188,8 +187,30 @@ pub enum IlluminationBody {
 pub struct ElementChange {
     /// Its index in the mesh.
     pub element: u32,
-    /// rgb.
-    pub value: [f32; 3],
+    /// Its light.
+    pub value: ElementLight,
+}
+
+/// One element's global-illumination light (W/m^2, rgb).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ElementLight {
+    /// What the displays add to the direct light there: on a virtual
+    /// element (the faces) its indirect irradiance, on a real one (the
+    /// projectors) what the target's indirect light has beyond the real
+    /// surfaces' own interreflection.
+    pub add: [f32; 3],
+    /// What the real surfaces' own interreflection brings a real element
+    /// (0 on virtual ones): the light it still reflects where the
+    /// projectors leave it dark, seen through the virtual objects in
+    /// front of it.
+    pub cabinet: [f32; 3],
+}
+
+impl ElementLight {
+    /// Its six numbers: `add`, then `cabinet`.
+    pub fn channels(&self) -> impl Iterator<Item = f32> + '_ {
+        self.add.iter().chain(&self.cabinet).copied()
+    }
 }
 
 /// Node to master: the node lacks solution `version` (a delta's base never

@@ -297,8 +297,11 @@ pub fn snapshot() -> impl Strategy<Value = SceneSnapshot> {
 
 /// Any valid global-illumination solution, whole or a delta.
 pub fn illumination() -> impl Strategy<Value = crate::message::Illumination> {
-    use crate::message::{ElementChange, Illumination, IlluminationBody, IlluminationMesh};
-    let value = || [-1e3f32..1e3, -1e3f32..1e3, -1e3f32..1e3];
+    use crate::message::{
+        ElementChange, ElementLight, Illumination, IlluminationBody, IlluminationMesh,
+    };
+    let rgb = || [-1e3f32..1e3, -1e3f32..1e3, -1e3f32..1e3];
+    let value = move || (rgb(), rgb()).prop_map(|(add, cabinet)| ElementLight { add, cabinet });
     let full = (
         1e-4f64..1.0,
         0u32..=6,

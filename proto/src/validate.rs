@@ -3,8 +3,8 @@
 //! the offending field, e.g. `objects[3].transform.scale`.
 
 use crate::message::{
-    Hello, IlluminationBody, IlluminationMesh, MAX_ILLUMINATION_ELEMENTS, MAX_ILLUMINATION_VALUE,
-    Message, NodeStats, Welcome,
+    ElementLight, Hello, IlluminationBody, IlluminationMesh, MAX_ILLUMINATION_ELEMENTS,
+    MAX_ILLUMINATION_VALUE, Message, NodeStats, Welcome,
 };
 use crate::scene::*;
 use glam::{DMat3, DVec3, Quat, Vec3};
@@ -533,8 +533,8 @@ impl Validate for IlluminationMesh {
 
 /// A solution value: finite, at most [`MAX_ILLUMINATION_VALUE`] in
 /// magnitude.
-fn illumination_value(field: &dyn Fn() -> String, v: [f32; 3]) -> R {
-    for x in v {
+fn illumination_value(field: &dyn Fn() -> String, v: &ElementLight) -> R {
+    for x in v.channels() {
         finite(field, x as f64)?;
         if x.abs() > MAX_ILLUMINATION_VALUE {
             return fail(
@@ -555,13 +555,13 @@ fn too_many_elements(field: &str, n: usize) -> R {
 
 /// The rules of a whole solution ([`IlluminationBody::Full`]), for the
 /// master that publishes one as for the node that receives it.
-pub(crate) fn full_solution(mesh: &IlluminationMesh, values: &[[f32; 3]]) -> R {
+pub(crate) fn full_solution(mesh: &IlluminationMesh, values: &[ElementLight]) -> R {
     within(|| "mesh".into(), mesh.validate())?;
     if values.len() > MAX_ILLUMINATION_ELEMENTS {
         return too_many_elements("values", values.len());
     }
     for (i, v) in values.iter().enumerate() {
-        illumination_value(&|| format!("values[{i}]"), *v)?;
+        illumination_value(&|| format!("values[{i}]"), v)?;
     }
     Ok(())
 }
@@ -587,7 +587,7 @@ impl Validate for IlluminationBody {
                         );
                     }
                     previous = Some(c.element);
-                    illumination_value(&|| format!("changes[{i}].value"), c.value)?;
+                    illumination_value(&|| format!("changes[{i}].value"), &c.value)?;
                 }
                 Ok(())
             }

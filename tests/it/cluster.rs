@@ -742,7 +742,7 @@ impl Renderer for Lit {
     ) -> Result<(), RenderError> {
         self.solution = illumination.map(|s| {
             let mut h = showcase_light::digest::Fnv64::default();
-            for v in s.values.iter().flatten() {
+            for v in s.values.iter().flat_map(|v| v.channels()) {
                 h.write(&v.to_bits().to_le_bytes());
             }
             (s.version, h.finish())

@@ -11,7 +11,7 @@
 
 use crate::radiosity_job::{RadiosityOptions, indirect_values};
 use showcase_light::render::FrameScene;
-use showcase_proto::message::IlluminationMesh;
+use showcase_proto::message::{ElementLight, IlluminationMesh};
 use showcase_proto::{FrameState, Showcase};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
@@ -50,8 +50,8 @@ pub struct Solved {
     pub asked_at: Instant,
     /// How the scene was meshed.
     pub mesh: IlluminationMesh,
-    /// Per element, rgb (W/m^2).
-    pub values: Vec<[f32; 3]>,
+    /// Per element.
+    pub values: Vec<ElementLight>,
     /// The solve's own time (s).
     pub solve_s: f64,
 }
@@ -70,7 +70,13 @@ pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Sol
             element_depth: m.element_depth,
             min_element_area: m.min_element_area,
         },
-        values: values.iter().map(|v| v.as_vec3().to_array()).collect(),
+        values: values
+            .iter()
+            .map(|v| ElementLight {
+                add: v.add.as_vec3().to_array(),
+                cabinet: v.cabinet.as_vec3().to_array(),
+            })
+            .collect(),
         solve_s: t.elapsed().as_secs_f64(),
     })
 }

@@ -226,10 +226,21 @@ fn judge(
             *w = json!(w.as_f64().unwrap_or(0.0).max(e));
         }
     }
-    let mut delta_e = Vec::new();
+    // Every covered pixel, those that show a virtual object, and every
+    // covered pixel under the ideal CRT.
+    let (mut delta_e, mut virtual_, mut ideal) = (Vec::new(), Vec::new(), Vec::new());
     for o in 0..truth.observers.len() {
         let r = views::observe(truth, state, &outputs, o, transport)?;
-        delta_e.extend(r.delta_e.iter().copied().filter(|d| d.is_finite()));
+        let finite = |d: &&f64| d.is_finite();
+        delta_e.extend(r.delta_e.iter().filter(finite));
+        virtual_.extend(
+            r.delta_e
+                .iter()
+                .zip(&r.view.sees_virtual.data)
+                .filter(|(d, v)| **v && d.is_finite())
+                .map(|(d, _)| *d),
+        );
+        ideal.extend(r.delta_e_ideal_crt.iter().filter(finite));
         noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
     }
     Ok(json!({
@@ -244,6 +255,10 @@ fn judge(
         "camera_consistency_rel_rmse_per_object": per_object,
         "observer_delta_e_median": percentile(&delta_e, 50.0),
         "observer_delta_e_p95": percentile(&delta_e, 95.0),
+        "observer_delta_e_median_virtual": percentile(&virtual_, 50.0),
+        "observer_delta_e_p95_virtual": percentile(&virtual_, 95.0),
+        "observer_delta_e_median_ideal_crt": percentile(&ideal, 50.0),
+        "observer_delta_e_p95_ideal_crt": percentile(&ideal, 95.0),
         "compared_noise_rel_rmse": noise,
         "projector_clipped_fractions": outputs.reference_clipped,
     }))

@@ -263,8 +263,9 @@ pub struct Solved {
     pub complete: bool,
 }
 
-/// The projectors' global-illumination correction for `showcase` as it
-/// stands, seen by the eyes `eyes` ([`radiosity::augmented::indirect_correction`]
+/// The global-illumination field for `showcase` as it stands (what the
+/// projectors and the faces add, and the real surfaces' own
+/// interreflection), seen by the eyes `eyes` ([`radiosity::augmented::indirect_correction`]
 /// on the hierarchical mesh and settings of `options`, with the real
 /// elements the projectors leave dark: those none reaches and those in an
 /// eye's occlusion shadow), and the elements it has.
@@ -285,7 +286,7 @@ pub fn indirect_values(
     showcase: &Showcase,
     eyes: &[glam::DVec3],
     options: &RadiosityOptions,
-) -> anyhow::Result<(RadiosityMesh, Vec<DVec3>)> {
+) -> anyhow::Result<(RadiosityMesh, Vec<showcase_light::render::IndirectLight>)> {
     use rayon::prelude::*;
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;

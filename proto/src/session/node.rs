@@ -17,7 +17,7 @@
 use super::{NS_PER_MS, ms};
 use crate::PROTOCOL_VERSION;
 use crate::message::{
-    Bye, Capabilities, ClockProbe, ClockReply, Hello, Illumination, IlluminationBody,
+    Bye, Capabilities, ClockProbe, ClockReply, ElementLight, Hello, Illumination, IlluminationBody,
     IlluminationMesh, IlluminationResync, Message, NodeStats, Ready, Role, SceneSnapshot, Swap,
     Welcome,
 };
@@ -185,8 +185,8 @@ pub struct Solution {
     pub scene_version: u64,
     /// How that scene is meshed.
     pub mesh: IlluminationMesh,
-    /// Per element, rgb (W/m^2).
-    pub values: Vec<[f32; 3]>,
+    /// Per element.
+    pub values: Vec<ElementLight>,
 }
 
 #[derive(Debug)]

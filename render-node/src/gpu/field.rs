@@ -19,18 +19,21 @@ use std::sync::Arc;
 use crate::gpu::shadow_views::WorldVertex;
 use crate::gpu::upload::UploadBuffer;
 
-/// Mirrors the pass's second vertex buffer (location 2): the field at a
-/// drawn vertex (W/m^2 per channel).
+/// Mirrors the passes' second vertex buffer: the field at a drawn vertex
+/// (W/m^2 per channel, [`showcase_light::render::IndirectLight`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct FieldValue {
-    /// rgb.
-    pub value: [f32; 3],
+    /// What the displays add (location 2).
+    pub add: [f32; 3],
+    /// The real surfaces' own interreflection (location 3).
+    pub cabinet: [f32; 3],
 }
 
-/// The second vertex buffer's layout (location 2).
+/// The second vertex buffer's layout (locations 2 and 3).
 pub fn field_value_layout() -> wgpu::VertexBufferLayout<'static> {
-    const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![2 => Float32x3];
+    const ATTRIBUTES: [wgpu::VertexAttribute; 2] =
+        wgpu::vertex_attr_array![2 => Float32x3, 3 => Float32x3];
     wgpu::VertexBufferLayout {
         array_stride: size_of::<FieldValue>() as wgpu::BufferAddress,
         step_mode: wgpu::VertexStepMode::Vertex,
@@ -79,7 +82,8 @@ pub fn field_geometry(
                     normal,
                 });
                 values.push(FieldValue {
-                    value: value.as_vec3().to_array(),
+                    add: value.add.as_vec3().to_array(),
+                    cabinet: value.cabinet.as_vec3().to_array(),
                 });
             }
         }
@@ -103,6 +107,8 @@ pub struct FieldBuffers {
     count: u32,
     /// [`FieldGeometry::starts`] of the split set (empty without a field).
     starts: Vec<u32>,
+    /// Bumped whenever the buffers' contents change.
+    content: u64,
     /// The field drawn and the scene buffers' generation it was matched
     /// with.
     key: Option<(Option<Arc<IndirectField>>, u64)>,
@@ -117,6 +123,7 @@ impl FieldBuffers {
             values: vertex("field values"),
             count: 0,
             starts: Vec::new(),
+            content: 0,
             key: None,
         }
     }
@@ -160,6 +167,17 @@ impl FieldBuffers {
             }
         }
         self.key = Some((field.cloned(), generation));
+        self.content += 1;
+    }
+
+    /// Identity of the buffers' contents: changes with every rebuild.
+    pub fn content(&self) -> u64 {
+        self.content
+    }
+
+    /// Whether a field is drawn (global mode).
+    pub fn has_field(&self) -> bool {
+        self.key.as_ref().is_some_and(|(f, _)| f.is_some())
     }
 
     /// Where the vertices of `range` of the scene's own set (whole
@@ -181,9 +199,7 @@ impl FieldBuffers {
     /// The split set (in global mode; `None` without a field: draw the
     /// scene's own set) and its vertex count.
     pub fn vertices(&self) -> Option<(&wgpu::Buffer, u32)> {
-        self.key
-            .as_ref()
-            .is_some_and(|(f, _)| f.is_some())
+        self.has_field()
             .then(|| (self.vertices.buffer(), self.count))
     }
 

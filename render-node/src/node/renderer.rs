@@ -56,7 +56,7 @@ impl Renderer for StateHashRenderer {
         }
         self.illumination = illumination.map(|s| {
             let mut h = Fnv64::default();
-            for c in s.values.iter().flatten() {
+            for c in s.values.iter().flat_map(|v| v.channels()) {
                 h.write(&c.to_bits().to_le_bytes());
             }
             (s.version, h.finish())

@@ -66,14 +66,22 @@ pub struct FacePipeline {
     cube_count: usize,
 }
 
-/// One eye's uniform, bind group, target and readback buffer.
+/// One eye's uniform, bind groups, targets and readback buffer.
 #[derive(Debug)]
 struct EyeResources {
     frame: UploadBuffer,
     /// The bind group and the buffer (and cube map) generations and the
     /// array space it names.
     bind: Option<(([u64; 6], ArraySpace), FaceBindGroup)>,
+    /// The seen-through pass's bind group (made with `bind`).
+    seen_bind: Option<FaceBindGroup>,
     target: OffscreenTarget,
+    /// What the eye sees of the real surfaces' own interreflection
+    /// (global mode; zero in direct mode: textures start cleared).
+    seen: OffscreenTarget,
+    /// Whether `seen` holds a drawn image (to clear once back in direct
+    /// mode).
+    seen_drawn: bool,
     readback: ColourReadback,
 }
 
@@ -324,6 +332,7 @@ impl FacePipeline {
         let mut content = Fnv64::default();
         content.write(&self.scene.geometry(VertexSet::All).to_le_bytes());
         content.write(bytemuck::cast_slice(&f.instances.albedos));
+        content.write(&self.field.content().to_le_bytes());
         content.write(bytemuck::cast_slice(&f.inputs.lights));
         let light_layers = &f.inputs.light_layers;
         content.write(bytemuck::cast_slice(
@@ -392,9 +401,16 @@ impl FacePipeline {
                     albedos: self.albedos.buffer(),
                     other_eyes: self.other_eyes.buffer(),
                     cube_maps: Some(cube_maps.array_view()),
+                    seen_through: Some(res.seen.colour_view()),
                     space,
                 };
                 res.bind = Some((generations, self.face.bind_group(device, &bindings)));
+                let seen = FaceBindings {
+                    cube_maps: None,
+                    seen_through: None,
+                    ..bindings
+                };
+                res.seen_bind = Some(self.face.seen_through_bind_group(device, &seen));
             }
         }
         Ok(())
@@ -422,7 +438,10 @@ impl FacePipeline {
                 Ok(EyeResources {
                     frame: UploadBuffer::new(device, "face frame", wgpu::BufferUsages::UNIFORM),
                     bind: None,
+                    seen_bind: None,
                     target: OffscreenTarget::new(device, face.width, face.height)?,
+                    seen: OffscreenTarget::new(device, face.width, face.height)?,
+                    seen_drawn: false,
                     readback: ColourReadback::new(device, face.width, face.height),
                 })
             })
@@ -453,11 +472,13 @@ impl FacePipeline {
             albedos: self.albedos.buffer(),
             other_eyes: self.other_eyes.buffer(),
             cube_maps: None,
+            seen_through: None,
             space: f.space,
         };
         let (vertices, _) = drawn_vertices(&self.field, &self.scene);
         let draws = CubeDraws {
             vertices,
+            values: self.field.values(),
             phantoms: &f.instances.phantoms,
             first_instance: f.instances.virtuals.len() as u32,
         };
@@ -468,8 +489,15 @@ impl FacePipeline {
         Ok(())
     }
 
-    /// Record the face view of the first `eyes` eyes.
-    fn encode_views(&self, encoder: &mut wgpu::CommandEncoder, eyes: usize, instances: &Instances) {
+    /// Record the face view of the first `eyes` eyes, each after its
+    /// seen-through pass in global mode (or its clearing, once, back in
+    /// direct mode).
+    fn encode_views(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        eyes: usize,
+        instances: &Instances,
+    ) {
         // Without virtual objects the phantoms have nothing to hide and no
         // occlusion shadow to fill (the eyes' views are empty), so they
         // would draw the clear colour: skip them (the image is the same).
@@ -486,7 +514,15 @@ impl FacePipeline {
             virtuals: &instances.virtuals,
             mirrors: &instances.mirrors,
         };
-        for res in self.eyes.iter().take(eyes) {
+        let global = self.field.has_field();
+        for res in self.eyes.iter_mut().take(eyes) {
+            if let Some(seen) = &res.seen_bind
+                && (global || res.seen_drawn)
+            {
+                self.face
+                    .encode_seen_through(encoder, &res.seen, seen, &draws, global);
+                res.seen_drawn = global;
+            }
             if let Some((_, bind)) = &res.bind {
                 self.face.encode(encoder, &res.target, bind, &draws);
             }

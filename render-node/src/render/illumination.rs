@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use showcase_light::radiosity::{MeshOptions, RadiosityMesh};
-use showcase_light::render::IndirectField;
+use showcase_light::render::{IndirectField, IndirectLight};
 use showcase_light::{ObjectFilter, SceneGeometry};
 use showcase_proto::Showcase;
 use showcase_proto::message::IlluminationMesh;
@@ -65,10 +65,14 @@ impl FieldCache {
                 m
             }
         };
-        let values: Vec<DVec3> = solution
+        let rgb = |v: [f32; 3]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+        let values: Vec<IndirectLight> = solution
             .values
             .iter()
-            .map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+            .map(|v| IndirectLight {
+                add: rgb(v.add),
+                cabinet: rgb(v.cabinet),
+            })
             .collect();
         let field = IndirectField::new(mesh, &values).map_err(|e| {
             problem(format!(

@@ -353,6 +353,13 @@ pub(super) struct ObserverResult {
     pub exposure: f64,
     /// CIEDE2000 per covered pixel, at `exposure` (row-major, NaN elsewhere).
     pub delta_e: Vec<f64>,
+    /// [`Self::delta_e`] had the mirror shown exactly what the real view
+    /// lacks of the target (`max(target - real, 0)` per channel: a CRT
+    /// adds light only), anywhere: the floor of any face image under these
+    /// projector maps. What is left is real light no CRT can take away
+    /// (the real surfaces' own interreflection seen through a virtual
+    /// object darker than it) and real surfaces brighter than the target.
+    pub delta_e_ideal_crt: Vec<f64>,
     /// Relative RMSE of composite against target over covered pixels off
     /// the edges whose real surface some projector reaches.
     pub rel_rmse: f64,
@@ -417,20 +424,22 @@ pub(super) fn observe(
             state.frame
         )
     })?;
-    let delta_e = view
-        .composite
-        .data
-        .iter()
-        .zip(&view.target.data)
-        .zip(&view.covered.data)
-        .map(|((c, t), covered)| {
-            if !covered {
-                return f64::NAN;
-            }
-            let lab = |v: &Vec3| metrics::linear_srgb_to_lab(v.as_dvec3() * exposure);
-            metrics::delta_e_2000(lab(c), lab(t)).unwrap_or(f64::NAN)
-        })
-        .collect();
+    let delta_e_of = |seen: &dyn Fn(usize) -> Vec3| -> Vec<f64> {
+        (0..view.target.data.len())
+            .map(|i| {
+                if !view.covered.data[i] {
+                    return f64::NAN;
+                }
+                let lab = |v: Vec3| metrics::linear_srgb_to_lab(v.as_dvec3() * exposure);
+                metrics::delta_e_2000(lab(seen(i)), lab(view.target.data[i])).unwrap_or(f64::NAN)
+            })
+            .collect()
+    };
+    let delta_e = delta_e_of(&|i| view.composite.data[i]);
+    let delta_e_ideal_crt = delta_e_of(&|i| {
+        let (real, target) = (view.real.data[i], view.target.data[i]);
+        real + (target - real).max(Vec3::ZERO)
+    });
     let mask = Image {
         width: view.covered.width,
         height: view.covered.height,
@@ -500,6 +509,7 @@ pub(super) fn observe(
         view,
         exposure,
         delta_e,
+        delta_e_ideal_crt,
         rel_rmse,
         rel_rmse_real,
         rel_rmse_virtual,

@@ -6,7 +6,8 @@
 
 use super::*;
 use crate::message::{
-    ElementChange, Illumination, IlluminationBody, IlluminationMesh, IlluminationResync,
+    ElementChange, ElementLight, Illumination, IlluminationBody, IlluminationMesh,
+    IlluminationResync,
 };
 
 /// A delta is sent only when at most this fraction of the elements
@@ -19,7 +20,7 @@ pub(super) struct HeldSolution {
     pub(super) version: u64,
     pub(super) scene_version: u64,
     pub(super) mesh: IlluminationMesh,
-    pub(super) values: Arc<Vec<[f32; 3]>>,
+    pub(super) values: Arc<Vec<ElementLight>>,
 }
 
 impl HeldSolution {
@@ -47,8 +48,8 @@ pub(super) struct IlluminationState {
 
 impl MasterCore {
     /// Publish a new version of the global-illumination solution for the
-    /// current scene: per element of the scene meshed as `mesh`, the
-    /// projectors' correction. Every live node gets it before any frame
+    /// current scene: per element of the scene meshed as `mesh`, its
+    /// light ([`ElementLight`]). Every live node gets it before any frame
     /// that names it: as a delta against the previous version when at most
     /// a quarter of the elements changed (same scene, mesh and size), else
     /// whole. Frames submitted from now on must name the returned version
@@ -57,7 +58,7 @@ impl MasterCore {
         &mut self,
         _now: u64,
         mesh: IlluminationMesh,
-        values: Vec<[f32; 3]>,
+        values: Vec<ElementLight>,
     ) -> Result<u64, MasterError> {
         crate::validate::full_solution(&mesh, &values)?;
         self.illumination.next_version += 1;

@@ -10,7 +10,7 @@ use super::{
     NodeEvent, NodeOutput, PresentReport, SwapReport,
 };
 use crate::codec::{MAX_FRAME_LEN, decode_frame, encode_frame};
-use crate::message::{Message, Role};
+use crate::message::{ElementLight, Message, Role};
 use crate::scene::{FrameState, Light, LightSource, Observer, Pose, Showcase};
 use glam::{Quat, Vec3};
 use std::collections::BTreeMap;
@@ -237,9 +237,9 @@ pub fn frame_hash(frame: &FrameState) -> u64 {
 
 /// A digest of a global-illumination solution's values (BLAKE3 of their
 /// bits).
-pub fn values_digest(values: &[[f32; 3]]) -> u64 {
+pub fn values_digest(values: &[ElementLight]) -> u64 {
     let mut h = blake3::Hasher::new();
-    for v in values.iter().flatten() {
+    for v in values.iter().flat_map(ElementLight::channels) {
         h.update(&v.to_le_bytes());
     }
     u64::from_le_bytes(h.finalize().as_bytes()[..8].try_into().unwrap_or_default())
@@ -281,7 +281,7 @@ impl Cluster {
 
     /// Publish a global-illumination solution of `values` (on a fixed
     /// mesh) at the master; frames from the next tick name it.
-    pub fn set_illumination(&mut self, values: Vec<[f32; 3]>) -> Option<u64> {
+    pub fn set_illumination(&mut self, values: Vec<ElementLight>) -> Option<u64> {
         let now = self.now;
         let mesh = crate::message::IlluminationMesh {
             max_patch_area: 0.01,

@@ -3,7 +3,7 @@
 //! joiner gets the current solution, a lost delta is recovered with full
 //! copies, and a hostile solution closes only its node's connection.
 
-use crate::message::{ElementChange, Illumination, IlluminationBody, Message};
+use crate::message::{ElementChange, ElementLight, Illumination, IlluminationBody, Message};
 use crate::session::testing::{Cluster, NodeSpec, values_digest};
 use std::collections::BTreeMap;
 
@@ -27,11 +27,14 @@ fn specs(k: usize) -> Vec<NodeSpec> {
 }
 
 /// A solution that differs from `solution(k - 1)` in ten elements.
-fn solution(k: u32) -> Vec<[f32; 3]> {
+fn solution(k: u32) -> Vec<ElementLight> {
     (0..ELEMENTS as u32)
         .map(|e| {
             let changed = (0..=k).filter(|j| e % 100 == (j * 7) % 100).count() as f32;
-            [e as f32 * 1e-3, changed, -0.5 * changed]
+            ElementLight {
+                add: [e as f32 * 1e-3, changed, -0.5 * changed],
+                cabinet: [changed, 0.0, e as f32 * 1e-4],
+            }
         })
         .collect()
 }
@@ -175,7 +178,7 @@ fn hostile(c: &Cluster, body: IlluminationBody) -> Message {
 fn a_hostile_solution_closes_only_its_connection() {
     let nan = |c: &Cluster| {
         let mut values = solution(0);
-        values[3][1] = f32::NAN;
+        values[3].add[1] = f32::NAN;
         hostile(
             c,
             IlluminationBody::Full {
@@ -196,7 +199,10 @@ fn a_hostile_solution_closes_only_its_connection() {
                 base,
                 changes: vec![ElementChange {
                     element: ELEMENTS as u32,
-                    value: [1.0; 3],
+                    value: ElementLight {
+                        add: [1.0; 3],
+                        cabinet: [1.0; 3],
+                    },
                 }],
             },
         )
@@ -280,13 +286,13 @@ fn bad_solutions_are_refused_naming_the_field() {
         .field
     };
     let mut nan = solution(0);
-    nan[7][2] = f32::INFINITY;
+    nan[7].cabinet[2] = f32::INFINITY;
     assert_eq!(
         field(IlluminationBody::Full { mesh, values: nan }),
         "Illumination.body.values[7]"
     );
     let mut huge = solution(0);
-    huge[8][0] = 2e6;
+    huge[8].add[0] = 2e6;
     assert_eq!(
         field(IlluminationBody::Full { mesh, values: huge }),
         "Illumination.body.values[8]"
@@ -304,7 +310,7 @@ fn bad_solutions_are_refused_naming_the_field() {
     );
     let change = |element| ElementChange {
         element,
-        value: [0.0; 3],
+        value: ElementLight::default(),
     };
     assert_eq!(
         field(IlluminationBody::Delta {

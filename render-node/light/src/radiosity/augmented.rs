@@ -242,9 +242,55 @@ pub fn augmented_radiosity_hierarchical(
     )
 }
 
-/// The irradiance (W/m^2 per channel, per element) that the displays
-/// must add to the virtual lights' direct irradiance so that every
-/// surface shows the target's global illumination. On a virtual element
+/// The global-illumination light at one place (W/m^2 per channel).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IndirectLight {
+    /// What the displays add to the direct light: on a virtual surface its
+    /// indirect irradiance, on a real one what the target's indirect light
+    /// has beyond the cabinet's own interreflection
+    /// ([`indirect_correction`]).
+    pub add: DVec3,
+    /// What the real surfaces' own interreflection brings a real surface
+    /// (0 on virtual ones): where the projectors leave it dark (an
+    /// occlusion shadow), the irradiance it still reflects, seen through
+    /// the virtual objects in front of it.
+    pub cabinet: DVec3,
+}
+
+impl IndirectLight {
+    /// Whether both parts are finite.
+    pub fn is_finite(&self) -> bool {
+        self.add.is_finite() && self.cabinet.is_finite()
+    }
+}
+
+impl std::ops::Add for IndirectLight {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            add: self.add + o.add,
+            cabinet: self.cabinet + o.cabinet,
+        }
+    }
+}
+
+impl std::ops::Mul<IndirectLight> for f64 {
+    type Output = IndirectLight;
+    fn mul(self, l: IndirectLight) -> IndirectLight {
+        IndirectLight {
+            add: self * l.add,
+            cabinet: self * l.cabinet,
+        }
+    }
+}
+
+/// Per element, the global-illumination light ([`IndirectLight`], W/m^2
+/// per channel): `add`, the irradiance that the displays must add to the
+/// virtual lights' direct irradiance so that every surface shows the
+/// target's global illumination, and `cabinet`, `E_real` below: what the
+/// real surfaces' own interreflection brings a real element, the light a
+/// dark one still reflects (through the virtual objects in front of it,
+/// which the faces compensate). On a virtual element
 /// (drawn by the CRT faces) it is the whole indirect irradiance
 /// `E_indirect(B0)`. On a real element (lit by the projectors, or drawn
 /// by a face in an occluding occlusion shadow) it is what the target's
@@ -276,7 +322,7 @@ pub fn indirect_correction(
     lights: &[Light],
     lit: Option<&[bool]>,
     options: &HierarchyOptions,
-) -> Result<Vec<DVec3>, HierarchyError> {
+) -> Result<Vec<IndirectLight>, HierarchyError> {
     let emission: Vec<DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
     let mut h0 = Hierarchy::new(mesh, all, None, options)?;
     let direct = h0.direct(lights);
@@ -314,16 +360,23 @@ pub fn indirect_correction(
         .zip(bounce_all.iter().zip(&bounce_real))
         .map(|(e, (all, real))| {
             let rho = e.reflectance;
-            // On a virtual element `real` is zero (the real-only links
-            // leave it inactive): its whole indirect irradiance.
-            let per = |c: usize| {
-                if rho[c] > RHO_F_FLOOR {
-                    (all[c] - real[c]) / rho[c]
-                } else {
-                    0.0
-                }
+            // Irradiance from reflected exitance `b`.
+            let irradiance = |b: DVec3| {
+                let per = |c: usize| {
+                    if rho[c] > RHO_F_FLOOR {
+                        b[c] / rho[c]
+                    } else {
+                        0.0
+                    }
+                };
+                finite_or_zero(DVec3::new(per(0), per(1), per(2)))
             };
-            finite_or_zero(DVec3::new(per(0), per(1), per(2)))
+            // On a virtual element `real` is zero (the real-only links
+            // leave it inactive): `add` is its whole indirect irradiance.
+            IndirectLight {
+                add: irradiance(*all - *real),
+                cabinet: irradiance(*real),
+            }
         })
         .collect())
 }

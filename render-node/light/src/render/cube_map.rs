@@ -7,7 +7,9 @@
 //! where it has one) and `E` the virtual lights' irradiance with shadow
 //! types 4 and 5 (phantoms and virtual objects occlude the lights) plus
 //! the ambient term: the same direct-light model as the face view's
-//! shading ([`super::projector::target_irradiance`]). Virtual objects are
+//! shading ([`super::projector::target_irradiance`]), and in global mode
+//! ([`super::FrameScene::indirect`]) all the surface's indirect light
+//! (`add + cabinet`: in the target a real surface shows both). Virtual objects are
 //! not in the map (the paper reflects the real environment); a direction
 //! that meets no real surface is 0.
 //!
@@ -452,7 +454,13 @@ fn environment_hit(
         };
     }
     let facing = hit.facing_normal(dir);
-    let (e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    let (mut e, lit) = target_irradiance(frame, occluders, hit.point, facing);
+    if let Some(field) = &frame.indirect {
+        // Global mode: all the real surface's indirect light, what the
+        // projectors add and what the real surfaces bring each other.
+        let f = field.at(&hit);
+        e += f.add + f.cabinet;
+    }
     let rho = o
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))

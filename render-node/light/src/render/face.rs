@@ -25,6 +25,10 @@
 //! occluding occlusion shadow what the target's indirect light has beyond
 //! the real surfaces' own interreflection, which still reaches the dark
 //! surface in the cabinet ([`crate::radiosity::augmented::indirect_correction`]).
+//! That interreflection also lights the real surface behind a virtual
+//! object, inside the eye's occlusion shadow, and the observer sees it
+//! through the mirror: the face shows the virtual object less it
+//! (`real_seen_through`), clipped at black.
 //!
 //! Pixel `(u, v)` of the CRT is drawn at its centre: the eye's ray goes
 //! through the pixel centre's *reflected* position (`mirror_view`), so a
@@ -163,24 +167,61 @@ fn face_pixel(
         occluded,
         ..PixelState::default()
     };
+    // What the real surface behind a virtual object shows through it.
+    let seen_through = || match o.kind {
+        ObjectKind::Virtual => real_seen_through(frame, occluders, &ray),
+        ObjectKind::Real => DVec3::ZERO,
+    };
     if let Some(map) = cube_maps.iter().find(|m| m.object == hit.object as usize) {
         let r = map.reflection_direction(hit.point, reflect(dir, facing));
         let rho = o.material.albedo_at(hit.uv.unwrap_or(Vec2::ZERO));
-        let l = rho * map.sample(r);
+        let l = (rho * map.sample(r)).as_dvec3() - seen_through();
         // Edges of the reflected environment are edges of this view.
         let lit = reflected_state(map, r);
-        return (finite_or_zero(l), PixelState { lit, ..state });
+        return (
+            finite_or_zero(l.max(DVec3::ZERO)).as_vec3(),
+            PixelState { lit, ..state },
+        );
     }
     let (mut e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     if let Some(field) = &frame.indirect {
-        e += field.at(&hit);
+        e += field.at(&hit).add;
     }
     let rho = o
         .material
         .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
         .as_dvec3();
-    let l = rho / std::f64::consts::PI * e;
-    (finite_or_zero(l).as_vec3(), PixelState { lit, ..state })
+    let l = rho / std::f64::consts::PI * e - seen_through();
+    (
+        finite_or_zero(l.max(DVec3::ZERO)).as_vec3(),
+        PixelState { lit, ..state },
+    )
+}
+
+/// In global mode, the radiance of the first real surface along `ray`
+/// (from the eye, through a virtual object): in the cabinet the
+/// projectors leave it dark for this eye (its occlusion shadow), but the
+/// real surfaces' own interreflection still lights it, `rho / pi *
+/// cabinet`, and the observer sees it through the half-silvered mirror
+/// where the CRT shows the virtual object. The face shows the virtual
+/// object less this (never below black: a CRT adds light only). Zero in
+/// direct mode, where the real surfaces are taken to reflect no light of
+/// their own.
+fn real_seen_through(frame: &FrameScene, occluders: &Occluders, ray: &Ray) -> DVec3 {
+    let Some(field) = &frame.indirect else {
+        return DVec3::ZERO;
+    };
+    let Some(hit) = occluders.real_only.closest_hit(ray, 0.0, f64::INFINITY) else {
+        return DVec3::ZERO;
+    };
+    let Some(o) = frame.showcase.objects.get(hit.object as usize) else {
+        return DVec3::ZERO;
+    };
+    let rho = o
+        .material
+        .albedo_at(hit.uv.unwrap_or(Vec2::ZERO))
+        .as_dvec3();
+    finite_or_zero(rho / std::f64::consts::PI * field.at(&hit).cabinet)
 }
 
 /// A digest of the states of the four texels a reflected sample along

@@ -7,14 +7,18 @@
 
 use crate::Hit;
 use crate::radiosity::RadiosityMesh;
+pub use crate::radiosity::augmented::IndirectLight;
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
-/// A correction field over the real surfaces (W/m^2 per channel).
+/// A global-illumination field over the scene's surfaces.
 #[derive(Clone, Debug)]
 pub struct IndirectField {
     mesh: Arc<RadiosityMesh>,
-    vertex_values: Vec<DVec3>,
+    /// [`IndirectLight::add`] averaged to the mesh's vertices.
+    add: Vec<DVec3>,
+    /// [`IndirectLight::cabinet`] averaged to the mesh's vertices.
+    cabinet: Vec<DVec3>,
 }
 
 /// A piece of a field over one scene triangle ([`IndirectField::pieces`]).
@@ -23,8 +27,8 @@ pub struct FieldPiece {
     /// Corners in the triangle's barycentric coordinates `(u, v)` (weights
     /// of its second and third vertex).
     pub corners: [DVec2; 3],
-    /// The field at the corners (W/m^2 per channel).
-    pub values: [DVec3; 3],
+    /// The field at the corners.
+    pub values: [IndirectLight; 3],
 }
 
 /// Why a field cannot be made.
@@ -49,7 +53,10 @@ pub enum IndirectFieldError {
 impl IndirectField {
     /// The field of per-element `values` on `mesh`, averaged to its
     /// vertices ([`RadiosityMesh::vertex_values`]).
-    pub fn new(mesh: Arc<RadiosityMesh>, values: &[DVec3]) -> Result<Self, IndirectFieldError> {
+    pub fn new(
+        mesh: Arc<RadiosityMesh>,
+        values: &[IndirectLight],
+    ) -> Result<Self, IndirectFieldError> {
         if values.len() != mesh.elements.len() {
             return Err(IndirectFieldError::Length {
                 got: values.len(),
@@ -59,11 +66,22 @@ impl IndirectField {
         if let Some(index) = values.iter().position(|v| !v.is_finite()) {
             return Err(IndirectFieldError::NotFinite { index });
         }
-        let vertex_values = mesh.vertex_values(values);
+        let add: Vec<DVec3> = values.iter().map(|v| v.add).collect();
+        let cabinet: Vec<DVec3> = values.iter().map(|v| v.cabinet).collect();
         Ok(Self {
+            add: mesh.vertex_values(&add),
+            cabinet: mesh.vertex_values(&cabinet),
             mesh,
-            vertex_values,
         })
+    }
+
+    /// The field at vertex `v` of the mesh (zero for none).
+    fn vertex(&self, v: u32) -> IndirectLight {
+        let at = |values: &[DVec3]| values.get(v as usize).copied().unwrap_or(DVec3::ZERO);
+        IndirectLight {
+            add: at(&self.add),
+            cabinet: at(&self.cabinet),
+        }
     }
 
     /// The field over scene triangle `triangle` of object `object` as
@@ -78,29 +96,29 @@ impl IndirectField {
         self.mesh.for_each_leaf(primitive, |corners, element| {
             let values = element
                 .and_then(|e| self.mesh.elements.get(e as usize))
-                .map_or([DVec3::ZERO; 3], |e| {
-                    e.vertex_ids.map(|v| {
-                        self.vertex_values
-                            .get(v as usize)
-                            .copied()
-                            .unwrap_or(DVec3::ZERO)
-                    })
+                .map_or([IndirectLight::default(); 3], |e| {
+                    e.vertex_ids.map(|v| self.vertex(v))
                 });
             out.push(FieldPiece { corners, values });
         });
         Some(out)
     }
 
-    /// The correction at `hit` (zero off the mesh).
-    pub fn at(&self, hit: &Hit) -> DVec3 {
-        self.mesh
-            .primitive_of(hit.object, hit.triangle)
-            .and_then(|p| {
-                self.mesh
-                    .interpolate(p, hit.barycentric, &self.vertex_values)
-            })
-            .filter(|v| v.is_finite())
-            .unwrap_or(DVec3::ZERO)
+    /// The field at `hit` (zero off the mesh).
+    pub fn at(&self, hit: &Hit) -> IndirectLight {
+        let Some(p) = self.mesh.primitive_of(hit.object, hit.triangle) else {
+            return IndirectLight::default();
+        };
+        let at = |values: &[DVec3]| {
+            self.mesh
+                .interpolate(p, hit.barycentric, values)
+                .filter(|v| v.is_finite())
+                .unwrap_or(DVec3::ZERO)
+        };
+        IndirectLight {
+            add: at(&self.add),
+            cabinet: at(&self.cabinet),
+        }
     }
 }
 
@@ -111,6 +129,14 @@ mod tests {
     use crate::{ObjectFilter, Ray, SceneGeometry};
     use glam::Vec3;
     use showcase_proto::{Material, Mesh, Object, ObjectKind, Showcase, Transform};
+
+    /// `add` as given, `cabinet` half of it.
+    fn light(add: DVec3) -> IndirectLight {
+        IndirectLight {
+            add,
+            cabinet: add / 2.0,
+        }
+    }
 
     #[test]
     fn a_field_is_one_finite_value_per_element_read_where_a_ray_lands() {
@@ -136,29 +162,35 @@ mod tests {
         let m = Arc::new(RadiosityMesh::build(&s, &g, &MeshOptions::default()).unwrap());
         let n = m.elements.len();
         assert_eq!(
-            IndirectField::new(m.clone(), &vec![DVec3::ONE; n + 1]).unwrap_err(),
+            IndirectField::new(m.clone(), &vec![light(DVec3::ONE); n + 1]).unwrap_err(),
             IndirectFieldError::Length {
                 got: n + 1,
                 elements: n
             }
         );
-        let mut bad = vec![DVec3::ONE; n];
-        bad[n / 2] = DVec3::NAN;
+        let mut bad = vec![light(DVec3::ONE); n];
+        bad[n / 2].cabinet = DVec3::NAN;
         assert_eq!(
             IndirectField::new(m.clone(), &bad).unwrap_err(),
             IndirectFieldError::NotFinite { index: n / 2 }
         );
         // A uniform field reads the same everywhere on the floor.
-        let field = IndirectField::new(m.clone(), &vec![DVec3::new(0.1, 0.2, 0.3); n]).unwrap();
+        let field =
+            IndirectField::new(m.clone(), &vec![light(DVec3::new(0.1, 0.2, 0.3)); n]).unwrap();
         let ray = Ray::new(DVec3::new(0.3, 1.0, 0.7), -DVec3::Y);
         let hit = g.closest_hit(&ray, 0.0, f64::INFINITY).unwrap();
-        assert!((field.at(&hit) - DVec3::new(0.1, 0.2, 0.3)).length() < 1e-12);
+        let at = field.at(&hit);
+        assert!((at.add - DVec3::new(0.1, 0.2, 0.3)).length() < 1e-12);
+        assert!((at.cabinet - DVec3::new(0.1, 0.2, 0.3) / 2.0).length() < 1e-12);
 
         // A field that differs per element: its pieces tile each triangle,
         // and inside a piece the corner values interpolate to what `at`
         // reads there.
-        let values: Vec<DVec3> = (0..n)
-            .map(|i| DVec3::new(i as f64, (i * i % 7) as f64, -(i as f64) / 3.0))
+        let values: Vec<IndirectLight> = (0..n)
+            .map(|i| IndirectLight {
+                add: DVec3::new(i as f64, (i * i % 7) as f64, -(i as f64) / 3.0),
+                cabinet: DVec3::new((i % 3) as f64, 0.5, i as f64),
+            })
             .collect();
         let field = IndirectField::new(m, &values).unwrap();
         assert!(field.pieces(0, 2).is_none());
@@ -183,10 +215,11 @@ mod tests {
                     barycentric: b,
                     ..hit
                 };
+                let at = field.at(&hit);
                 assert!(
-                    (field.at(&hit) - expected).length() < 1e-9,
-                    "triangle {triangle} at {b}: {} against {expected}",
-                    field.at(&hit)
+                    (at.add - expected.add).length() < 1e-9
+                        && (at.cabinet - expected.cabinet).length() < 1e-9,
+                    "triangle {triangle} at {b}: {at:?} against {expected:?}"
                 );
             }
         }

@@ -20,7 +20,7 @@ pub mod indirect;
 pub mod projector;
 
 pub use frame::{FrameScene, LightSample, Lobe};
-pub use indirect::{FieldPiece, IndirectField, IndirectFieldError};
+pub use indirect::{FieldPiece, IndirectField, IndirectFieldError, IndirectLight};
 pub use projector::{IrradianceMap, Occluders, PixelState, ProjectorOptions, irradiance_map_cpu};
 
 use crate::{DeviceError, GeometryError};

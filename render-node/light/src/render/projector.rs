@@ -330,7 +330,7 @@ fn pixel_irradiance(
     }
     let (mut e, lit) = target_irradiance(frame, occluders, hit.point, facing);
     if let Some(field) = &frame.indirect {
-        e += field.at(&hit);
+        e += field.at(&hit).add;
     }
     let share = blend.as_ref().map_or(1.0, |(b, i)| {
         b.weight(*i, &occluders.real_only, hit.point, facing)

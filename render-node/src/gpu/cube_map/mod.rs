@@ -1,6 +1,7 @@
 //! Cube-map pass (paper section 5.3): the real environment (the phantoms
 //! with their albedo, lit by the virtual lights with the light shadow
-//! views and the ambient term) drawn from the centre of each reflective
+//! views and the ambient term; in global mode with all their indirect
+//! light, [`super::field`]) drawn from the centre of each reflective
 //! virtual object into six 90-degree layers of one colour array texture
 //! ([`CubeMaps`]), with each texel's distance from the centre in alpha
 //! ([`NO_SURFACE_DISTANCE`] where nothing real is seen), which the face
@@ -39,8 +40,12 @@ pub struct CubeMapPass {
 /// indices).
 #[derive(Debug)]
 pub struct CubeDraws<'a> {
-    /// World vertices of every object.
+    /// World vertices of every object (in global mode split into the
+    /// field's pieces, [`super::field`]).
     pub vertices: &'a wgpu::Buffer,
+    /// The global-illumination field at each of `vertices` (zeros in
+    /// direct mode).
+    pub values: &'a wgpu::Buffer,
     /// Vertex range of each phantom.
     pub phantoms: &'a [Range<u32>],
     /// Instance (albedo index) of the first phantom.
@@ -110,6 +115,7 @@ impl CubeMapPass {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind.group(), &[]);
             pass.set_vertex_buffer(0, draws.vertices.slice(..));
+            pass.set_vertex_buffer(1, draws.values.slice(..));
             for (i, r) in draws.phantoms.iter().enumerate() {
                 if !r.is_empty() {
                     let instance = draws.first_instance + i as u32;

@@ -12,7 +12,10 @@
 // lookup (the maps hold each texel's distance in alpha) sampled
 // bilinearly within a face (render::cube_map). The cube-map pass draws
 // the phantoms into the maps with this module's vs_main and
-// fs_environment (gpu::cube_map). CPU reference: render::face.
+// fs_environment (gpu::cube_map). Global mode adds the field to E, and
+// draws each virtual object less the real surface's own interreflection
+// that the eye sees through it (fs_seen_through, a pass of its own
+// before this one). CPU reference: render::face.
 
 struct Frame {
     // FaceView::clip_from_world of this eye.
@@ -52,6 +55,12 @@ struct Frame {
 // Not bound in the cube-map pass, which draws them.
 @group(0) @binding(6) var cube_maps: texture_2d_array<f32>;
 
+// What this eye sees of the real surfaces' own interreflection at each
+// pixel (fs_seen_through; zero in direct mode): the observer sees it
+// through the virtual objects, so they are drawn less it. Not bound in
+// the passes that draw it or the cube maps.
+@group(0) @binding(7) var seen_through: texture_2d<f32>;
+
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -62,32 +71,30 @@ struct VertexOut {
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) normal: vec3<f32>,
     @location(2) @interpolate(flat) object: u32,
-    // The global-illumination field (W/m^2), added to E.
+    // The global-illumination field (W/m^2): what the displays add to E,
+    // and the real surfaces' own interreflection (IndirectLight).
     @location(3) field: vec3<f32>,
+    @location(4) cabinet: vec3<f32>,
 }
 
-fn vertex_out(v: VertexIn, object: u32, field: vec3<f32>) -> VertexOut {
+// Every pass's vertices, with the global-illumination field per vertex
+// (gpu::field; zeros in direct mode), interpolated linearly inside each
+// piece as IndirectField::at does.
+@vertex
+fn vs_main(
+    v: VertexIn,
+    @location(2) field: vec3<f32>,
+    @location(3) cabinet: vec3<f32>,
+    @builtin(instance_index) object: u32,
+) -> VertexOut {
     var out: VertexOut;
     out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
     out.world = v.position;
     out.normal = v.normal;
     out.object = object;
     out.field = field;
+    out.cabinet = cabinet;
     return out;
-}
-
-// The cube-map pass's vertices: no field.
-@vertex
-fn vs_main(v: VertexIn, @builtin(instance_index) object: u32) -> VertexOut {
-    return vertex_out(v, object, vec3<f32>(0.0));
-}
-
-// The face view's vertices, with the global-illumination field per
-// vertex (gpu::field; zeros in direct mode), interpolated linearly
-// inside each piece as IndirectField::at does.
-@vertex
-fn vs_field(v: VertexIn, @location(2) field: vec3<f32>, @builtin(instance_index) object: u32) -> VertexOut {
-    return vertex_out(v, object, field);
 }
 
 // LightSample, Eye, ShadowView, cube_face, visible_from_light,
@@ -263,13 +270,21 @@ fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
     return select(r, select(vec3<f32>(0.0), x, on_surface), usable);
 }
 
+// A virtual object's radiance `l` as the CRT shows it: less what the
+// eye sees of the real surface behind it (render::face's
+// real_seen_through), never below black.
+fn less_seen_through(in: VertexOut, l: vec3<f32>) -> vec4<f32> {
+    let behind = textureLoad(seen_through, vec2<u32>(in.clip.xy), 0).rgb;
+    return vec4<f32>(max(l - behind, vec3<f32>(0.0)), 1.0);
+}
+
 // A diffuse virtual object, shaded by the virtual lights. Mirrors have
 // their own entry point, chosen per draw: llvmpipe would run the
 // reflection lookup for every pixel of a branch on the albedo's w.
 @fragment
 fn fs_virtual(in: VertexOut) -> @location(0) vec4<f32> {
     let a = albedos[in.object];
-    return vec4<f32>(shade(in.world, facing(in), a.rgb, in.field), 1.0);
+    return less_seen_through(in, shade(in.world, facing(in), a.rgb, in.field));
 }
 
 // A reflective virtual object: its albedo times its cube map (w: 1 + the
@@ -280,15 +295,24 @@ fn fs_virtual_mirror(in: VertexOut) -> @location(0) vec4<f32> {
     let d = normalize(in.world - frame.eye.xyz);
     let k = u32(max(a.w - 0.5, 0.0));
     let r = cube_reflection_direction(k, in.world, reflect(d, facing(in)));
-    return vec4<f32>(a.rgb * cube_bilinear(k, r).rgb, 1.0);
+    return less_seen_through(in, a.rgb * cube_bilinear(k, r).rgb);
+}
+
+// The seen-through pass (global mode): a phantom's own interreflected
+// radiance, rho / pi * cabinet, the nearest phantom winning.
+@fragment
+fn fs_seen_through(in: VertexOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(albedos[in.object].rgb * in.cabinet * 0.31830988618379067, 1.0);
 }
 
 // The cube-map pass: a phantom's radiance rho / pi * E seen from the
-// map's centre (frame.eye), virtual lights with shadows and ambient, and
-// its distance from the centre in alpha (the clear value is
-// NO_SURFACE_DISTANCE).
+// map's centre (frame.eye), virtual lights with shadows and ambient, in
+// global mode with all its indirect light (what the projectors add and
+// the real surfaces' own interreflection), and its distance from the
+// centre in alpha (the clear value is NO_SURFACE_DISTANCE).
 @fragment
 fn fs_environment(in: VertexOut) -> @location(0) vec4<f32> {
     let n = facing(in);
-    return vec4<f32>(shade(in.world, n, albedos[in.object].rgb, in.field), length(in.world - frame.eye.xyz));
+    let e = in.field + in.cabinet;
+    return vec4<f32>(shade(in.world, n, albedos[in.object].rgb, e), length(in.world - frame.eye.xyz));
 }

@@ -60,8 +60,13 @@ pub struct FaceBindings<'a> {
     /// The other observers' eyes as [`super::shadow_lookup::EyeGpu`]s (at least one element).
     pub other_eyes: &'a wgpu::Buffer,
     /// The cube maps' array view (six layers per map, at least one
-    /// layer); `None` for the cube-map pass, which draws them.
+    /// layer); `None` for the cube-map pass, which draws them, and the
+    /// seen-through pass.
     pub cube_maps: Option<&'a wgpu::TextureView>,
+    /// This eye's seen-through image ([`FaceViewPass::encode_seen_through`]:
+    /// the real surfaces' own interreflection behind each pixel, zero in
+    /// direct mode); set exactly when `cube_maps` is.
+    pub seen_through: Option<&'a wgpu::TextureView>,
     /// Where the arrays are read from ([`space`] of their lengths).
     pub space: ArraySpace,
 }
@@ -89,6 +94,8 @@ pub struct FaceDraws<'a> {
 #[derive(Debug)]
 pub struct FaceViewPass {
     variants: Variants,
+    /// The seen-through pass (`fs_seen_through`, no face textures).
+    seen_through: Variants,
 }
 
 fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
@@ -196,7 +203,7 @@ impl Variants {
         });
         let pipelines = entries
             .iter()
-            .map(|fs| render_pipeline(device, &shader, &pipeline_layout, fs, cube_maps))
+            .map(|fs| render_pipeline(device, &shader, &pipeline_layout, fs))
             .collect();
         Variant { layout, pipelines }
     }
@@ -221,7 +228,8 @@ impl Variants {
 }
 
 /// The bind group layout of the face view pass, or with `cube_maps`
-/// false that of the cube-map pass (no binding 6), for `space`.
+/// false that of the cube-map and seen-through passes (no bindings 6 and
+/// 7), for `space`.
 pub fn bind_group_layout(
     device: &wgpu::Device,
     cube_maps: bool,
@@ -247,6 +255,13 @@ pub fn bind_group_layout(
             texture(
                 wgpu::TextureSampleType::Float { filterable: false },
                 wgpu::TextureViewDimension::D2Array,
+            ),
+        ));
+        entries.push(entry(
+            7,
+            texture(
+                wgpu::TextureSampleType::Float { filterable: false },
+                wgpu::TextureViewDimension::D2,
             ),
         ));
     }
@@ -288,6 +303,12 @@ pub fn bind_group(
             resource: wgpu::BindingResource::TextureView(cube),
         });
     }
+    if let Some(seen) = bindings.seen_through {
+        entries.push(wgpu::BindGroupEntry {
+            binding: 7,
+            resource: wgpu::BindingResource::TextureView(seen),
+        });
+    }
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("face view"),
         layout,
@@ -297,26 +318,23 @@ pub fn bind_group(
 
 /// A pipeline of the face view shader with fragment entry point `fs`
 /// into [`OffscreenTarget`]'s formats (depth tested and written, no
-/// culling): the face view's (`field`: with the global-illumination field
-/// as a second vertex buffer, `vs_field`) and the cube-map pass's
-/// (`vs_main`, the field 0).
+/// culling), with the global-illumination field as a second vertex
+/// buffer: the face view's, the cube-map pass's and the seen-through
+/// pass's.
 pub fn render_pipeline(
     device: &wgpu::Device,
     shader: &wgpu::ShaderModule,
     pipeline_layout: &wgpu::PipelineLayout,
     fs: &str,
-    field: bool,
 ) -> wgpu::RenderPipeline {
-    let with_field = [Some(world_vertex_layout()), Some(field_value_layout())];
     TrianglePipeline {
         label: fs,
         layout: pipeline_layout,
         shader,
-        vertex: if field {
-            ("vs_field", &with_field)
-        } else {
-            ("vs_main", &with_field[..1])
-        },
+        vertex: (
+            "vs_main",
+            &[Some(world_vertex_layout()), Some(field_value_layout())],
+        ),
         // Two-sided, as in the CPU reference (so the mirror's winding
         // flip needs no special case).
         cull_mode: None,
@@ -335,6 +353,50 @@ impl FaceViewPass {
                 true,
                 &["fs_phantom", "fs_virtual", "fs_virtual_mirror"],
             ),
+            seen_through: Variants::new(device, false, &["fs_seen_through"]),
+        }
+    }
+
+    /// The seen-through pass's bind group of `bindings` (an eye's, without
+    /// the face textures).
+    pub fn seen_through_bind_group(
+        &self,
+        device: &wgpu::Device,
+        bindings: &FaceBindings<'_>,
+    ) -> FaceBindGroup {
+        self.seen_through.bind_group(device, bindings)
+    }
+
+    /// Record the seen-through pass into `target` (global mode): clear to
+    /// 0 and depth 1, then, with `draw`, draw the phantoms' own
+    /// interreflected radiance (`rho / pi * cabinet`), the nearest
+    /// winning: what this eye sees of the real surfaces through the
+    /// virtual objects. Without `draw` the target is only cleared.
+    pub fn encode_seen_through(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &OffscreenTarget,
+        bind_group: &FaceBindGroup,
+        draws: &FaceDraws<'_>,
+        draw: bool,
+    ) {
+        let mut pass = begin(encoder, target, "seen through");
+        let Some(pipeline) = bind_group.pipeline(0) else {
+            return;
+        };
+        if !draw {
+            return;
+        }
+        pass.set_bind_group(0, bind_group.group(), &[]);
+        pass.set_vertex_buffer(0, draws.vertices.slice(..));
+        pass.set_vertex_buffer(1, draws.values.slice(..));
+        pass.set_pipeline(pipeline);
+        let first_phantom = draws.virtuals.len() as u32;
+        for (i, r) in draws.phantoms.iter().enumerate() {
+            if !r.is_empty() {
+                let instance = first_phantom + i as u32;
+                pass.draw(r.clone(), instance..instance + 1);
+            }
         }
     }
 
@@ -354,29 +416,7 @@ impl FaceViewPass {
         bind_group: &FaceBindGroup,
         draws: &FaceDraws<'_>,
     ) {
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("face view"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target.colour_view(),
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: target.depth_view(),
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = begin(encoder, target, "face view");
         let (Some(phantom), Some(shaded), Some(mirror)) = (
             bind_group.pipeline(0),
             bind_group.pipeline(1),
@@ -404,4 +444,35 @@ impl FaceViewPass {
             }
         }
     }
+}
+
+/// A render pass into `target` that clears it to 0 and depth 1.
+fn begin<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    target: &OffscreenTarget,
+    label: &'static str,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target.colour_view(),
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: target.depth_view(),
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }

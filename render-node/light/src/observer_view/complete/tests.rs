@@ -359,7 +359,7 @@ fn the_global_illumination_correction_brings_the_real_surfaces_to_the_complete_t
 fn virtual_elements_carry_their_path_traced_indirect_light(
     scene: &Showcase,
     mesh: &crate::radiosity::RadiosityMesh,
-    delta: &[DVec3],
+    delta: &[crate::render::IndirectLight],
 ) {
     let world = SimWorld::new(scene, &ObjectFilter::All, true).unwrap();
     let lights = SimLights::virtual_lights(&scene.lights, scene.ambient).unwrap();
@@ -381,7 +381,7 @@ fn virtual_elements_carry_their_path_traced_indirect_light(
             }
         };
         faces[k].1 += e.area;
-        faces[k].2 += e.area * delta[i].y;
+        faces[k].2 += e.area * delta[i].add.y;
         faces[k].3 += e.area * traced.y;
     }
     assert_eq!(faces.len(), 6, "the block has six faces");
