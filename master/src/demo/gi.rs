@@ -123,7 +123,7 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     let resolved = showcase_light::render::FrameScene::resolve(&truth, &state)?;
     let gpu = Backend::open();
     let cpu = Backend::Cpu("the GPU renderer always draws occlusion shadows".into());
-    let transport = Transport::Complete(CompleteOptions {
+    let transport = Transport::complete(CompleteOptions {
         paths_per_point: options.truth_paths,
         seed: 24,
     });
@@ -164,7 +164,7 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
                 &truth,
                 &state,
                 if occlusion_shadows { &gpu } else { &cpu },
-                transport,
+                transport.clone(),
                 (mode == "global").then(|| field.clone()),
                 occlusion_shadows,
                 elements,
@@ -218,7 +218,7 @@ fn judge(
     let mut per_object = serde_json::Map::new();
     let mut noise: f64 = 0.0;
     for c in 0..truth.cameras.len() {
-        let r = views::camera_consistency(truth, state, &outputs, c, transport)?;
+        let r = views::camera_consistency(truth, state, &outputs, c, transport.clone())?;
         camera = Some(camera.map_or(r.rel_rmse, |w: f64| w.max(r.rel_rmse)));
         noise = noise.max(r.noise.map_or(0.0, |n| n.compared));
         for (name, e) in r.per_object {
@@ -230,7 +230,7 @@ fn judge(
     // covered pixel under the ideal CRT.
     let (mut delta_e, mut virtual_, mut ideal) = (Vec::new(), Vec::new(), Vec::new());
     for o in 0..truth.observers.len() {
-        let r = views::observe(truth, state, &outputs, o, transport)?;
+        let r = views::observe(truth, state, &outputs, o, transport.clone())?;
         let finite = |d: &&f64| d.is_finite();
         delta_e.extend(r.delta_e.iter().filter(finite));
         virtual_.extend(

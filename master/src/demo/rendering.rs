@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use showcase_light::RgbImage;
 use showcase_light::metrics::percentile;
 use showcase_light::observer_view::complete::CompleteOptions;
+use showcase_light::render::FrameScene;
 use std::time::Instant;
 
 /// Frames of the walk the rendering stage draws: a quarter, half and
@@ -20,10 +21,13 @@ fn rendered_frames(frames: u64) -> Vec<u64> {
 }
 
 /// Every output of the cabinet rendered by the node renderers at a few
-/// frames of the walk (calibrated devices, demo resolution), what the
-/// cabinet's cameras measure of the projectors' direct light against the
-/// target, and what each observer sees of them through the simulated
-/// cabinet (true devices) next to its target, with CIEDE2000 heat maps.
+/// frames of the walk (calibrated devices, demo resolution) in global
+/// mode (each frame's solution) and in direct mode, what the cabinet's
+/// cameras measure of the projectors' light against the target, and what
+/// each observer sees of them through the simulated cabinet (true
+/// devices) next to its target, with CIEDE2000 heat maps: global mode in
+/// the physically complete world (the headline figures), direct mode in
+/// it (`_direct_mode`) and in a world of direct light only (`_direct`).
 pub(super) fn rendering_stage(
     truth: &showcase_proto::Showcase,
     calibrated: &showcase_proto::Showcase,
@@ -50,7 +54,10 @@ pub(super) fn rendering_stage(
         }
     }
     let backend = views::Backend::open();
+    // Direct mode, and global mode (what the demo's cluster runs) with
+    // each frame's solution, solved on the nodes' (calibrated) scene.
     let mut renderers = views::NodeRenderers::new(&backend, calibrated.clone())?;
+    let mut global_renderers = views::NodeRenderers::new(&backend, calibrated.clone())?;
     eprintln!(
         "[demo] rendering: {} frames x {} outputs with {}...",
         states.len(),
@@ -58,11 +65,12 @@ pub(super) fn rendering_stage(
         backend.describe()
     );
     let observers = truth.observers.len();
-    let complete_transport = Transport::Complete(CompleteOptions {
+    let complete_transport = Transport::complete(CompleteOptions {
         paths_per_point: opts.truth_paths,
         seed: COMPLETE_SEED,
     });
     let mut direct = Judged::new(observers, ", direct light only", "-direct");
+    let mut direct_mode = Judged::new(observers, ", direct mode", "-direct-mode");
     let mut complete = Judged::new(observers, ", physically complete", "");
     let mut render_s = Vec::new();
     let pb = progress("rendering", Some(states.len() as u64));
@@ -75,20 +83,31 @@ pub(super) fn rendering_stage(
         let t = Instant::now();
         let outputs = renderers.render(state)?;
         render_s.push(t.elapsed().as_secs_f64());
+        let resolved = FrameScene::resolve(&calibrated, state)?;
+        let (field, _) = crate::radiosity_job::indirect_field(
+            &resolved.showcase,
+            &resolved.eyes,
+            &Default::default(),
+        )?;
+        global_renderers.set_indirect(std::sync::Arc::new(field));
+        let global = global_renderers.render(state)?;
         let mut nodes = Vec::new();
-        for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
-            let file = format!("{dir_name}/{}.png", p.name);
-            views::write_values(&opts.out.join(&file), img)?;
-            nodes.push((format!("{} (pixel values)", p.name), file));
+        for (mode, outputs) in [("", &global), ("-direct-mode", &outputs)] {
+            for (p, img) in calibrated.projectors.iter().zip(&outputs.projectors) {
+                let file = format!("{dir_name}/{}{mode}.png", p.name);
+                views::write_values(&opts.out.join(&file), img)?;
+                nodes.push((format!("{} (pixel values{mode})", p.name), file));
+            }
         }
         let mut rows = Vec::new();
-        for (judged, transport) in [
-            (&mut direct, Transport::Direct),
-            (&mut complete, complete_transport),
+        for (judged, transport, outputs) in [
+            (&mut direct, Transport::Direct, &outputs),
+            (&mut direct_mode, complete_transport.clone(), &outputs),
+            (&mut complete, complete_transport.clone(), &global),
         ] {
             let tag = judged.tag;
             for o in 0..observers {
-                let r = views::observe(&truth, state, &outputs, o, transport)?;
+                let r = views::observe(&truth, state, outputs, o, transport.clone())?;
                 let name = &truth.observers[o].name;
                 let mut images = Vec::new();
                 let parts: &[(&str, &RgbImage)] = match transport {
@@ -98,7 +117,7 @@ pub(super) fn rendering_stage(
                         ("through-mirror", &r.view.reflected),
                     ],
                     // The mirror's part is the same in both worlds.
-                    Transport::Complete(_) => {
+                    Transport::Complete(..) => {
                         &[("target", &r.view.target), ("composite", &r.view.composite)]
                     }
                 };
@@ -130,7 +149,7 @@ pub(super) fn rendering_stage(
                 judged.add_observer(o, &r);
             }
             for (c, camera) in truth.cameras.iter().enumerate() {
-                let r = views::camera_consistency(&truth, state, &outputs, c, transport)?;
+                let r = views::camera_consistency(&truth, state, outputs, c, transport.clone())?;
                 let name = &camera.name;
                 let mut images = Vec::new();
                 for (what, img) in [("target", &r.view.target), ("measured", &r.view.real)] {
@@ -151,15 +170,17 @@ pub(super) fn rendering_stage(
                 judged.cameras.add(&r);
             }
         }
-        for (f, _, [left, right]) in &outputs.faces {
-            let face = calibrated
-                .faces
-                .get(*f)
-                .map_or("face".to_string(), |f| f.name.clone());
-            for (eye, img) in [("left", left), ("right", right)] {
-                let file = format!("{dir_name}/{face}-{eye}.png");
-                views::write_radiance(&opts.out.join(&file), img, 1.0)?;
-                nodes.push((format!("{face}: {eye} eye"), file));
+        for (mode, outputs) in [("", &global), ("-direct-mode", &outputs)] {
+            for (f, _, [left, right]) in &outputs.faces {
+                let face = calibrated
+                    .faces
+                    .get(*f)
+                    .map_or("face".to_string(), |f| f.name.clone());
+                for (eye, img) in [("left", left), ("right", right)] {
+                    let file = format!("{dir_name}/{face}-{eye}{mode}.png");
+                    views::write_radiance(&opts.out.join(&file), img, 1.0)?;
+                    nodes.push((format!("{face}: {eye} eye{mode}"), file));
+                }
             }
         }
         gallery.push(GalleryRow {
@@ -172,6 +193,7 @@ pub(super) fn rendering_stage(
     pb.finish_and_clear();
     let mut figures = serde_json::Map::new();
     complete.insert_figures(&truth, "", &mut figures);
+    direct_mode.insert_figures(&truth, "_direct_mode", &mut figures);
     direct.insert_figures(&truth, "_direct", &mut figures);
     // How much the ground truth can be trusted: the complete images' noise
     // over the compared pixels (worst view), and how much of what the
@@ -196,7 +218,7 @@ pub(super) fn rendering_stage(
     render_s.sort_by(f64::total_cmp);
     Ok(StageOutcome {
         detail: format!(
-            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs); judged in the physically complete world (every bounce, path-traced by the sim, {} paths per irradiance-cache point, noise {}): {}; in a world of direct light only: {}; images in {}/frames",
+            "frames {frames:?}: {} projectors and {} faces rendered with {} (median {:.2} s per frame for all outputs, direct mode); judged in the physically complete world (every bounce, path-traced by the sim, {} paths per irradiance-cache point, noise {}): global mode: {}; direct mode: {}; direct mode in a world of direct light only: {}; images in {}/frames",
             calibrated.projectors.len(),
             calibrated.faces.len(),
             backend.describe(),
@@ -210,6 +232,7 @@ pub(super) fn rendering_stage(
                 n.target, n.compared
             )),
             complete.describe(),
+            direct_mode.describe(),
             direct.describe(),
             opts.out.display()
         ),

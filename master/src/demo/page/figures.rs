@@ -307,7 +307,7 @@ const FIGURES: &[(&str, Figure)] = &[
             "Consistency (camera)",
             "ratio",
             Some(Target::AtMost(0.01)),
-            "physically complete: both projectors' values through the simulated projectors, every bounce between the real surfaces, seen by the cabinet's camera, against the scene path-traced as if the virtual lights and objects were real",
+            "physically complete, global mode: both projectors' values through the simulated projectors, every bounce between the real surfaces, seen by the cabinet's camera, against the scene path-traced as if the virtual lights and objects were real",
         ),
     ),
     (
@@ -334,7 +334,7 @@ const FIGURES: &[(&str, Figure)] = &[
             "Consistency (observers)",
             "ratio",
             None,
-            "physically complete: worst observer's whole view against its target, CRT image through the mirror included",
+            "physically complete, global mode: worst observer's whole view against its target, CRT image through the mirror included",
         ),
     ),
     (
@@ -352,7 +352,7 @@ const FIGURES: &[(&str, Figure)] = &[
             "CIEDE2000, median",
             "ΔE00",
             Some(Target::AtMost(1.0)),
-            "physically complete: perceived colour difference of the observers' views against their targets",
+            "physically complete, global mode: perceived colour difference of the observers' views against their targets",
         ),
     ),
     (
@@ -407,6 +407,78 @@ const FIGURES: &[(&str, Figure)] = &[
             "ratio",
             None,
             "how far the light the camera measures reflected once is from all of it: what a direct-only world leaves out",
+        ),
+    ),
+    (
+        "interactive_consistency_rel_rmse_direct_mode",
+        fig(
+            "Consistency (camera), direct mode",
+            "ratio",
+            None,
+            "physically complete, the projectors drawing direct light only (the scene in direct mode): what global mode improves on",
+        ),
+    ),
+    (
+        "interactive_compared_fraction_direct_mode",
+        fig(
+            "Camera pixels compared, direct mode",
+            "ratio",
+            None,
+            "the same pixels as global mode's",
+        ),
+    ),
+    (
+        "interactive_consistency_rel_rmse_per_object_direct_mode",
+        fig(
+            "Consistency (camera) per object, direct mode",
+            "ratio",
+            None,
+            "the direct-mode camera figure per real object",
+        ),
+    ),
+    (
+        "observer_consistency_rel_rmse_direct_mode",
+        fig(
+            "Consistency (observers), direct mode",
+            "ratio",
+            None,
+            "physically complete, projectors and faces in direct mode: worst observer's whole view",
+        ),
+    ),
+    (
+        "observer_consistency_rel_rmse_real_comparable_direct_mode",
+        fig(
+            "Consistency (observers, real surfaces), direct mode",
+            "ratio",
+            None,
+            "physically complete, direct mode: observers' real surfaces where the method can be right by design",
+        ),
+    ),
+    (
+        "delta_e2000_median_direct_mode",
+        fig(
+            "CIEDE2000, median, direct mode",
+            "ΔE00",
+            None,
+            "physically complete, direct mode: the observers' colour difference",
+        ),
+    ),
+    (
+        "delta_e2000_p95_direct_mode",
+        fig(
+            "CIEDE2000, p95, direct mode",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "observers_direct_mode",
+        fig(
+            "Per observer, direct mode",
+            "ratio",
+            None,
+            "physically complete, direct mode: each observer's figures",
         ),
     ),
     (

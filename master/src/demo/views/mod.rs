@@ -13,7 +13,9 @@ use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use showcase_light::DeviceRays;
-use showcase_light::observer_view::complete::{CompleteOptions, CompleteView, complete_view};
+use showcase_light::observer_view::complete::{
+    CompleteImage, CompleteOptions, CompleteView, complete_view_with_target,
+};
 use showcase_light::observer_view::{
     MirrorImage, ObserverView, ProjectedLight, observer_view, projector_edge_pixels,
 };
@@ -524,15 +526,32 @@ pub(super) fn observe(
 }
 
 /// Which light transport the simulated cabinet follows.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub(in crate::demo) enum Transport {
     /// Direct light only, as paper section 5 assumes (the `_direct`
     /// figures).
     Direct,
     /// Every bounce, path-traced by the simulated showcase (the headline
-    /// figures, [`showcase_light::observer_view::complete`]).
-    Complete(CompleteOptions),
+    /// figures, [`showcase_light::observer_view::complete`]), the targets
+    /// traced once per frame and view and kept in the [`Targets`] (the
+    /// same whatever the projectors show).
+    Complete(CompleteOptions, Arc<Targets>),
 }
+
+impl Transport {
+    /// Every bounce with `options`, each target traced once.
+    pub(in crate::demo) fn complete(options: CompleteOptions) -> Self {
+        Self::Complete(options, Arc::default())
+    }
+}
+
+/// The complete views' targets already traced, by frame and view (the
+/// eye's device), to judge another set of node outputs of the same frame
+/// without tracing its target again.
+#[derive(Debug, Default)]
+pub(in crate::demo) struct Targets(
+    std::sync::Mutex<std::collections::HashMap<(u64, String), CompleteImage>>,
+);
 
 /// One simulated view of the cabinet.
 pub(in crate::demo) struct Simulated {
@@ -609,8 +628,14 @@ pub(in crate::demo) fn simulate(
     let projector_edges = projector_edge_pixels(&occluders, eye, &edges)?;
     let complete = match transport {
         Transport::Direct => None,
-        Transport::Complete(options) => {
-            let c = complete_view(&frame, eye, &projected, options)?;
+        Transport::Complete(options, targets) => {
+            let key = (state.frame, format!("{eye:?}"));
+            let known = targets.0.lock().ok().and_then(|t| t.get(&key).cloned());
+            let traced = known.is_none();
+            let c = complete_view_with_target(&frame, eye, &projected, options, known)?;
+            if traced && let Ok(mut t) = targets.0.lock() {
+                t.insert(key, c.target.clone());
+            }
             for i in 0..view.covered.data.len() {
                 let real = c.real.radiance.data[i];
                 view.real.data[i] = real;

@@ -130,6 +130,22 @@ pub fn complete_view(
     projected: &[ProjectedLight<'_>],
     options: CompleteOptions,
 ) -> Result<CompleteView, ObserverViewError> {
+    complete_view_with_target(frame, eye, projected, options, None)
+}
+
+/// [`complete_view`] with its target already traced (`target`: the
+/// [`CompleteView::target`] of a complete view of the same frame, eye and
+/// options under other projector images; `None`: trace it). The target
+/// does not depend on the projectors, and every random stream is keyed by
+/// the seed and the pixel alone, so the view is the one [`complete_view`]
+/// gives, bit for bit.
+pub fn complete_view_with_target(
+    frame: &FrameScene,
+    eye: &PinholeDevice,
+    projected: &[ProjectedLight<'_>],
+    options: CompleteOptions,
+    target: Option<CompleteImage>,
+) -> Result<CompleteView, ObserverViewError> {
     let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
     let mut lights = Vec::with_capacity(projected.len());
     for p in projected {
@@ -143,15 +159,21 @@ pub fn complete_view(
     }
     let scene = &frame.showcase;
     let real_world = SimWorld::new(scene, &ObjectFilter::Real, true)?;
-    let full_world = SimWorld::new(scene, &ObjectFilter::All, true)?;
-    let virtual_lights = SimLights::virtual_lights(&scene.lights, scene.ambient)?;
     let real = trace_image(
         &real_world,
         &SimLights::projectors(&lights),
         &eye_rays,
         options,
     );
-    let target = trace_image(&full_world, &virtual_lights, &eye_rays, options);
+    let fits = |t: &CompleteImage| (t.radiance.width, t.radiance.height) == (eye.width, eye.height);
+    let target = match target.filter(fits) {
+        Some(t) => t,
+        None => {
+            let full_world = SimWorld::new(scene, &ObjectFilter::All, true)?;
+            let virtual_lights = SimLights::virtual_lights(&scene.lights, scene.ambient)?;
+            trace_image(&full_world, &virtual_lights, &eye_rays, options)
+        }
+    };
     Ok(CompleteView { real, target })
 }
 

@@ -387,17 +387,9 @@ impl FaceViewPass {
         if !draw {
             return;
         }
-        pass.set_bind_group(0, bind_group.group(), &[]);
-        pass.set_vertex_buffer(0, draws.vertices.slice(..));
-        pass.set_vertex_buffer(1, draws.values.slice(..));
+        bind(&mut pass, bind_group, draws);
         pass.set_pipeline(pipeline);
-        let first_phantom = draws.virtuals.len() as u32;
-        for (i, r) in draws.phantoms.iter().enumerate() {
-            if !r.is_empty() {
-                let instance = first_phantom + i as u32;
-                pass.draw(r.clone(), instance..instance + 1);
-            }
-        }
+        draw_phantoms(&mut pass, draws);
     }
 
     /// The bind group of `bindings` (create once per set of buffers and
@@ -424,17 +416,9 @@ impl FaceViewPass {
         ) else {
             return;
         };
-        pass.set_bind_group(0, bind_group.group(), &[]);
-        pass.set_vertex_buffer(0, draws.vertices.slice(..));
-        pass.set_vertex_buffer(1, draws.values.slice(..));
+        bind(&mut pass, bind_group, draws);
         pass.set_pipeline(phantom);
-        let first_phantom = draws.virtuals.len() as u32;
-        for (i, r) in draws.phantoms.iter().enumerate() {
-            if !r.is_empty() {
-                let instance = first_phantom + i as u32;
-                pass.draw(r.clone(), instance..instance + 1);
-            }
-        }
+        draw_phantoms(&mut pass, draws);
         for (pipeline, mirrors) in [(shaded, false), (mirror, true)] {
             pass.set_pipeline(pipeline);
             for (i, r) in draws.virtuals.iter().enumerate() {
@@ -475,4 +459,23 @@ fn begin<'e>(
         occlusion_query_set: None,
         multiview_mask: None,
     })
+}
+
+/// Bind `bind_group` and the vertex and field buffers of `draws`.
+fn bind(pass: &mut wgpu::RenderPass<'_>, bind_group: &FaceBindGroup, draws: &FaceDraws<'_>) {
+    pass.set_bind_group(0, bind_group.group(), &[]);
+    pass.set_vertex_buffer(0, draws.vertices.slice(..));
+    pass.set_vertex_buffer(1, draws.values.slice(..));
+}
+
+/// Draw each phantom of `draws` with the pipeline set (its instance
+/// after the virtual objects').
+fn draw_phantoms(pass: &mut wgpu::RenderPass<'_>, draws: &FaceDraws<'_>) {
+    let first_phantom = draws.virtuals.len() as u32;
+    for (i, r) in draws.phantoms.iter().enumerate() {
+        if !r.is_empty() {
+            let instance = first_phantom + i as u32;
+            pass.draw(r.clone(), instance..instance + 1);
+        }
+    }
 }
