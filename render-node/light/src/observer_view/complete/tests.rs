@@ -155,6 +155,51 @@ fn a_projector_lighting_like_the_lamp_sees_the_target_exactly() {
 }
 
 #[test]
+fn a_target_traced_under_other_projector_images_gives_the_same_view_bit_for_bit() {
+    let mut scene = corner();
+    scene.lights.push(lamp(0.5));
+    let frame = FrameScene::from_parts(scene, &[]).unwrap();
+    let p = projector();
+    let options = CompleteOptions {
+        paths_per_point: 16,
+        seed: 9,
+    };
+    let (lit, dark) = (
+        Image::new(64, 64, Vec3::splat(0.5)),
+        Image::new(64, 64, Vec3::ZERO),
+    );
+    fn under<'a>(p: &'a Projector, value: &'a RgbImage) -> [ProjectedLight<'a>; 1] {
+        [ProjectedLight {
+            projector: p,
+            value,
+        }]
+    }
+    let fresh = complete_view(&frame, &camera(), &under(&p, &lit), options).unwrap();
+    let other = complete_view(&frame, &camera(), &under(&p, &dark), options).unwrap();
+    let reused = complete_view_with_target(
+        &frame,
+        &camera(),
+        &under(&p, &lit),
+        options,
+        Some(other.target),
+    )
+    .unwrap();
+    assert_eq!(reused.real.radiance.data, fresh.real.radiance.data);
+    assert_eq!(reused.target.radiance.data, fresh.target.radiance.data);
+    assert_eq!(reused.target.halves[1].data, fresh.target.halves[1].data);
+    // A target of another size is traced again.
+    let small = CompleteImage {
+        radiance: Image::new(8, 8, Vec3::ONE),
+        direct: Image::new(8, 8, Vec3::ONE),
+        halves: [Image::new(8, 8, Vec3::ONE), Image::new(8, 8, Vec3::ONE)],
+    };
+    let retraced =
+        complete_view_with_target(&frame, &camera(), &under(&p, &lit), options, Some(small))
+            .unwrap();
+    assert_eq!(retraced.target.radiance.data, fresh.target.radiance.data);
+}
+
+#[test]
 fn the_irradiance_cache_agrees_with_brute_force_path_tracing() {
     // The same image by brute force: every subsample ray with 2048 paths
     // of its own. The cache may differ by its noise and a small
