@@ -220,3 +220,83 @@ fn gpu_blends_overlapping_projectors_like_the_cpu_reference() -> anyhow::Result<
     }
     Ok(())
 }
+
+/// A face node in global mode draws the master's solution: the node
+/// meshes its own copy of the scene with the solution's mesh options and
+/// draws what a face renderer given the master's field draws (to the f32
+/// rounding of the values on the wire), far from its direct-mode image;
+/// back in direct mode it draws the direct image exactly.
+#[test]
+fn a_face_node_draws_the_masters_solution() -> anyhow::Result<()> {
+    use showcase_master::cluster::illumination::{Request, solve};
+    use showcase_master::radiosity_job::{RadiosityOptions, indirect_field};
+    use showcase_proto::Role;
+    use showcase_proto::session::Solution;
+    use showcase_render::node::{OutputRenderer, Renderer};
+    use showcase_render::render::face_gpu::FaceRenderer;
+    use std::sync::Arc;
+
+    let Some(ctx) = crate::gpu::gpu_or_skip("a_face_node_draws_the_masters_solution")? else {
+        return Ok(());
+    };
+    let scene = Arc::new(cabinet());
+    let state = showcase_master::tracking::initial_frame(&scene, 3, 0.05, 7);
+    let options = RadiosityOptions::default();
+    let solved = solve(Request::of(&scene, &state), &options)?;
+    let solution = Arc::new(Solution {
+        version: 1,
+        scene_version: 7,
+        mesh: solved.mesh,
+        values: solved.values,
+    });
+    let image = |o: showcase_render::node::RenderOutput| {
+        let img = o.image.expect("a face keeps its image");
+        Image {
+            width: img.width,
+            height: img.height,
+            data: img
+                .rgba
+                .iter()
+                .map(|p| glam::Vec3::new(p[0], p[1], p[2]))
+                .collect::<Vec<_>>(),
+        }
+    };
+    let mut node = OutputRenderer::new(ctx.clone(), "face-0", Role::Face, 128)?;
+    node.set_scene(7, scene.clone())?;
+    node.set_illumination(Some(&solution))?;
+    let global = image(node.render(&state, &scene)?);
+
+    let resolved = FrameScene::resolve(&scene, &state)?;
+    let (field, _) = indirect_field(&resolved.showcase, &resolved.eyes, &options)?;
+    let mut offline = FaceRenderer::new(ctx.clone(), 0, 0, 128);
+    offline.set_scene(7, scene.clone())?;
+    offline.set_indirect(Some(Arc::new(field)));
+    let expected = image(offline.render(&state, &scene)?);
+    let mut direct = FaceRenderer::new(ctx, 0, 0, 128);
+    direct.set_scene(7, scene.clone())?;
+    let direct_out = direct.render(&state, &scene)?;
+    let direct_image = image(direct_out.clone());
+
+    let drawn = Image {
+        width: direct_image.width,
+        height: direct_image.height,
+        data: direct_image
+            .data
+            .iter()
+            .zip(&global.data)
+            .map(|(d, g)| d.max_element() > 0.0 || g.max_element() > 0.0)
+            .collect::<Vec<bool>>(),
+    };
+    let effect = relative_rmse(&direct_image, &global, Some(&drawn))?;
+    let wire = relative_rmse(&expected, &global, Some(&drawn))?;
+    eprintln!("the solution changes the face by {effect}; node against offline {wire}");
+    anyhow::ensure!(effect > 0.05, "the solution changes the face by {effect}");
+    anyhow::ensure!(wire < 1e-4, "node against offline field: {wire}");
+
+    node.set_illumination(None)?;
+    anyhow::ensure!(
+        node.render(&state, &scene)? == direct_out,
+        "back in direct mode the node draws another image"
+    );
+    Ok(())
+}
