@@ -53,6 +53,7 @@ fn settings(
         metrics: None,
         keep_frames: true,
         illumination_lag: None,
+        illumination_patch_area: None,
     }
 }
 

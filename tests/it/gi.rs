@@ -18,6 +18,7 @@ fn global_mode_brings_figure3_at_least_three_times_closer_to_the_complete_target
             truth_paths: 256,
             without_occlusion: false,
             live_frames: 240,
+            patch_area: None,
         },
     )
     .unwrap();
@@ -88,6 +89,7 @@ fn bench_gi_names_what_a_scene_lacks() {
             truth_paths: 8,
             without_occlusion: false,
             live_frames: 0,
+            patch_area: None,
         },
     )
     .unwrap_err();
@@ -113,6 +115,7 @@ fn global_mode_faces_bring_the_virtual_objects_closer_to_the_complete_target() {
             truth_paths: 128,
             without_occlusion: false,
             live_frames: 0,
+            patch_area: None,
         },
     )
     .unwrap();

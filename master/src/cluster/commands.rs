@@ -154,6 +154,7 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
         keep_frames: false,
         keep_presented: false,
         illumination_lag: None,
+        illumination_patch_area: None,
     })
 }
 
@@ -266,6 +267,7 @@ pub async fn replay(
         // The replay's result is every node's per-frame hashes.
         keep_presented: true,
         illumination_lag: Some(REPLAY_ILLUMINATION_LAG),
+        illumination_patch_area: None,
     })
     .await?;
     let nodes = r
@@ -372,6 +374,7 @@ pub async fn run_master(
         metrics: metrics_out,
         keep_frames: false,
         illumination_lag: None,
+        illumination_patch_area: None,
     })?;
     eprintln!(
         "master listening on {} for {} nodes; Ctrl-C or SIGTERM stops",

@@ -48,6 +48,8 @@ pub struct LoopbackPlan {
     pub keep_presented: bool,
     /// See `ServerSettings::illumination_lag`.
     pub illumination_lag: Option<u64>,
+    /// See `ServerSettings::illumination_patch_area`.
+    pub illumination_patch_area: Option<f64>,
 }
 
 /// What happened.
@@ -147,6 +149,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
         metrics: plan.metrics,
         keep_frames: plan.keep_frames,
         illumination_lag: plan.illumination_lag,
+        illumination_patch_area: plan.illumination_patch_area,
     })?;
     let addr = server.local_addr();
     let stop = CancellationToken::new();

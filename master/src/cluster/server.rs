@@ -59,6 +59,10 @@ pub struct ServerSettings {
     /// so the same frames get the same solutions at any machine speed
     /// (`replay`); `None`: publish as soon as a solve lands (live).
     pub illumination_lag: Option<u64>,
+    /// Global mode only: the largest radiosity patch of the solution (m^2;
+    /// `None`: the radiosity job's default), which sets how many elements
+    /// it has (`bench gi`'s records at about 20,000).
+    pub illumination_patch_area: Option<f64>,
 }
 
 /// Why the master could not run.
@@ -251,7 +255,13 @@ impl Server {
         let roster = Arc::new(std::mem::take(&mut settings.roster));
         let mut live = LiveStats::new(&roster, settings.core.target_hz, origin_unix_ms);
         let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
-        let mut gi = GlobalIllumination::start(&mut core, now(), settings.illumination_lag).await?;
+        let mut gi = GlobalIllumination::start(
+            &mut core,
+            now(),
+            settings.illumination_lag,
+            settings.illumination_patch_area,
+        )
+        .await?;
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -510,12 +520,16 @@ impl GlobalIllumination {
         core: &mut MasterCore,
         now: u64,
         lag: Option<u64>,
+        patch_area: Option<f64>,
     ) -> Result<Option<Self>, ServerError> {
         use super::illumination::{Request, Solver, initial_state, solve};
         if core.scene().illumination != showcase_proto::IlluminationMode::Global {
             return Ok(None);
         }
-        let options = crate::radiosity_job::RadiosityOptions::default();
+        let options = crate::radiosity_job::RadiosityOptions {
+            max_patch_area: patch_area,
+            ..Default::default()
+        };
         let scene = core.scene().clone();
         let state = initial_state(&scene, core.scene_version());
         let first = {

@@ -43,6 +43,9 @@ pub struct GiBenchOptions {
     /// scripted walk at [`INTERACTIVE_HZ`] with one state-hash node per
     /// output, in direct and in global mode, one after the other.
     pub live_frames: u64,
+    /// The largest radiosity patch of global mode's solution (m^2; `None`:
+    /// the radiosity job's default), offline and live.
+    pub patch_area: Option<f64>,
 }
 
 /// What the live cluster measured in one mode.
@@ -71,6 +74,7 @@ pub fn live_figures(
     scene: &showcase_proto::Showcase,
     mode: showcase_proto::IlluminationMode,
     frames: u64,
+    patch_area: Option<f64>,
 ) -> Result<LiveFigures> {
     use crate::cluster::commands::{bench_record, output_nodes, walk_plan};
     use crate::cluster::{LoopbackPlan, run_loopback};
@@ -81,6 +85,7 @@ pub fn live_figures(
     let plan = LoopbackPlan {
         nodes,
         keep_frames: true,
+        illumination_patch_area: patch_area,
         ..walk_plan(&scene, 0, INTERACTIVE_HZ, frames)?
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -135,7 +140,12 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
             showcase_proto::IlluminationMode::Direct,
             showcase_proto::IlluminationMode::Global,
         ] {
-            live.push(live_figures(&truth, mode, options.live_frames)?);
+            live.push(live_figures(
+                &truth,
+                mode,
+                options.live_frames,
+                options.patch_area,
+            )?);
         }
     }
     let mut records = Vec::new();
@@ -155,7 +165,10 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
         let (field, elements) = crate::radiosity_job::indirect_field(
             &resolved.showcase,
             eyes,
-            &crate::radiosity_job::RadiosityOptions::default(),
+            &crate::radiosity_job::RadiosityOptions {
+                max_patch_area: options.patch_area,
+                ..Default::default()
+            },
         )?;
         let solve_s = t.elapsed().as_secs_f64();
         let field = Arc::new(field);
@@ -186,6 +199,12 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
                     json!(l.tracking_to_swap_ms_p99),
                 );
                 map.insert("dropped_frames".into(), json!(l.dropped_frames));
+            }
+            if let Some(map) = record.as_object_mut() {
+                let area = options
+                    .patch_area
+                    .unwrap_or(crate::radiosity_job::DEFAULT_PATCH_AREA);
+                map.insert("max_patch_area".into(), json!(area));
             }
             records.push(record);
         }

@@ -614,6 +614,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         keep_frames: true,
         keep_presented: false,
         illumination_lag: None,
+        illumination_patch_area: None,
     }))?;
     let seconds = started.elapsed().as_secs_f64();
     let rec = bench_record(node_count, HZ, opts.frames, &result);
@@ -666,7 +667,12 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         );
     }
     eprintln!("[demo] interactive: the same walk in direct mode, for comparison...");
-    let direct = gi::live_figures(scene, showcase_proto::IlluminationMode::Direct, opts.frames)?;
+    let direct = gi::live_figures(
+        scene,
+        showcase_proto::IlluminationMode::Direct,
+        opts.frames,
+        None,
+    )?;
     figures.insert(
         "swap_skew_ms_p99_direct_mode".into(),
         serde_json::json!(direct.swap_skew_ms_p99),
