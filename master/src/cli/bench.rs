@@ -16,8 +16,8 @@ pub enum BenchTarget {
     Reflectance,
     /// Radiosity.
     Radiosity,
-    /// The real-time renderer (the projector role also in global mode:
-    /// variant `global`, the bench scene's correction solved first).
+    /// The real-time renderer (both roles also in global mode: variant
+    /// `global`, the bench scene's field solved first).
     Render,
     /// The cluster runtime.
     Cluster,
@@ -260,8 +260,8 @@ fn render_options(args: &BenchArgs) -> Result<showcase_render::render::bench::Be
     Ok(opts)
 }
 
-/// The projectors' global-illumination correction of the render bench's
-/// scene at its first frame, for the projector variant `global`.
+/// The global-illumination field of the render bench's scene at its
+/// first frame, for the projector and face variant `global`.
 fn render_bench_field(
     scene: &showcase_proto::Showcase,
     pb: &indicatif::ProgressBar,

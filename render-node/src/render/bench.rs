@@ -113,7 +113,7 @@ impl StepTimes {
     }
 }
 
-/// The projector variant drawn in global mode
+/// The projector and face variant drawn in global mode
 /// ([`BenchOptions::indirect`]).
 pub const GLOBAL_VARIANT: &str = "global";
 
@@ -486,7 +486,7 @@ pub fn bench_render(
                 shadow_res: options.shadow_res,
             });
         }
-        for variant in VARIANTS {
+        for variant in VARIANTS.into_iter().chain(global) {
             records.push(bench_face_variant(
                 ctx,
                 &mut face_pipeline,
@@ -521,8 +521,19 @@ fn bench_face_variant(
         )
         .map(|e| e.as_dvec3())
     };
+    let field = options
+        .indirect
+        .as_ref()
+        .filter(|_| variant == GLOBAL_VARIANT);
+    let resolve = |state: &FrameState| {
+        let frame = FrameScene::resolve(&s, state)?;
+        Ok::<_, RenderError>(match field {
+            Some(f) => frame.with_indirect(f.clone()),
+            None => frame,
+        })
+    };
     let state0 = bench_frame(&s, variant, 0);
-    let first = FrameScene::resolve(&s, &state0)?;
+    let first = resolve(&state0)?;
     // Stereo: each eye also fills its other eye's occlusion shadows.
     let passes = PassList::for_face(&first, other_eyes(&first, 0).len() + 1);
     let eyes = eyes_of(&state0);
@@ -537,7 +548,7 @@ fn bench_face_variant(
         let state = bench_frame(&s, variant, n);
         let timed = n > frames;
         let start = Instant::now();
-        let frame = FrameScene::resolve(&s, &state)?;
+        let frame = resolve(&state)?;
         let passes = PassList::for_face(&frame, other_eyes(&frame, 0).len() + 1);
         // Everything a face shows: lights, transforms, and the heads.
         let key = FrameKey::face(0, 0, &state);
