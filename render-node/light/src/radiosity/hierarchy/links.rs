@@ -397,12 +397,20 @@ impl Hierarchy<'_> {
         }
         let coef = visible * geometric;
         let slope = if rn.flat && !rn.is_leaf() {
-            relative_gradient(
+            // The kernel's linear variation over the receiver, bounded so
+            // it never takes a member below zero or above twice the
+            // centroid's value: a source nearly in the receiver's plane
+            // makes the relative gradient unbounded (1 / cos_r), and
+            // extrapolated over the node it gave one red-wall element of
+            // the demo scene at 0.0004 m^2 patches 3,192 W/m^2.
+            let g = relative_gradient(
                 rn.center,
                 rn.normal,
                 sn.center,
                 sn.flat.then_some(sn.normal),
-            )
+            );
+            let reach = g.length() * rn.radius;
+            if reach > 1.0 { g / reach } else { g }
         } else {
             DVec3::ZERO
         };
