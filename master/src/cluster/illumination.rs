@@ -1,6 +1,6 @@
 //! Global illumination in the live cluster (a scene with
-//! `illumination = "global"`): the master solves the projectors'
-//! correction ([`crate::radiosity_job::indirect_values`]) on its own
+//! `illumination = "global"`): the master solves the global-illumination
+//! field ([`crate::radiosity_job::indirect_values`]) on its own
 //! thread, off the frame loop, for the newest state the loop asked for;
 //! the loop publishes each solution ([`MasterCore::set_illumination`]) as
 //! it lands, and frames name the version they are drawn with. The frame
