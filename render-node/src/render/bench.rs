@@ -391,17 +391,8 @@ pub fn bench_render(
             let mut s = variant_scene(scene, variant);
             s.projectors = vec![bench_projector(width, height)];
             let projector = s.projectors[0].clone();
-            let field = options
-                .indirect
-                .as_ref()
-                .filter(|_| variant == GLOBAL_VARIANT);
-            let resolve = |state: &FrameState| {
-                let frame = FrameScene::resolve(&s, state)?;
-                Ok::<_, RenderError>(match field {
-                    Some(f) => frame.with_indirect(f.clone()),
-                    None => frame,
-                })
-            };
+            let field = variant_field(variant, options);
+            let resolve = |state: &FrameState| resolve_variant(&s, state, field);
             // Warm-up frame (pipeline caches, allocation), then timing.
             let first = resolve(&bench_frame(&s, variant, 0))?;
             let passes = PassList::for_projector(&first);
@@ -501,6 +492,31 @@ pub fn bench_render(
     Ok(records)
 }
 
+/// The global-illumination field `variant` is drawn with: the bench's
+/// field for [`GLOBAL_VARIANT`], none for the others.
+fn variant_field<'a>(
+    variant: &str,
+    options: &'a BenchOptions,
+) -> Option<&'a std::sync::Arc<showcase_light::render::IndirectField>> {
+    options
+        .indirect
+        .as_ref()
+        .filter(|_| variant == GLOBAL_VARIANT)
+}
+
+/// `state` of the variant scene `s`, with `field` in global mode.
+fn resolve_variant(
+    s: &Showcase,
+    state: &FrameState,
+    field: Option<&std::sync::Arc<showcase_light::render::IndirectField>>,
+) -> Result<FrameScene, RenderError> {
+    let frame = FrameScene::resolve(s, state)?;
+    Ok(match field {
+        Some(f) => frame.with_indirect(f.clone()),
+        None => frame,
+    })
+}
+
 /// One face-role record: both eyes of observer 0 at `width x height` each.
 fn bench_face_variant(
     ctx: &GpuContext,
@@ -521,17 +537,7 @@ fn bench_face_variant(
         )
         .map(|e| e.as_dvec3())
     };
-    let field = options
-        .indirect
-        .as_ref()
-        .filter(|_| variant == GLOBAL_VARIANT);
-    let resolve = |state: &FrameState| {
-        let frame = FrameScene::resolve(&s, state)?;
-        Ok::<_, RenderError>(match field {
-            Some(f) => frame.with_indirect(f.clone()),
-            None => frame,
-        })
-    };
+    let resolve = |state: &FrameState| resolve_variant(&s, state, variant_field(variant, options));
     let state0 = bench_frame(&s, variant, 0);
     let first = resolve(&state0)?;
     // Stereo: each eye also fills its other eye's occlusion shadows.

@@ -362,7 +362,9 @@ impl FacePipeline {
         let (device, queue) = (&ctx.device, &ctx.queue);
         self.ensure_eye_targets(device, face, eyes.len())?;
         let (inputs, base, space) = (&f.inputs, &f.base, f.space);
-        let flags = u32::from(inputs.shadows) | (u32::from(inputs.occlusion) << 1);
+        let flags = u32::from(inputs.shadows)
+            | (u32::from(inputs.occlusion) << 1)
+            | (u32::from(self.field.has_field()) << 2);
         let cube_maps = self.cubes.maps().ok_or(RenderError::NothingDrawn)?;
         let (lights, views) = (self.shadow.lights(), self.shadow.views());
         for (k, (&eye, res)) in eyes.iter().zip(self.eyes.iter_mut()).enumerate() {

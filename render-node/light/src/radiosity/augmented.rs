@@ -264,26 +264,6 @@ impl IndirectLight {
     }
 }
 
-impl std::ops::Add for IndirectLight {
-    type Output = Self;
-    fn add(self, o: Self) -> Self {
-        Self {
-            add: self.add + o.add,
-            cabinet: self.cabinet + o.cabinet,
-        }
-    }
-}
-
-impl std::ops::Mul<IndirectLight> for f64 {
-    type Output = IndirectLight;
-    fn mul(self, l: IndirectLight) -> IndirectLight {
-        IndirectLight {
-            add: self * l.add,
-            cabinet: self * l.cabinet,
-        }
-    }
-}
-
 /// Per element, the global-illumination light ([`IndirectLight`], W/m^2
 /// per channel): `add`, the irradiance that the displays must add to the
 /// virtual lights' direct irradiance so that every surface shows the

@@ -208,7 +208,13 @@ mod tests {
             for p in &pieces {
                 let w = DVec3::new(0.2, 0.3, 0.5);
                 let b = w.x * p.corners[0] + w.y * p.corners[1] + w.z * p.corners[2];
-                let expected = w.x * p.values[0] + w.y * p.values[1] + w.z * p.values[2];
+                let lerp = |part: fn(&IndirectLight) -> DVec3| {
+                    w.x * part(&p.values[0]) + w.y * part(&p.values[1]) + w.z * part(&p.values[2])
+                };
+                let expected = IndirectLight {
+                    add: lerp(|l| l.add),
+                    cabinet: lerp(|l| l.cabinet),
+                };
                 let hit = crate::Hit {
                     object: 0,
                     triangle,

@@ -25,7 +25,7 @@ struct Frame {
     // rgb: ambient irradiance (W/m^2).
     ambient: vec4<f32>,
     // light samples, other eyes, shadow map size, flags (1: shadows,
-    // 2: occluding occlusion shadows).
+    // 2: occluding occlusion shadows, 4: global mode's seen-through image).
     counts: vec4<u32>,
     // near and far plane of the shadow views.
     shadow: vec4<f32>,
@@ -274,6 +274,10 @@ fn cube_reflection_direction(k: u32, p: vec3<f32>, r: vec3<f32>) -> vec3<f32> {
 // eye sees of the real surface behind it (render::face's
 // real_seen_through), never below black.
 fn less_seen_through(in: VertexOut, l: vec3<f32>) -> vec4<f32> {
+    // Direct mode: nothing is seen through (no texel fetch per pixel).
+    if ((frame.counts.w & 4u) == 0u) {
+        return vec4<f32>(l, 1.0);
+    }
     let behind = textureLoad(seen_through, vec2<u32>(in.clip.xy), 0).rgb;
     return vec4<f32>(max(l - behind, vec3<f32>(0.0)), 1.0);
 }

@@ -26,7 +26,7 @@ pub struct FaceFrameUniform {
     /// rgb ambient irradiance.
     pub ambient: [f32; 4],
     /// light samples, other eyes, shadow map size, flags (1 shadows, 2
-    /// occluding occlusion shadows).
+    /// occluding occlusion shadows, 4 global mode's seen-through image).
     pub counts: [u32; 4],
     /// near and far plane of the shadow views (depth back to distance).
     pub shadow: [f32; 4],
