@@ -149,7 +149,7 @@ pub fn face() -> impl Strategy<Value = CrtFace> {
             mirror: Plane::from_point_normal(point, mr * Vec3::Y),
             width: 1024,
             height: 768,
-            gamma: 2.2,
+            photometry: CrtPhotometry::nominal(2.2),
         },
     )
 }

@@ -333,8 +333,10 @@ impl Validate for ProjectorResponse {
 
 impl Validate for CameraResponse {
     fn validate(&self) -> R {
+        finite3(&|| "gamma".into(), self.gamma)?;
         for (f, v) in [
-            ("gamma", self.gamma),
+            ("knee", self.knee),
+            ("shoulder", self.shoulder),
             ("gain", self.gain),
             ("exposure_s", self.exposure_s),
             ("read_noise", self.read_noise),
@@ -345,8 +347,14 @@ impl Validate for CameraResponse {
                 return fail(f, format!("{v} is negative"));
             }
         }
-        if self.gamma <= 0.0 || self.exposure_s <= 0.0 {
+        if self.gamma.min_element() <= 0.0 || self.exposure_s <= 0.0 {
             return fail("gamma", "gamma and exposure must be positive");
+        }
+        if self.knee > 1.0 || self.shoulder <= 0.0 {
+            return fail(
+                "knee",
+                "the knee lies in 0..=1 and the shoulder's slope is positive",
+            );
         }
         if !(1..=16).contains(&self.bits) {
             return fail("bits", format!("{} is outside 1..=16", self.bits));
@@ -369,9 +377,41 @@ impl Validate for CrtFace {
         if (self.mirror.normal.length() - 1.0).abs() > 1e-3 {
             return fail("mirror.normal", "mirror normal is not unit length");
         }
-        finite(&|| "gamma".into(), self.gamma as f64)?;
-        if self.gamma <= 0.0 {
-            return fail("gamma", "gamma must be positive");
+        let ph = &self.photometry;
+        for (name, v) in [
+            ("photometry.crt.gamma", ph.crt.gamma),
+            ("photometry.crt.peak", ph.crt.peak),
+            ("photometry.crt.black_level", ph.crt.black_level),
+            ("photometry.splitter.transmission", ph.splitter.transmission),
+            ("photometry.splitter.reflection", ph.splitter.reflection),
+        ] {
+            finite3(&|| name.into(), v)?;
+        }
+        if ph.crt.gamma.min_element() <= 0.0 {
+            return fail("photometry.crt.gamma", "gamma must be positive");
+        }
+        if ph.crt.peak.min_element() <= 0.0 {
+            return fail("photometry.crt.peak", "peak radiance must be positive");
+        }
+        if ph.crt.black_level.min_element() < 0.0 {
+            return fail(
+                "photometry.crt.black_level",
+                "black level must not be negative",
+            );
+        }
+        let t = ph.splitter.transmission;
+        if t.min_element() < 0.0 || t.max_element() > 1.0 {
+            return fail(
+                "photometry.splitter.transmission",
+                "transmission must lie in 0..=1",
+            );
+        }
+        let r = ph.splitter.reflection;
+        if r.min_element() <= 0.0 || r.max_element() > 1.0 {
+            return fail(
+                "photometry.splitter.reflection",
+                "reflection must lie in (0, 1]",
+            );
         }
         Ok(())
     }

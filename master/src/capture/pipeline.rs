@@ -197,11 +197,6 @@ pub fn capture_radiance<P: ProjectorDevice, C: CameraDevice>(
         "camera gain {} / exposure {exposure} s",
         r.gain
     );
-    let gamma = if r.gamma.is_finite() && r.gamma > 0.0 {
-        r.gamma as f64
-    } else {
-        1.0
-    };
     let d = camera.device().clone();
     let mut sum = vec![DVec3::ZERO; (d.width * d.height) as usize];
     for i in 0..k {
@@ -213,7 +208,8 @@ pub fn capture_radiance<P: ProjectorDevice, C: CameraDevice>(
         let frame = camera.capture(start, exposure)?;
         let max = ((1u32 << frame.bits.clamp(1, 16)) - 1) as f64;
         for (s, c) in sum.iter_mut().zip(&frame.codes.data) {
-            *s += DVec3::from(c.map(|c| (c as f64 / max).powf(gamma)));
+            let signal: [f64; 3] = std::array::from_fn(|ch| r.decode(ch, c[ch] as f64 / max));
+            *s += DVec3::from(signal);
         }
     }
     Ok(Image {

@@ -28,12 +28,12 @@ pub fn rig_projector_response() -> ProjectorResponse {
 /// [`super::adjust_camera_gain`].
 pub fn rig_camera_response(noise: bool) -> CameraResponse {
     CameraResponse {
-        gamma: 1.0,
         gain: 1.0,
         exposure_s: 0.75 / 120.0,
         read_noise: if noise { 0.01 } else { 0.0 },
         shot_noise: if noise { 1e-4 } else { 0.0 },
         bits: 8,
+        ..CameraResponse::default()
     }
 }
 

@@ -9,8 +9,8 @@ use super::schema::{
 };
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 use showcase_proto::{
-    Camera, CameraResponse, CrtFace, Light, LightSource, Observer, PinholeDevice, Plane, Pose,
-    Projector, ProjectorResponse, Rect3,
+    BeamSplitter, Camera, CameraResponse, CrtFace, CrtPhotometry, CrtResponse, Light, LightSource,
+    Observer, PinholeDevice, Plane, Pose, Projector, ProjectorResponse, Rect3,
 };
 use std::path::Path;
 
@@ -411,6 +411,9 @@ pub(crate) fn projector(
             ("read_noise", d.read_noise.is_some()),
             ("shot_noise", d.shot_noise.is_some()),
             ("bits", d.bits.is_some()),
+            ("gamma_rgb", d.gamma_rgb.is_some()),
+            ("knee", d.knee.is_some()),
+            ("shoulder", d.shoulder.is_some()),
         ],
     )?;
     let def = ProjectorResponse::default();
@@ -455,7 +458,19 @@ pub(crate) fn camera(
         name: d.name.clone(),
         device: pinhole(ctx, label, d, base_dir)?,
         response: CameraResponse {
-            gamma: f(d.gamma, def.gamma),
+            gamma: match (d.gamma, d.gamma_rgb) {
+                (Some(_), Some(_)) => {
+                    return Err(ctx.invalid(
+                        format!("{label}.gamma"),
+                        "give `gamma` or `gamma_rgb` (one per channel), not both",
+                    ));
+                }
+                (Some(g), None) => Vec3::splat(g.0 as f32),
+                (None, Some(g)) => v3(g),
+                (None, None) => def.gamma,
+            },
+            knee: f(d.knee, def.knee),
+            shoulder: f(d.shoulder, def.shoulder),
             gain: f(d.gain, def.gain),
             exposure_s: f(d.exposure_s, def.exposure_s),
             read_noise: f(d.read_noise, def.read_noise),
@@ -485,8 +500,35 @@ pub(crate) fn face(ctx: &Ctx, label: &str, d: &FaceDef) -> Result<CrtFace, Scene
         },
         width: d.width,
         height: d.height,
-        gamma: d.gamma.map_or(2.2, |g| g.0 as f32),
+        photometry: face_photometry(ctx, label, d)?,
     })
+}
+
+/// A face's CRT and beam splitter: `gamma` alone is a nominal CRT of that
+/// gamma behind an ideal combiner; `[face.crt]` and `[face.beam_splitter]`
+/// state the device per channel.
+fn face_photometry(ctx: &Ctx, label: &str, d: &FaceDef) -> Result<CrtPhotometry, SceneError> {
+    let mut photometry = CrtPhotometry::nominal(d.gamma.map_or(2.2, |g| g.0 as f32));
+    if let Some(crt) = &d.crt {
+        if d.gamma.is_some() {
+            return Err(ctx.invalid(
+                format!("{label}.gamma"),
+                "give `gamma` or `[face.crt]` (its own gamma per channel), not both",
+            ));
+        }
+        photometry.crt = CrtResponse {
+            gamma: v3(crt.gamma),
+            peak: v3(crt.peak),
+            black_level: crt.black_level.map_or(Vec3::ZERO, v3),
+        };
+    }
+    if let Some(s) = &d.beam_splitter {
+        photometry.splitter = BeamSplitter {
+            transmission: v3(s.transmission),
+            reflection: v3(s.reflection),
+        };
+    }
+    Ok(photometry)
 }
 
 /// One `[[observer]]`: the head looks along its local -z with y up.

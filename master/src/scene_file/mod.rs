@@ -86,8 +86,9 @@
 //! width = 640
 //! height = 480
 //! look_at = { eye = [0.278, 0.273, -0.8], target = [0.278, 0.273, 0.0], fov_deg = 39.3077 }
-//! # camera response defaults: gamma 1, gain 1, exposure_s 1/30, read_noise 0,
-//! # shot_noise 0, bits 8
+//! # camera response defaults: gamma 1 (or gamma_rgb = [r, g, b]), knee 1 and
+//! # shoulder 1 (no knee: above `knee` the curve's slope is `shoulder` times
+//! # its own), gain 1, exposure_s 1/30, read_noise 0, shot_noise 0, bits 8
 //!
 //! [[face]]
 //! name = "face-0"
@@ -95,7 +96,11 @@
 //! height = 1024
 //! screen = { origin = [-0.3, 0.8, 0.4], right = [0.6, 0.0, 0.0], down = [0.0, -0.3, 0.5] }
 //! mirror = { point = [0.0, 0.0, 0.6], normal = [0.0, 0.5, 0.866] }  # normal is normalised
-//! gamma = 2.2                   # default 2.2
+//! gamma = 2.2                   # a nominal CRT behind an ideal combiner; default 2.2
+//! # or state the device per channel (the simulated showcase's truth; a real
+//! # cabinet's is measured by `calibrate --photometric`):
+//! # crt = { gamma = [2.4, 2.5, 2.3], peak = [2.0, 1.8, 2.2], black_level = [0.004, 0.004, 0.004] }
+//! # beam_splitter = { transmission = [0.62, 0.6, 0.57], reflection = [0.33, 0.35, 0.37] }
 //!
 //! [[observer]]
 //! name = "alice"

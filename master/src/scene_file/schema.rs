@@ -262,6 +262,12 @@ pub(crate) struct DeviceDef {
     pub(crate) wheel_period_s: Option<Num>,
     // Camera response.
     #[serde(default)]
+    pub(crate) gamma_rgb: Option<N3>,
+    #[serde(default)]
+    pub(crate) knee: Option<Num>,
+    #[serde(default)]
+    pub(crate) shoulder: Option<Num>,
+    #[serde(default)]
     pub(crate) gain: Option<Num>,
     #[serde(default)]
     pub(crate) exposure_s: Option<Num>,
@@ -301,6 +307,28 @@ pub(crate) struct FaceDef {
     pub(crate) mirror: MirrorDef,
     #[serde(default)]
     pub(crate) gamma: Option<Num>,
+    #[serde(default)]
+    pub(crate) crt: Option<CrtDef>,
+    #[serde(default)]
+    pub(crate) beam_splitter: Option<SplitterDef>,
+}
+
+/// `[face.crt]`: light per drive value, per channel.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct CrtDef {
+    pub(crate) gamma: N3,
+    pub(crate) peak: N3,
+    #[serde(default)]
+    pub(crate) black_level: Option<N3>,
+}
+
+/// `[face.beam_splitter]`: transmission and reflection per channel.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SplitterDef {
+    pub(crate) transmission: N3,
+    pub(crate) reflection: N3,
 }
 
 /// One `[[observer]]`.

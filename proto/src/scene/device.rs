@@ -163,11 +163,18 @@ impl Default for ProjectorResponse {
 }
 
 /// Camera photometry: value = response(exposure * radiance + noise), then
-/// 8-bit quantisation.
+/// quantisation to `bits`. The response per channel is a power curve with
+/// a knee: `v = signal^(1/gamma)`, and above `knee` the slope drops to
+/// `shoulder` times its own (`knee + (v - knee) * shoulder`), clipped to
+/// `0..=1` ([`Self::encode`], [`Self::decode`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraResponse {
-    /// Exponent applied to the normalised signal (`signal^(1/gamma)`).
-    pub gamma: f32,
+    /// Exponent applied to the normalised signal, per channel.
+    pub gamma: Vec3,
+    /// Normalised value where the shoulder begins (1: none).
+    pub knee: f32,
+    /// Slope above the knee relative to the curve's own (1: none).
+    pub shoulder: f32,
     /// Signal per unit radiance and second.
     pub gain: f32,
     /// Exposure time in seconds.
@@ -180,10 +187,56 @@ pub struct CameraResponse {
     pub bits: u32,
 }
 
+impl CameraResponse {
+    /// The normalised value (`0..=1`, before quantisation) of `signal` in
+    /// `channel`; non-finite or negative signal gives 0.
+    pub fn encode(&self, channel: usize, signal: f64) -> f64 {
+        let s = if signal.is_finite() {
+            signal.max(0.0)
+        } else {
+            0.0
+        };
+        let gamma = f64::from(self.gamma[channel.min(2)]).max(1e-3);
+        let v = s.powf(1.0 / gamma);
+        let knee = f64::from(self.knee);
+        let v = if v > knee {
+            knee + (v - knee) * f64::from(self.shoulder)
+        } else {
+            v
+        };
+        if v.is_finite() {
+            v.clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// The signal whose normalised value in `channel` is `value`
+    /// ([`Self::encode`]'s inverse; a clipped value gives the least signal
+    /// that clips).
+    pub fn decode(&self, channel: usize, value: f64) -> f64 {
+        let v = if value.is_finite() {
+            value.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let knee = f64::from(self.knee);
+        let shoulder = f64::from(self.shoulder);
+        let v = if v > knee && shoulder > 0.0 {
+            knee + (v - knee) / shoulder
+        } else {
+            v
+        };
+        v.powf(f64::from(self.gamma[channel.min(2)]).max(1e-3))
+    }
+}
+
 impl Default for CameraResponse {
     fn default() -> Self {
         Self {
-            gamma: 1.0,
+            gamma: Vec3::ONE,
+            knee: 1.0,
+            shoulder: 1.0,
             gain: 1.0,
             exposure_s: 1.0 / 30.0,
             read_noise: 0.0,

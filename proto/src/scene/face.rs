@@ -60,8 +60,127 @@ pub struct CrtFace {
     pub width: u32,
     /// Vertical resolution.
     pub height: u32,
-    /// Display gamma applied at the device boundary.
-    pub gamma: f32,
+    /// The CRT's response and its beam splitter's transmission and
+    /// reflection: in the simulated showcase the device itself, for a node
+    /// the profile it encodes its output with at the device boundary
+    /// (nominal until `calibrate --photometric` measures it).
+    pub photometry: CrtPhotometry,
+}
+
+/// A half-silvered mirror's transmission and reflection per linear RGB
+/// channel: an observer sees `T * real + R * CRT`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BeamSplitter {
+    /// Fraction of the light from behind the mirror (the real objects)
+    /// that passes, per channel.
+    pub transmission: Vec3,
+    /// Fraction of the CRT's light that the mirror reflects, per channel.
+    pub reflection: Vec3,
+}
+
+impl BeamSplitter {
+    /// The ideal combiner: transmission and reflection 1.
+    pub const IDEAL: Self = Self {
+        transmission: Vec3::ONE,
+        reflection: Vec3::ONE,
+    };
+}
+
+/// A CRT's light per drive value `d` in `0..=1`, per channel:
+/// `black_level + peak * d^gamma` (radiance, W/m^2/sr).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CrtResponse {
+    /// Exponent of the drive value, per channel.
+    pub gamma: Vec3,
+    /// Radiance at drive 1 above black, per channel (the white point).
+    pub peak: Vec3,
+    /// Radiance at drive 0, per channel.
+    pub black_level: Vec3,
+}
+
+impl CrtResponse {
+    /// A CRT of one `gamma`, peak radiance 1 and no black level.
+    pub fn nominal(gamma: f32) -> Self {
+        Self {
+            gamma: Vec3::splat(gamma),
+            peak: Vec3::ONE,
+            black_level: Vec3::ZERO,
+        }
+    }
+
+    /// The radiance the CRT emits at drive values `drive` (clamped to
+    /// `0..=1`; a non-finite value counts as 0).
+    pub fn emit(&self, drive: Vec3) -> Vec3 {
+        let d = Vec3::from_array(drive.to_array().map(|x| {
+            if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        }));
+        let powf = |x: f32, g: f32| if x > 0.0 { x.powf(g) } else { 0.0 };
+        self.black_level
+            + self.peak
+                * Vec3::new(
+                    powf(d.x, self.gamma.x),
+                    powf(d.y, self.gamma.y),
+                    powf(d.z, self.gamma.z),
+                )
+    }
+}
+
+/// A face's photometric chain: its CRT and its beam splitter.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CrtPhotometry {
+    /// The CRT.
+    pub crt: CrtResponse,
+    /// The beam splitter in front of it.
+    pub splitter: BeamSplitter,
+}
+
+impl CrtPhotometry {
+    /// An ideal combiner in front of a nominal CRT of `gamma`: what a node
+    /// assumes before photometric calibration.
+    pub fn nominal(gamma: f32) -> Self {
+        Self {
+            crt: CrtResponse::nominal(gamma),
+            splitter: BeamSplitter::IDEAL,
+        }
+    }
+
+    /// What an observer receives through the mirror from drive values
+    /// `drive`, in the units of radiance behind the mirror (the mirror's
+    /// reflection over its transmission times the CRT's light), so that
+    /// it adds to what the observer sees of the real objects as it is.
+    pub fn seen(&self, drive: Vec3) -> Vec3 {
+        let t = self.splitter.transmission;
+        let ratio = Vec3::from_array(std::array::from_fn(|c| {
+            if t[c] > 0.0 {
+                self.splitter.reflection[c] / t[c]
+            } else {
+                0.0
+            }
+        }));
+        ratio * self.crt.emit(drive)
+    }
+
+    /// The drive values that make an observer see `radiance` through the
+    /// mirror as if it were behind it ([`Self::seen`]'s inverse), clamped
+    /// to what the CRT can show: its black level from below, drive 1 from
+    /// above. Non-finite input shows black.
+    pub fn drive(&self, radiance: Vec3) -> Vec3 {
+        Vec3::from_array(std::array::from_fn(|c| {
+            let (t, r) = (self.splitter.transmission[c], self.splitter.reflection[c]);
+            let (peak, black, gamma) =
+                (self.crt.peak[c], self.crt.black_level[c], self.crt.gamma[c]);
+            let l = radiance[c];
+            if !(l.is_finite() && r > 0.0 && peak > 0.0 && gamma > 0.0) {
+                return 0.0;
+            }
+            let x = ((l * t / r - black) / peak).clamp(0.0, 1.0);
+            if x > 0.0 { x.powf(1.0 / gamma) } else { 0.0 }
+        }))
+    }
 }
 
 /// A rigid pose.

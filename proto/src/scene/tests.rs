@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::validate::Validate;
-use glam::{DVec2, DVec3};
+use glam::{DVec2, DVec3, Vec3};
 
 fn device() -> PinholeDevice {
     PinholeDevice::look_at(
@@ -185,4 +185,126 @@ fn mirror_reflection_is_an_involution() {
     assert!((p.reflect_point(r) - x).length() < 1e-6);
     let mid = 0.5 * (x + r);
     assert!((p.normal.dot(mid) - p.offset).abs() < 1e-6);
+}
+
+/// A mismatched chain like the demo scene's: tinted splitter, a CRT of
+/// its own gamma per channel with a black level.
+fn mismatched() -> CrtPhotometry {
+    CrtPhotometry {
+        crt: CrtResponse {
+            gamma: Vec3::new(2.4, 2.5, 2.3),
+            peak: Vec3::new(2.0, 1.8, 2.2),
+            black_level: Vec3::splat(0.004),
+        },
+        splitter: BeamSplitter {
+            transmission: Vec3::new(0.62, 0.6, 0.57),
+            reflection: Vec3::new(0.33, 0.35, 0.37),
+        },
+    }
+}
+
+#[test]
+fn crt_drive_inverts_what_the_observer_sees_inside_the_range() {
+    let ph = mismatched();
+    for l in [0.01f32, 0.1, 0.5, 1.0] {
+        let radiance = Vec3::new(l, 0.7 * l, 1.1 * l);
+        let seen = ph.seen(ph.drive(radiance));
+        assert!(
+            (seen - radiance).abs().max_element() < 1e-4 * radiance.max_element().max(1.0),
+            "{radiance} -> {seen}"
+        );
+    }
+    // Below black and above peak the CRT clips: it cannot show less than
+    // its black level, nor more than drive 1.
+    let seen_black = ph.seen(ph.drive(Vec3::ZERO));
+    assert_eq!(ph.drive(Vec3::ZERO), Vec3::ZERO);
+    assert!(seen_black.min_element() > 0.0, "{seen_black}");
+    assert_eq!(ph.drive(Vec3::splat(1e6)), Vec3::ONE);
+    assert_eq!(ph.drive(Vec3::splat(f32::NAN)), Vec3::ZERO);
+    assert_eq!(ph.crt.emit(Vec3::splat(f32::INFINITY)), ph.crt.black_level);
+}
+
+#[test]
+fn nominal_crt_is_the_plain_inverse_gamma() {
+    let ph = CrtPhotometry::nominal(2.2);
+    let d = ph.drive(Vec3::new(0.25, 0.5, 1.0));
+    for (c, l) in [0.25f32, 0.5, 1.0].into_iter().enumerate() {
+        assert!((d[c] - l.powf(1.0 / 2.2)).abs() < 1e-6, "{d}");
+    }
+}
+
+#[test]
+fn face_photometry_out_of_range_is_named() {
+    let face = CrtFace {
+        name: "face-0".into(),
+        screen: Rect3 {
+            origin: Vec3::ZERO,
+            right: Vec3::X,
+            down: Vec3::NEG_Y,
+        },
+        mirror: Plane::from_point_normal(Vec3::ZERO, Vec3::Y),
+        width: 64,
+        height: 48,
+        photometry: mismatched(),
+    };
+    assert!(face.validate().is_ok());
+    for (field, change) in [
+        ("photometry.splitter.reflection", {
+            let mut f = face.clone();
+            f.photometry.splitter.reflection.y = 0.0;
+            f
+        }),
+        ("photometry.splitter.transmission", {
+            let mut f = face.clone();
+            f.photometry.splitter.transmission.x = 1.5;
+            f
+        }),
+        ("photometry.crt.gamma", {
+            let mut f = face.clone();
+            f.photometry.crt.gamma.z = -1.0;
+            f
+        }),
+        ("photometry.crt.peak", {
+            let mut f = face.clone();
+            f.photometry.crt.peak.z = f32::NAN;
+            f
+        }),
+    ] {
+        let err = change.validate().unwrap_err().to_string();
+        assert!(err.contains(field), "{field}: {err}");
+    }
+}
+
+#[test]
+fn camera_response_decode_inverts_encode_below_saturation() {
+    let r = CameraResponse {
+        gamma: Vec3::new(2.1, 2.25, 1.95),
+        knee: 0.8,
+        shoulder: 0.45,
+        ..CameraResponse::default()
+    };
+    for c in 0..3 {
+        let mut last = -1.0;
+        for k in 0..=100 {
+            let s = k as f64 / 100.0;
+            let v = r.encode(c, s);
+            assert!(
+                v >= last && (0.0..=1.0).contains(&v),
+                "channel {c} signal {s}: {v}"
+            );
+            last = v;
+            if v < 1.0 {
+                assert!((r.decode(c, v) - s).abs() < 1e-9, "channel {c} signal {s}");
+            }
+        }
+        // Above the knee the slope is the shoulder's share of the curve's.
+        let g = f64::from(r.gamma[c]);
+        let knee = f64::from(r.knee);
+        let s_knee = knee.powf(g);
+        let (a, b) = (r.encode(c, s_knee * 1.01), r.encode(c, s_knee));
+        let plain = (s_knee * 1.01).powf(1.0 / g) - knee;
+        assert!(((a - b) / plain - 0.45).abs() < 1e-6, "{}", (a - b) / plain);
+    }
+    assert_eq!(r.encode(0, f64::NAN), 0.0);
+    assert_eq!(r.encode(0, 1e9), 1.0);
 }

@@ -165,7 +165,7 @@ mod tests {
             mirror: Plane::from_point_normal(Vec3::new(0.0, 0.2, -0.2), Vec3::new(0.0, 1.0, -1.0)),
             width: 1024,
             height: 768,
-            gamma: 2.2,
+            photometry: showcase_proto::CrtPhotometry::nominal(2.2),
         }
     }
 

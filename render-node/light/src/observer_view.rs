@@ -8,8 +8,9 @@
 //!   only, as paper section 5 assumes), with their true reflectance, seen
 //!   straight through the half-silvered mirror;
 //! - plus the CRT's image, reflected by the mirror: the eye's ray meets the
-//!   mirror plane, is reflected, and meets the screen at the pixel whose
-//!   radiance the face node drew (nearest pixel).
+//!   mirror plane, is reflected, and meets the screen at a pixel (nearest
+//!   pixel), which emits what the face's CRT makes of the drive value the
+//!   face node sent it ([`CrtResponse::emit`](showcase_proto::CrtResponse::emit)).
 //!
 //! Besides the figures' usual masks ([`ObserverView::edge`],
 //! [`ObserverView::reachable`]) the view marks what the method cannot
@@ -20,9 +21,13 @@
 //! surfaces lit by a projector pixel that straddles an edge
 //! ([`projector_edge_pixels`]).
 //!
-//! The mirror is taken as an ideal combiner (transmission and reflection
-//! 1), so the composite is comparable with the target without a common
-//! attenuation factor.
+//! The eye looks through the beam splitter of the face that serves it
+//! ([`ObserverView::glass`]): it sees the real objects, and the target,
+//! attenuated by the splitter's transmission, and the CRT by its
+//! reflection (`T * real + R * CRT`). Without a face there is no glass.
+//! [`crt_drive`] is the face node's side of the same boundary: its
+//! radiance encoded as 8-bit drive values with its own photometric
+//! profile.
 //!
 //! The **target** is the scene as if all lighting were virtual: the first
 //! surface on the eye's ray, real or virtual, shaded `rho / pi * E` by the
@@ -52,7 +57,7 @@ use crate::render::{FrameScene, RenderSetupError};
 use crate::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use showcase_proto::{CrtFace, ObjectKind, PinholeDevice, Projector};
+use showcase_proto::{BeamSplitter, CrtFace, CrtPhotometry, ObjectKind, PinholeDevice, Projector};
 use std::f64::consts::PI;
 
 /// Rays per eye pixel along each axis.
@@ -70,10 +75,31 @@ pub struct ProjectedLight<'a> {
 /// The face image one eye sees through a mirror.
 #[derive(Clone, Copy, Debug)]
 pub struct MirrorImage<'a> {
-    /// The CRT face.
+    /// The CRT face, with its true photometry (its CRT turns the drive
+    /// values into light, its splitter reflects and transmits).
     pub face: &'a CrtFace,
-    /// The radiance the face node drew for this eye, face-sized.
-    pub radiance: &'a RgbImage,
+    /// The drive values the face node sent for this eye, face-sized
+    /// ([`crt_drive`]).
+    pub drive: &'a RgbImage,
+}
+
+/// Bits per channel of a CRT's drive values.
+pub const CRT_DRIVE_BITS: u32 = 8;
+
+/// A face node's radiance image as the drive values it sends its CRT:
+/// encoded with the node's photometric profile `profile`
+/// ([`CrtPhotometry::drive`]) and quantised to [`CRT_DRIVE_BITS`].
+pub fn crt_drive(profile: &CrtPhotometry, radiance: &RgbImage) -> RgbImage {
+    let levels = ((1u32 << CRT_DRIVE_BITS) - 1) as f32;
+    Image {
+        width: radiance.width,
+        height: radiance.height,
+        data: radiance
+            .data
+            .iter()
+            .map(|l| (profile.drive(*l) * levels).round() / levels)
+            .collect(),
+    }
 }
 
 /// An observer's simulated view and its target.
@@ -85,8 +111,12 @@ pub struct ObserverView {
     pub real: RgbImage,
     /// The reflected CRT part of [`Self::composite`].
     pub reflected: RgbImage,
-    /// All lighting virtual.
+    /// All lighting virtual, seen through the same glass.
     pub target: RgbImage,
+    /// The beam splitter the eye looks through: [`Self::real`] and
+    /// [`Self::target`] carry its transmission, [`Self::reflected`] its
+    /// reflection.
+    pub glass: BeamSplitter,
     /// Pixels where the eye sees some object (real or virtual).
     pub covered: Image<bool>,
     /// Pixels whose centre ray meets a virtual object first (the CRT
@@ -114,6 +144,34 @@ pub struct ObserverView {
     /// mirror image cannot fill it in: this eye's ray through the mirror
     /// misses the face's screen, or no face serves this eye.
     pub unfillable: Image<bool>,
+    /// Pixels whose first surface is real and lies in another tracked
+    /// eye's occlusion shadow, which this eye sees through the mirror: the
+    /// face draws the real surface there (occluding occlusion shadows,
+    /// paper section 5.4), next to the real surface itself.
+    pub filled: Image<bool>,
+}
+
+impl ObserverView {
+    /// The occluding-occlusion seams: covered pixels whose first surface
+    /// is real, with a 3x3 neighbour also real on the other side of
+    /// [`Self::filled`] (the CRT's rendering of a real surface on one
+    /// side, the real surface on the other); both sides are marked.
+    pub fn seams(&self) -> Image<bool> {
+        let (w, h) = (self.filled.width, self.filled.height);
+        let real = |x: i64, y: i64| -> Option<bool> {
+            if x < 0 || y < 0 || x >= i64::from(w) || y >= i64::from(h) {
+                return None;
+            }
+            let i = (y as u32 * w + x as u32) as usize;
+            (self.covered.data[i] && !self.sees_virtual.data[i]).then_some(self.filled.data[i])
+        };
+        Image::from_fn(w, h, |x, y| {
+            let (x, y) = (i64::from(x), i64::from(y));
+            real(x, y).is_some_and(|f| {
+                (-1..=1).any(|dy| (-1..=1).any(|dx| real(x + dx, y + dy).is_some_and(|n| n != f)))
+            })
+        })
+    }
 }
 
 /// The target's first surface on a pixel's ray: object, triangle and the
@@ -165,7 +223,7 @@ pub fn observer_view(
         ));
     }
     if let Some(m) = &mirror {
-        check_size(&m.face.name, m.radiance, m.face.width, m.face.height)?;
+        check_size(&m.face.name, m.drive, m.face.width, m.face.height)?;
     }
     let (w, h) = (eye.width, eye.height);
     // The eyes whose occlusion shadows the projectors leave dark: every
@@ -176,13 +234,15 @@ pub fn observer_view(
         .copied()
         .filter(|e| (*e - eye_rays.center()).length() > 1e-9)
         .collect();
-    let pixels: Vec<([Vec3; 3], SurfaceKey, bool, bool)> = (0..h)
+    let glass = mirror.map_or(BeamSplitter::IDEAL, |m| m.face.photometry.splitter);
+    let (t, r) = (glass.transmission.as_dvec3(), glass.reflection.as_dvec3());
+    let pixels: Vec<([Vec3; 3], SurfaceKey, bool, Option<bool>)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
             let (eye_rays, projectors, others) = (&eye_rays, &projectors, &others);
             (0..w).map(move |x| {
                 let Some(ray) = eye_rays.pixel_ray(x, y) else {
-                    return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false, false);
+                    return ([Vec3::ZERO, Vec3::ZERO, Vec3::NAN], None, false, None);
                 };
                 // The pixel's own surface (its centre ray) decides what it
                 // shows and its edge key; its radiance is the mean over
@@ -194,7 +254,7 @@ pub fn observer_view(
                     None => (None, None),
                 };
                 let (_, reachable) = real_radiance(frame, &occluders.real_only, projectors, &ray);
-                let unfillable = cannot_fill(frame, occluders, others, mirror.as_ref(), &ray);
+                let fill = occlusion_fill(frame, occluders, others, mirror.as_ref(), &ray);
                 let (mut real, mut reflected, mut target) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
                 let n = SUBSAMPLES * SUBSAMPLES;
                 for k in 0..n {
@@ -213,13 +273,13 @@ pub fn observer_view(
                     target += target_radiance(frame, occluders, &sub).map_or(DVec3::ZERO, |t| t.0);
                 }
                 let scale = 1.0 / n as f64;
-                let (real, reflected) = (real * scale, reflected * scale);
-                let target = centre_target.map_or(Vec3::NAN, |_| (target * scale).as_vec3());
+                let (real, reflected) = (real * scale * t, reflected * scale * r);
+                let target = centre_target.map_or(Vec3::NAN, |_| (target * scale * t).as_vec3());
                 (
                     [real.as_vec3(), reflected.as_vec3(), target],
                     key,
                     reachable,
-                    unfillable,
+                    fill,
                 )
             })
         })
@@ -229,6 +289,7 @@ pub fn observer_view(
         real: Image::new(w, h, Vec3::ZERO),
         reflected: Image::new(w, h, Vec3::ZERO),
         target: Image::new(w, h, Vec3::ZERO),
+        glass,
         covered: Image::new(w, h, false),
         sees_virtual: Image::new(w, h, false),
         sees_reflective: Image::new(w, h, false),
@@ -237,12 +298,12 @@ pub fn observer_view(
         reachable: Image::new(w, h, false),
         reach_edge: Image::new(w, h, false),
         unfillable: Image::new(w, h, false),
+        filled: Image::new(w, h, false),
     };
     let mut keys = Image::new(w, h, None);
-    for (i, ([real, reflected, target], key, reachable, unfillable)) in
-        pixels.into_iter().enumerate()
-    {
-        view.unfillable.data[i] = unfillable;
+    for (i, ([real, reflected, target], key, reachable, fill)) in pixels.into_iter().enumerate() {
+        view.unfillable.data[i] = fill == Some(false);
+        view.filled.data[i] = fill == Some(true);
         keys.data[i] = key;
         let seen = key.and_then(|(object, _, _)| frame.showcase.objects.get(object as usize));
         let virtual_ = seen.filter(|o| o.kind == ObjectKind::Virtual);
@@ -293,31 +354,28 @@ pub fn next_to_change(mask: &Image<bool>) -> Image<bool> {
 /// True when `ray`'s first surface is real, lies in the occlusion shadow
 /// of one of `other_eyes`, and the mirror image cannot show it (no face,
 /// or the ray through the mirror misses the screen).
-fn cannot_fill(
+fn occlusion_fill(
     frame: &FrameScene,
     occluders: &Occluders,
     other_eyes: &[DVec3],
     mirror: Option<&MirrorImage<'_>>,
     ray: &Ray,
-) -> bool {
-    if mirror.is_some_and(|m| mirror_pixel(m.face, ray).is_some()) {
-        return false;
-    }
-    let Some(hit) = occluders.all.closest_hit(ray, 0.0, f64::INFINITY) else {
-        return false;
-    };
+) -> Option<bool> {
+    let hit = occluders.all.closest_hit(ray, 0.0, f64::INFINITY)?;
     let real = frame
         .showcase
         .objects
         .get(hit.object as usize)
         .is_some_and(|o| o.kind == ObjectKind::Real);
-    real && hit.geometric_normal != DVec3::ZERO
+    let shadowed = real
+        && hit.geometric_normal != DVec3::ZERO
         && in_occlusion_shadow(
             &occluders.virtual_only,
             other_eyes,
             hit.point,
             hit.facing_normal(ray.direction),
-        )
+        );
+    shadowed.then(|| mirror.is_some_and(|m| mirror_pixel(m.face, ray).is_some()))
 }
 
 /// The eye pixels whose first real surface some projector lights from a
@@ -441,9 +499,9 @@ fn real_radiance(
 /// Radiance of the CRT pixel the eye sees along `ray` via the mirror.
 fn reflected_radiance(m: &MirrorImage<'_>, ray: &Ray) -> Option<DVec3> {
     let pixel = mirror_pixel(m.face, ray)?;
-    m.radiance
+    m.drive
         .get(pixel.x as u32, pixel.y as u32)
-        .map(|c| c.as_dvec3())
+        .map(|d| m.face.photometry.crt.emit(*d).as_dvec3())
 }
 
 /// The CRT pixel coordinates (continuous) that `ray` from an eye sees by

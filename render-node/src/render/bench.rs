@@ -293,7 +293,7 @@ pub fn bench_face(width: u32, height: u32) -> CrtFace {
         mirror,
         width,
         height,
-        gamma: 2.2,
+        photometry: showcase_proto::CrtPhotometry::nominal(2.2),
     }
 }
 

@@ -123,6 +123,7 @@ mod tests {
                 projector_edges: Vec::new(),
                 faces: Vec::new(),
                 reference_clipped: Vec::new(),
+                profiles: Vec::new(),
             };
             for p in &truth.projectors {
                 let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();

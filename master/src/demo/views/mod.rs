@@ -17,7 +17,7 @@ use showcase_light::observer_view::complete::{
     CompleteImage, CompleteOptions, CompleteView, complete_view_with_target,
 };
 use showcase_light::observer_view::{
-    MirrorImage, ObserverView, ProjectedLight, observer_view, projector_edge_pixels,
+    MirrorImage, ObserverView, ProjectedLight, crt_drive, observer_view, projector_edge_pixels,
 };
 use showcase_light::render::cube_map::{DEFAULT_CUBE_RES, cube_maps_cpu};
 use showcase_light::render::face::{eyes_to_fill, face_image_cpu_with};
@@ -26,7 +26,7 @@ use showcase_light::render::{
     FrameScene, IndirectField, Occluders, ProjectorOptions, irradiance_map_cpu,
 };
 use showcase_light::{Image, RgbImage, metrics};
-use showcase_proto::{FrameState, PinholeDevice, Showcase};
+use showcase_proto::{CrtPhotometry, FrameState, PinholeDevice, Showcase};
 use showcase_render::gpu::GpuContext;
 use showcase_render::node::Renderer;
 use showcase_render::render::face_gpu::FaceRenderer;
@@ -116,6 +116,9 @@ pub(super) struct Outputs {
     /// Per projector: the clipped fraction of its CPU reference map of the
     /// same frame.
     pub reference_clipped: Vec<f64>,
+    /// Per face (by index): the photometric profile its node encodes the
+    /// radiance with at the device boundary (`crt_drive`).
+    pub profiles: Vec<CrtPhotometry>,
 }
 
 fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
@@ -214,6 +217,7 @@ impl NodeRenderers {
             projector_edges: Vec::new(),
             faces: Vec::new(),
             reference_clipped: Vec::new(),
+            profiles: scene.faces.iter().map(|f| f.photometry).collect(),
         };
         let mut frame = FrameScene::resolve(scene, &state)?;
         if let Some(field) = &self.indirect {
@@ -404,16 +408,19 @@ pub(super) fn observe(
     observer: usize,
     transport: Transport,
 ) -> Result<ObserverResult> {
-    let mirror = outputs
+    // The face node sends its CRT drive values (its own profile); the
+    // true CRT behind the true splitter turns them into light.
+    let drive = outputs
         .faces
         .iter()
         .find(|(_, o, _)| *o == observer)
-        .and_then(|(f, _, [left, _])| {
-            Some(MirrorImage {
-                face: truth.faces.get(*f)?,
-                radiance: left,
-            })
-        });
+        .and_then(|(f, _, [left, _])| Some((*f, crt_drive(outputs.profiles.get(*f)?, left))));
+    let mirror = drive.as_ref().and_then(|(f, drive)| {
+        Some(MirrorImage {
+            face: truth.faces.get(*f)?,
+            drive,
+        })
+    });
     let cam = eye_camera(truth, state, observer);
     let Simulated {
         view,
@@ -636,12 +643,14 @@ pub(in crate::demo) fn simulate(
             if traced && let Ok(mut t) = targets.0.lock() {
                 t.insert(key, c.target.clone());
             }
+            // Seen through the same glass as the direct view's.
+            let t = view.glass.transmission;
             for i in 0..view.covered.data.len() {
-                let real = c.real.radiance.data[i];
+                let real = t * c.real.radiance.data[i];
                 view.real.data[i] = real;
                 view.composite.data[i] = real + view.reflected.data[i];
                 view.target.data[i] = if view.covered.data[i] {
-                    c.target.radiance.data[i]
+                    t * c.target.radiance.data[i]
                 } else {
                     Vec3::ZERO
                 };

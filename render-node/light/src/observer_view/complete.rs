@@ -147,24 +147,8 @@ pub fn complete_view_with_target(
     target: Option<CompleteImage>,
 ) -> Result<CompleteView, ObserverViewError> {
     let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
-    let mut lights = Vec::with_capacity(projected.len());
-    for p in projected {
-        let d = &p.projector.device;
-        check_size(&p.projector.name, p.value, d.width, d.height)?;
-        let intensity = p
-            .value
-            .map(|v| projector_intensity(&p.projector.response, *v));
-        let rays = DeviceRays::new(d).map_err(RenderSetupError::from)?;
-        lights.push(ProjectorLight::new(rays, intensity)?);
-    }
+    let real = complete_real(frame, eye, projected, options)?;
     let scene = &frame.showcase;
-    let real_world = SimWorld::new(scene, &ObjectFilter::Real, true)?;
-    let real = trace_image(
-        &real_world,
-        &SimLights::projectors(&lights),
-        &eye_rays,
-        options,
-    );
     let fits = |t: &CompleteImage| (t.radiance.width, t.radiance.height) == (eye.width, eye.height);
     let target = match target.filter(fits) {
         Some(t) => t,
@@ -175,6 +159,34 @@ pub fn complete_view_with_target(
         }
     };
     Ok(CompleteView { real, target })
+}
+
+/// [`CompleteView::real`] alone: the real objects under `projected`,
+/// every bounce (the same image, bit for bit).
+pub fn complete_real(
+    frame: &FrameScene,
+    eye: &PinholeDevice,
+    projected: &[ProjectedLight<'_>],
+    options: CompleteOptions,
+) -> Result<CompleteImage, ObserverViewError> {
+    let eye_rays = DeviceRays::new(eye).map_err(RenderSetupError::from)?;
+    let mut lights = Vec::with_capacity(projected.len());
+    for p in projected {
+        let d = &p.projector.device;
+        check_size(&p.projector.name, p.value, d.width, d.height)?;
+        let intensity = p
+            .value
+            .map(|v| projector_intensity(&p.projector.response, *v));
+        let rays = DeviceRays::new(d).map_err(RenderSetupError::from)?;
+        lights.push(ProjectorLight::new(rays, intensity)?);
+    }
+    let real_world = SimWorld::new(&frame.showcase, &ObjectFilter::Real, true)?;
+    Ok(trace_image(
+        &real_world,
+        &SimLights::projectors(&lights),
+        &eye_rays,
+        options,
+    ))
 }
 
 /// Every pixel of `eye` in `world` under `lights`, as two halves: each

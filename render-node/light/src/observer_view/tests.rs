@@ -20,7 +20,7 @@ fn face() -> CrtFace {
         ),
         width: 64,
         height: 48,
-        gamma: 2.2,
+        photometry: showcase_proto::CrtPhotometry::nominal(2.2),
     }
 }
 
@@ -183,13 +183,17 @@ fn next_to_change_marks_both_sides_of_a_boundary() {
 /// face image the way the mirror shows it.
 #[test]
 fn the_mirror_shows_each_crt_pixel_on_its_line_of_sight() {
-    let face = face();
-    let radiance = Image::from_fn(face.width, face.height, |x, y| {
-        Vec3::new(x as f32, y as f32, 1.0)
+    // A linear CRT shows each pixel's drive value as its light.
+    let mut face = face();
+    face.photometry = showcase_proto::CrtPhotometry::nominal(1.0);
+    let (w, h) = (face.width as f32, face.height as f32);
+    let code = |x: f32, y: f32| Some(Vec3::new(x / w, y / h, 1.0).as_dvec3());
+    let drive = Image::from_fn(face.width, face.height, |x, y| {
+        Vec3::new(x as f32 / w, y as f32 / h, 1.0)
     });
     let m = MirrorImage {
         face: &face,
-        radiance: &radiance,
+        drive: &drive,
     };
     for eye in [
         DVec3::new(0.0, 0.45, 1.4),
@@ -201,11 +205,7 @@ fn the_mirror_shows_each_crt_pixel_on_its_line_of_sight() {
             let seen = reflected_pixel(&face, centre);
             let ray = Ray::new(eye, (seen - eye).normalize());
             let got = reflected_radiance(&m, &ray);
-            assert_eq!(
-                got,
-                Some(DVec3::new(x as f64, y as f64, 1.0)),
-                "eye {eye}, pixel ({x}, {y})"
-            );
+            assert_eq!(got, code(x as f32, y as f32), "eye {eye}, pixel ({x}, {y})");
         }
     }
     // The face renderer's projection (mirror_view) draws a world point
@@ -222,7 +222,7 @@ fn the_mirror_shows_each_crt_pixel_on_its_line_of_sight() {
             let got = reflected_radiance(&m, &ray);
             assert_eq!(
                 got,
-                Some(DVec3::new(px.x.floor(), px.y.floor(), 1.0)),
+                code(px.x.floor() as f32, px.y.floor() as f32),
                 "eye {eye}, world {world}: renderer pixel {px}"
             );
         }
@@ -230,4 +230,144 @@ fn the_mirror_shows_each_crt_pixel_on_its_line_of_sight() {
     // A ray that misses the screen's image sees nothing.
     let ray = Ray::new(DVec3::new(0.0, 0.45, 1.4), DVec3::new(0.0, 1.0, 0.0));
     assert_eq!(reflected_radiance(&m, &ray), None);
+}
+
+/// The eye sees the real objects and the target through the glass
+/// (`T *`), and the CRT's light for the drive values it was sent in the
+/// mirror (`R * emit`): against an ideal combiner in front of a nominal
+/// CRT, every part scales by exactly its factor.
+#[test]
+fn the_eye_sees_t_times_real_plus_r_times_the_crts_light() {
+    use showcase_proto::{BeamSplitter, CrtPhotometry, CrtResponse};
+    let scene = floor_and_card(0.1);
+    let cam = PinholeDevice::look_at(
+        DVec3::new(0.0, 0.45, 1.4),
+        DVec3::new(0.0, 0.1, 0.0),
+        DVec3::Y,
+        40.0,
+        64,
+        48,
+    );
+    let frame = FrameScene::from_parts(scene, &[cam.center()]).unwrap();
+    let occluders = Occluders::new(&frame).unwrap();
+    let ideal = face();
+    let mut real = face();
+    real.photometry = CrtPhotometry {
+        crt: CrtResponse {
+            gamma: Vec3::new(2.4, 2.5, 2.3),
+            peak: Vec3::new(2.0, 1.8, 2.2),
+            black_level: Vec3::splat(0.004),
+        },
+        splitter: BeamSplitter {
+            transmission: Vec3::new(0.62, 0.6, 0.57),
+            reflection: Vec3::new(0.33, 0.35, 0.37),
+        },
+    };
+    let d0 = Vec3::new(0.8, 0.5, 0.3);
+    let drive = Image::new(ideal.width, ideal.height, d0);
+    let view = |face: &CrtFace| {
+        let m = MirrorImage {
+            face,
+            drive: &drive,
+        };
+        observer_view(&frame, &occluders, &cam, &[], Some(m)).unwrap()
+    };
+    let (a, b) = (view(&ideal), view(&real));
+    let glass = real.photometry.splitter;
+    assert_eq!(b.glass, glass);
+    assert_eq!(a.glass, BeamSplitter::IDEAL);
+    let per_light = real.photometry.crt.emit(d0) / ideal.photometry.crt.emit(d0);
+    let close =
+        |x: Vec3, y: Vec3| (x - y).abs().max_element() <= 1e-5 * y.abs().max_element().max(1e-3);
+    let mut mirrored = 0;
+    for i in 0..a.composite.data.len() {
+        assert!(
+            close(b.target.data[i], glass.transmission * a.target.data[i]),
+            "target {i}"
+        );
+        assert!(
+            close(b.real.data[i], glass.transmission * a.real.data[i]),
+            "real {i}"
+        );
+        let want = glass.reflection * per_light * a.reflected.data[i];
+        assert!(
+            close(b.reflected.data[i], want),
+            "reflected {i}: {} vs {want}",
+            b.reflected.data[i]
+        );
+        assert!(close(
+            b.composite.data[i],
+            b.real.data[i] + b.reflected.data[i]
+        ));
+        mirrored += usize::from(a.reflected.data[i].max_element() > 0.0);
+    }
+    // The eye does look through the mirror at the screen.
+    assert!(mirrored > 1000, "{mirrored} pixels see the screen");
+    // What the face node sends: its radiance through its own profile, in
+    // 8-bit steps, and back through the same device to within a step.
+    let radiance = Image::new(4, 1, Vec3::new(0.3, 0.2, 0.1));
+    let codes = crt_drive(&real.photometry, &radiance);
+    let seen = real.photometry.seen(codes.data[0]);
+    assert!(
+        (seen - radiance.data[0]).abs().max_element() < 0.01 * 0.3,
+        "{seen}"
+    );
+    for c in 0..3 {
+        let code = codes.data[0][c] * 255.0;
+        assert!((code - code.round()).abs() < 1e-3, "{code}");
+    }
+}
+
+/// Another eye straight above the card shadows the floor under it; an
+/// eye that sees that shadow through the mirror has it filled by the
+/// face, exactly inside the analytic shadow (`|0.8 p| < a`, as in
+/// `unfillable_...`), and its seams lie on the shadow's border.
+#[test]
+fn filled_shadows_and_their_seams_follow_the_other_eyes_shadow() {
+    let a = 0.1;
+    let scene = floor_and_card(a as f32);
+    let cam = PinholeDevice::look_at(
+        DVec3::new(0.0, 0.45, 1.4),
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::Y,
+        30.0,
+        64,
+        48,
+    );
+    let other = DVec3::new(0.0, 1.0, 0.0);
+    let frame = FrameScene::from_parts(scene, &[cam.center(), other]).unwrap();
+    let occluders = Occluders::new(&frame).unwrap();
+    let face = face();
+    let drive = Image::new(face.width, face.height, Vec3::ZERO);
+    let m = MirrorImage {
+        face: &face,
+        drive: &drive,
+    };
+    let view = observer_view(&frame, &occluders, &cam, &[], Some(m)).unwrap();
+    let seams = view.seams();
+    let rays = DeviceRays::new(&cam).unwrap();
+    let (mut filled, mut seam) = (0, 0);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let ray = rays.pixel_ray(x, y).unwrap();
+            let floor = ray.at(-ray.origin.y / ray.direction.y);
+            let card = ray.at((0.2 - ray.origin.y) / ray.direction.y);
+            if card.x.abs() < a && card.z.abs() < a {
+                continue;
+            }
+            let s = (floor.x.abs() * 0.8).max(floor.z.abs() * 0.8);
+            let got = *view.filled.get(x, y).unwrap();
+            if (s - a).abs() > 2e-3 {
+                assert_eq!(got, s < a, "pixel ({x}, {y}) floor {floor}");
+            }
+            filled += usize::from(got);
+            if *seams.get(x, y).unwrap() {
+                seam += 1;
+                // Within about two pixels' footprint of the border.
+                assert!((s - a).abs() < 0.03, "seam pixel ({x}, {y}) at {s}");
+            }
+        }
+    }
+    assert!(filled > 20 && seam > 10, "{filled} filled, {seam} on seams");
+    assert!(view.unfillable.data.iter().all(|u| !u));
 }

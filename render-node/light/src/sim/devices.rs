@@ -430,31 +430,12 @@ impl CameraDevice for SimCamera {
                 *l += w * (t.direct.data[i] + t.indirect.data[i]).as_dvec3();
             }
         }
-        let response = self.response().clone();
-        let bits = response.bits.clamp(1, 16);
-        let max_code = ((1u32 << bits) - 1) as f64;
-        let gain = finite_or(response.gain as f64, 0.0) * finite_or(exposure_s, 0.0);
-        let inv_gamma = 1.0 / finite_or(response.gamma as f64, 1.0).max(1e-3);
-        let read = finite_or(response.read_noise as f64, 0.0).max(0.0);
-        let shot = finite_or(response.shot_noise as f64, 0.0).max(0.0);
         let seed = pixel_seed(
             shared.config.seed ^ 0x0CA3_E7A0,
             ((self.index as u64) << 32) ^ self.captures,
         );
         self.captures += 1;
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let codes = radiance
-            .iter()
-            .map(|l| {
-                std::array::from_fn(|c| {
-                    let s = gain * l[c];
-                    let sd = (shot * s.max(0.0) + read * read).sqrt();
-                    let z: f64 = StandardNormal.sample(&mut rng);
-                    let s = finite_or(s + sd * z, 0.0).clamp(0.0, 1.0);
-                    (s.powf(inv_gamma) * max_code).round() as u16
-                })
-            })
-            .collect();
+        let codes = expose(self.response(), &radiance, exposure_s, seed);
         let d = self.device();
         Ok(CameraFrame {
             codes: Image {
@@ -462,9 +443,39 @@ impl CameraDevice for SimCamera {
                 height: d.height,
                 data: codes,
             },
-            bits,
+            bits: self.response().bits.clamp(1, 16),
         })
     }
+}
+
+/// A camera's codes for `radiance` (per pixel) exposed for `exposure_s`:
+/// signal `gain * exposure * radiance`, shot and read noise from the
+/// stream `seed`, clipped to full scale, the response curve
+/// ([`CameraResponse::encode`]) and quantisation to `bits`.
+pub fn expose(
+    response: &CameraResponse,
+    radiance: &[DVec3],
+    exposure_s: f64,
+    seed: u64,
+) -> Vec<[u16; 3]> {
+    let bits = response.bits.clamp(1, 16);
+    let max_code = ((1u32 << bits) - 1) as f64;
+    let gain = finite_or(response.gain as f64, 0.0) * finite_or(exposure_s, 0.0);
+    let read = finite_or(response.read_noise as f64, 0.0).max(0.0);
+    let shot = finite_or(response.shot_noise as f64, 0.0).max(0.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    radiance
+        .iter()
+        .map(|l| {
+            std::array::from_fn(|c| {
+                let s = gain * l[c];
+                let sd = (shot * s.max(0.0) + read * read).sqrt();
+                let z: f64 = StandardNormal.sample(&mut rng);
+                let s = finite_or(s + sd * z, 0.0).clamp(0.0, 1.0);
+                (response.encode(c, s) * max_code).round() as u16
+            })
+        })
+        .collect()
 }
 
 /// A hash of an image's pixel values (the transport cache key).
