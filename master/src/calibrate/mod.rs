@@ -20,6 +20,7 @@ mod dlt;
 mod io;
 mod lm;
 mod nullspace;
+pub mod photometric;
 mod pnp;
 mod powell;
 mod simulate;

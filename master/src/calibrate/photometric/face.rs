@@ -1,0 +1,591 @@
+//! Photometric calibration of a CRT face through its beam splitter, with
+//! a camera in an observer's place ([`MirrorCamera`]):
+//!
+//! 1. **Camera response** from an exposure bracket of the CRT showing a
+//!    ramp ([`super::response`], Debevec-Malik); every later measurement is
+//!    an HDR merge of a bracket through it, so it is linear up to one scale
+//!    per channel.
+//! 2. **A reference of known radiance**: a square of one projector's pixels
+//!    on a real surface the camera sees, whose radiance the product
+//!    predicts from what it knows (the projector's calibrated device and
+//!    response, the surface's reflectance): `rho / pi * dI * cos / d^2`.
+//!    The camera sees it through the splitter's transmission, so the ratio
+//!    of measured to predicted is the camera's scale times `T`, per
+//!    channel.
+//! 3. **The CRT's light through the mirror**, one channel at a time at a
+//!    ladder of drive levels, less the frame with the CRT switched off,
+//!    over the pixels that see the screen: the camera's scale times
+//!    `R * emit(d)`.
+//! 4. Their quotient is what the face adds, in the units of the real
+//!    surfaces behind the glass: `R / T * emit(d)`, which
+//!    [`CrtPhotometry::seen`] models. A power curve with a black level is
+//!    fitted per channel; the profile carries it with an ideal splitter
+//!    (only the ratio matters to a node).
+//! 5. **Held-out levels** between the fitted ones judge the new profile
+//!    against the one in place; the new one is kept only if it is no
+//!    worse.
+//!
+//! Checks that stop the calibration with what to do: a patch saturated or
+//! under-exposed at every exposure of the bracket, a CRT whose measured
+//! light falls as its drive rises, a camera that moved between the first
+//! and the last frames, a reference spot the camera cannot see.
+
+use super::response::{ExposureBracket, RecoveredResponse, ResponseOptions, recover_response};
+use super::rig::{CrtPattern, MirrorCamera, Spot};
+use anyhow::{Context, Result, bail};
+use glam::{DVec2, DVec3, Vec3};
+use serde::Serialize;
+use showcase_light::render::projector::emitted_intensity;
+use showcase_light::{DeviceRays, ObjectFilter, SceneGeometry, metrics};
+use showcase_proto::{BeamSplitter, CrtFace, CrtPhotometry, CrtResponse, PinholeDevice, Showcase};
+
+/// How the calibration measures.
+#[derive(Clone, Debug)]
+pub struct PhotometricOptions {
+    /// The bracket: exposure times are the camera's base exposure times
+    /// `2^stop`.
+    pub stops: Vec<i32>,
+    /// Drive levels fitted per channel above 0: `k / levels`, `k` in
+    /// `1..=levels`.
+    pub levels: u32,
+    /// Held-out levels per channel, between the fitted ones: `(k + 0.5) /
+    /// levels` for these `k`.
+    pub held_out: Vec<u32>,
+    /// Half the side of the reference spot, in projector pixels.
+    pub spot_half: u32,
+}
+
+impl Default for PhotometricOptions {
+    fn default() -> Self {
+        Self {
+            stops: (-3..=4).collect(),
+            levels: 12,
+            held_out: vec![1, 4, 7, 10],
+            spot_half: 8,
+        }
+    }
+}
+
+/// The reference spot and the radiance the product predicts for it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Reference {
+    /// Which projector shows it (by name).
+    pub projector: String,
+    /// The spot.
+    #[serde(skip)]
+    pub spot: Spot,
+    /// The surface point at its centre (world metres).
+    pub point: [f64; 3],
+    /// Radiance the spot adds there (W/m^2/sr), predicted.
+    pub radiance: [f64; 3],
+    /// What the camera measured of it (its linear units), per channel.
+    pub measured: [f64; 3],
+    /// Camera pixels of its plateau.
+    pub pixels: usize,
+}
+
+/// One drive level's measurement in one channel.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Level {
+    /// The channel.
+    pub channel: usize,
+    /// The drive value.
+    pub drive: f64,
+    /// What the CRT adds, in the units of radiance behind the glass.
+    pub seen: f64,
+    /// Held out of the fit.
+    pub held_out: bool,
+}
+
+/// A face's photometric calibration.
+#[derive(Clone, Debug, Serialize)]
+pub struct FaceCalibration {
+    /// The face.
+    pub face: String,
+    /// The profile to use: the new one, or the one in place when the new
+    /// one is worse on the held-out levels.
+    pub profile: CrtPhotometry,
+    /// The profile fitted from this run.
+    pub fitted: CrtPhotometry,
+    /// The new profile was worse than the one in place, so that is kept.
+    pub kept_previous: bool,
+    /// Largest relative error on the held-out levels: of the fitted
+    /// profile, and of the one in place.
+    pub held_out_error: f64,
+    /// [`Self::held_out_error`] of the profile in place.
+    pub held_out_error_before: f64,
+    /// The reference.
+    pub reference: Reference,
+    /// Every level measured.
+    pub levels: Vec<Level>,
+    /// The recovered camera response.
+    #[serde(skip)]
+    pub response: RecoveredResponse,
+    /// Camera pixels that see the screen (the CRT measurements' region).
+    pub screen_pixels: usize,
+    /// Frames captured.
+    pub frames: usize,
+}
+
+/// Calibrate `face` of the product's `scene` (its calibrated devices and
+/// the real surfaces' reflectance) with `rig`, a camera at `camera` (its
+/// pose, as calibrated); `previous` is the profile in place.
+pub fn calibrate_face(
+    rig: &mut dyn MirrorCamera,
+    scene: &Showcase,
+    face: &CrtFace,
+    camera: &PinholeDevice,
+    previous: &CrtPhotometry,
+    options: &PhotometricOptions,
+) -> Result<FaceCalibration> {
+    let (w, h) = rig.size();
+    anyhow::ensure!(
+        (w, h) == (camera.width, camera.height),
+        "the rig's camera is {w}x{h} but its calibrated device is {}x{}",
+        camera.width,
+        camera.height
+    );
+    let base = rig.base_exposure_s();
+    anyhow::ensure!(
+        base.is_finite() && base > 0.0,
+        "the camera's exposure time {base} s is not a positive time"
+    );
+    let exposures: Vec<f64> = options
+        .stops
+        .iter()
+        .map(|s| base * 2f64.powi(*s))
+        .collect();
+    let mut frames = 0;
+    let mut shoot = |rig: &mut dyn MirrorCamera, crt: CrtPattern, spot: Option<Spot>| {
+        frames += exposures.len();
+        rig.capture(crt, spot, &exposures)
+    };
+
+    // 1. The camera's response, from the ramp.
+    let ramp = shoot(rig, CrtPattern::Ramp, None)?;
+    let bracket = ExposureBracket {
+        exposures_s: &exposures,
+        frames: &ramp,
+        levels: rig.levels(),
+    };
+    let response = recover_response(&bracket, &ResponseOptions::default())
+        .context("recovering the camera's response from the bracket of the CRT's ramp")?;
+    let merge = Merge {
+        response: &response,
+        exposures: &exposures,
+    };
+    let screen = screen_pixels(face, camera)?;
+    anyhow::ensure!(
+        screen.len() >= 16,
+        "the camera sees only {} pixels of {}'s screen through its mirror: put it where an \
+         observer of that face stands, facing the mirror",
+        screen.len(),
+        face.name
+    );
+    let ramp_before = merge.image(&ramp);
+    let off = merge.image(&shoot(rig, CrtPattern::Off, None)?);
+
+    // 2. The reference.
+    let (spot, point, predicted) = choose_reference(scene, camera, options.spot_half)?;
+    let lit = merge.image(&shoot(rig, CrtPattern::Off, Some(spot))?);
+    let (measured, plateau) = spot_plateau(&lit, &off, w)
+        .with_context(|| format!("measuring the reference spot at {point:.3}"))?;
+    let scale: [f64; 3] = std::array::from_fn(|c| measured[c] / predicted[c]);
+    if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        bail!(
+            "the reference spot at {point:.3} measured {measured:?} against a predicted \
+             {predicted:?} W/m^2/sr: the camera does not see it lit; check the projector's \
+             calibration and that nothing blocks the camera's view of that surface"
+        );
+    }
+
+    // 3. The CRT's light, per channel and level.
+    let mut levels = Vec::new();
+    let mut drives: Vec<(f64, bool)> = vec![(0.0, false)];
+    drives.extend((1..=options.levels).map(|k| (f64::from(k) / f64::from(options.levels), false)));
+    drives.extend(
+        options
+            .held_out
+            .iter()
+            .filter(|k| **k < options.levels)
+            .map(|k| ((f64::from(*k) + 0.5) / f64::from(options.levels), true)),
+    );
+    for c in 0..3 {
+        for &(d, held_out) in &drives {
+            let mut drive = Vec3::ZERO;
+            drive[c] = d as f32;
+            let img = merge.image(&shoot(rig, CrtPattern::Uniform(drive), None)?);
+            let what = format!("the CRT at drive {d:.3} in channel {}", CHANNELS[c]);
+            let value = region_median(&img, &off, &screen, c, &what)?;
+            levels.push(Level {
+                channel: c,
+                drive: d,
+                seen: value / scale[c],
+                held_out,
+            });
+        }
+    }
+    // The ramp again: the camera must not have moved.
+    let ramp_after = merge.image(&shoot(rig, CrtPattern::Ramp, None)?);
+    check_still(&ramp_before, &ramp_after, &screen)?;
+
+    // 4. The fit.
+    let mut crt = CrtResponse::nominal(1.0);
+    for c in 0..3 {
+        let mut fitted: Vec<(f64, f64)> = levels
+            .iter()
+            .filter(|l| l.channel == c && !l.held_out)
+            .map(|l| (l.drive, l.seen))
+            .collect();
+        fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        check_monotonic(&fitted, c)?;
+        let (gamma, peak, black) = fit_power(&fitted)
+            .with_context(|| format!("fitting the CRT's curve in channel {}", CHANNELS[c]))?;
+        crt.gamma[c] = gamma as f32;
+        crt.peak[c] = peak as f32;
+        crt.black_level[c] = black as f32;
+    }
+    let fitted = CrtPhotometry {
+        crt,
+        splitter: BeamSplitter::IDEAL,
+    };
+
+    // 5. Held out: the new profile against the one in place.
+    let held_out_error = held_out_error(&fitted, &levels);
+    let held_out_error_before = held_out_error_of(previous, &levels);
+    let kept_previous = held_out_error > held_out_error_before;
+    Ok(FaceCalibration {
+        face: face.name.clone(),
+        profile: if kept_previous { *previous } else { fitted },
+        fitted,
+        kept_previous,
+        held_out_error,
+        held_out_error_before,
+        reference: Reference {
+            projector: scene
+                .projectors
+                .get(spot.projector)
+                .map_or_else(String::new, |p| p.name.clone()),
+            spot,
+            point: point.to_array(),
+            radiance: predicted,
+            measured,
+            pixels: plateau,
+        },
+        levels,
+        response,
+        screen_pixels: screen.len(),
+        frames,
+    })
+}
+
+const CHANNELS: [&str; 3] = ["red", "green", "blue"];
+
+/// HDR merge of a bracket through the recovered response.
+struct Merge<'a> {
+    response: &'a RecoveredResponse,
+    exposures: &'a [f64],
+}
+
+impl Merge<'_> {
+    /// Per pixel and channel, the weighted mean of the radiance each frame
+    /// gives (hat weights over the trusted codes); NaN where no frame has a
+    /// trusted code.
+    fn image(&self, frames: &[Vec<[u16; 3]>]) -> Vec<[f64; 3]> {
+        let n = frames.first().map_or(0, Vec::len);
+        (0..n)
+            .map(|i| {
+                std::array::from_fn(|c| {
+                    let (lo, hi) = self.response.trusted_range(c);
+                    let half = f64::from(hi.saturating_sub(lo)).max(2.0) / 2.0;
+                    let (mut sum, mut weight) = (0.0, 0.0);
+                    for (frame, t) in frames.iter().zip(self.exposures) {
+                        let z = frame[i][c] as u32;
+                        if z <= lo || z >= hi {
+                            continue;
+                        }
+                        let w = f64::from((z - lo).min(hi - z)) / half;
+                        sum += w * self.response.radiance(c, f64::from(z), *t);
+                        weight += w;
+                    }
+                    if weight > 0.0 { sum / weight } else { f64::NAN }
+                })
+            })
+            .collect()
+    }
+}
+
+/// Camera pixels whose every subsample ray sees `face`'s screen by way of
+/// its mirror at least 4 screen pixels inside its edge (row-major
+/// indices).
+fn screen_pixels(face: &CrtFace, camera: &PinholeDevice) -> Result<Vec<usize>> {
+    use showcase_light::observer_view::mirror_pixel;
+    let rays = DeviceRays::new(camera)?;
+    let margin = 4.0;
+    let (fw, fh) = (f64::from(face.width), f64::from(face.height));
+    let inside = |p: DVec2| p.x > margin && p.y > margin && p.x < fw - margin && p.y < fh - margin;
+    Ok((0..camera.width * camera.height)
+        .filter(|i| {
+            let (x, y) = (i % camera.width, i / camera.width);
+            [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
+                .iter()
+                .all(|(dx, dy)| {
+                    rays.ray_through(DVec2::new(f64::from(x) + dx, f64::from(y) + dy))
+                        .and_then(|r| mirror_pixel(face, &r))
+                        .is_some_and(inside)
+                })
+        })
+        .map(|i| i as usize)
+        .collect())
+}
+
+/// The median over `region` of `img - off` in `channel`; an error naming
+/// `what` when most of the region has no trusted code in any exposure.
+fn region_median(
+    img: &[[f64; 3]],
+    off: &[[f64; 3]],
+    region: &[usize],
+    channel: usize,
+    what: &str,
+) -> Result<f64> {
+    let values: Vec<f64> = region
+        .iter()
+        .filter_map(|&i| {
+            let v = img[i][channel] - off[i][channel];
+            v.is_finite().then_some(v)
+        })
+        .collect();
+    if values.len() * 2 < region.len() {
+        bail!(
+            "{what}: {} of {} camera pixels have no usable code at any exposure of the bracket \
+             (saturated at the shortest or under-exposed at the longest): widen the bracket \
+             (`stops`) or change the camera's base exposure",
+            region.len() - values.len(),
+            region.len()
+        );
+    }
+    metrics::percentile(&values, 50.0).context("no value")
+}
+
+/// The spot's plateau: the pixels where `lit - off`, summed over the
+/// channels, reaches 80 % of its 99th percentile; per channel the median
+/// there, and the pixel count.
+fn spot_plateau(lit: &[[f64; 3]], off: &[[f64; 3]], width: u32) -> Result<([f64; 3], usize)> {
+    let diff: Vec<[f64; 3]> = lit
+        .iter()
+        .zip(off)
+        .map(|(l, o)| std::array::from_fn(|c| l[c] - o[c]))
+        .collect();
+    let sums: Vec<f64> = diff
+        .iter()
+        .map(|d| d.iter().sum::<f64>())
+        .filter(|s| s.is_finite())
+        .collect();
+    let top = metrics::percentile(&sums, 99.9).unwrap_or(0.0);
+    if !(top > 0.0) {
+        bail!("the camera sees no light from the spot (is the surface in its view?)");
+    }
+    let plateau: Vec<usize> = (0..diff.len())
+        .filter(|&i| {
+            let s: f64 = diff[i].iter().sum();
+            s.is_finite() && s >= 0.8 * top
+        })
+        .collect();
+    if plateau.len() < 9 {
+        let (x, y) = plateau
+            .first()
+            .map_or((0, 0), |i| (*i as u32 % width, *i as u32 / width));
+        bail!(
+            "the spot's plateau covers {} camera pixels (near ({x}, {y})), fewer than 9: \
+             enlarge the spot (`spot_half`)",
+            plateau.len()
+        );
+    }
+    let median = |c: usize| {
+        let v: Vec<f64> = plateau.iter().map(|&i| diff[i][c]).collect();
+        metrics::percentile(&v, 50.0).unwrap_or(f64::NAN)
+    };
+    Ok(([median(0), median(1), median(2)], plateau.len()))
+}
+
+/// The reference spot: the camera pixel nearest its centre whose real
+/// surface is flat around the spot and lit frontally by some projector;
+/// the spot, the surface point, and the radiance the product predicts the
+/// spot adds there (`rho / pi * dI * cos / d^2`, `dI` the projector's
+/// intensity at the spot's value less at 0).
+fn choose_reference(
+    scene: &Showcase,
+    camera: &PinholeDevice,
+    half: u32,
+) -> Result<(Spot, DVec3, [f64; 3])> {
+    let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
+    let eye = DeviceRays::new(camera)?;
+    let projectors: Vec<DeviceRays> = scene
+        .projectors
+        .iter()
+        .map(|p| DeviceRays::new(&p.device))
+        .collect::<Result<_, _>>()?;
+    let (w, h) = (camera.width as i64, camera.height as i64);
+    // Candidates in rings around the centre, nearest first.
+    let mut candidates: Vec<(i64, i64)> = (-w / 3..=w / 3)
+        .step_by(2)
+        .flat_map(|dx| (-h / 3..=h / 3).step_by(2).map(move |dy| (dx, dy)))
+        .collect();
+    candidates.sort_by_key(|(dx, dy)| dx * dx + dy * dy);
+    for (dx, dy) in candidates {
+        let (x, y) = ((w / 2 + dx) as u32, (h / 2 + dy) as u32);
+        let Some(ray) = eye.pixel_ray(x, y) else {
+            continue;
+        };
+        let Some(hit) = real.closest_hit(&ray, 0.0, f64::INFINITY) else {
+            continue;
+        };
+        let normal = hit.facing_normal(ray.direction);
+        for (p, rays) in projectors.iter().enumerate() {
+            let to = rays.center() - hit.point;
+            let d = to.length();
+            let cos = normal.dot(to / d);
+            if cos < 0.7 || !rays.sees(&real, hit.point, normal) {
+                continue;
+            }
+            let Some(pixel) = rays.pixel_of(hit.point) else {
+                continue;
+            };
+            let spot = Spot {
+                projector: p,
+                centre: pixel,
+                half,
+                value: 1.0,
+            };
+            // Flat around it: the spot's corners meet the same object on
+            // the same plane.
+            let flat = [(-1i64, -1i64), (1, -1), (-1, 1), (1, 1)].iter().all(|(sx, sy)| {
+                let c = DVec2::new(
+                    f64::from(pixel.0) + 0.5 + (sx * i64::from(half)) as f64,
+                    f64::from(pixel.1) + 0.5 + (sy * i64::from(half)) as f64,
+                );
+                rays.ray_through(c)
+                    .and_then(|r| real.closest_hit(&r, 0.0, f64::INFINITY))
+                    .is_some_and(|c| {
+                        c.object == hit.object
+                            && c.geometric_normal.dot(hit.geometric_normal) > 0.9995
+                            && (c.point - hit.point).dot(hit.geometric_normal).abs() < 1e-4
+                    })
+            });
+            if !flat {
+                continue;
+            }
+            let projector = &scene.projectors[p];
+            let di = emitted_intensity(DVec3::ONE, &projector.response)
+                - emitted_intensity(DVec3::ZERO, &projector.response);
+            let object = &scene.objects[hit.object as usize];
+            let rho = object
+                .material
+                .albedo_at(hit.uv.unwrap_or(glam::Vec2::ZERO))
+                .as_dvec3();
+            let radiance = rho * std::f64::consts::FRAC_1_PI * di * cos / (d * d);
+            return Ok((spot, hit.point, radiance.to_array()));
+        }
+    }
+    bail!(
+        "no real surface near the middle of the camera's view is flat and lit frontally by a \
+         projector: aim the camera at a projector-lit surface of the cabinet"
+    )
+}
+
+/// The camera did not move: the ramp's merged images before and after
+/// agree over the screen (median relative difference within 2 %).
+fn check_still(before: &[[f64; 3]], after: &[[f64; 3]], screen: &[usize]) -> Result<()> {
+    let diffs: Vec<f64> = screen
+        .iter()
+        .flat_map(|&i| (0..3).map(move |c| (before[i][c], after[i][c])))
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && *a > 0.0)
+        .map(|(a, b)| ((b - a) / a).abs())
+        .collect();
+    let median = metrics::percentile(&diffs, 50.0).unwrap_or(f64::INFINITY);
+    if !(median <= 0.02) {
+        bail!(
+            "the camera's first and last frames of the CRT's ramp differ by {:.1} % (median over \
+             the screen): the camera or the mirror moved during the calibration; fix the tripod \
+             and run it again",
+            100.0 * median
+        );
+    }
+    Ok(())
+}
+
+/// The CRT's light must rise with its drive (within the noise: a fall of
+/// more than 2 % of the largest value, or any fall at all above a quarter
+/// of the range, is an error).
+fn check_monotonic(levels: &[(f64, f64)], channel: usize) -> Result<()> {
+    let top = levels.iter().map(|l| l.1).fold(0.0, f64::max);
+    for pair in levels.windows(2) {
+        let ((d0, s0), (d1, s1)) = (pair[0], pair[1]);
+        let tolerance = if s0 > 0.25 * top { 0.0 } else { 0.02 * top };
+        if s1 < s0 - tolerance {
+            bail!(
+                "the CRT's measured light in channel {} falls from {s0:.4} at drive {d0:.3} to \
+                 {s1:.4} at drive {d1:.3}: check that the face's output is not being \
+                 processed (dynamic contrast, power saving) and that nothing changed the light \
+                 during the calibration",
+                CHANNELS[channel]
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `seen = black + peak * d^gamma` through `(drive, seen)` pairs sorted by
+/// drive, the first at drive 0: the black level is the first value; gamma
+/// and peak fit `ln(seen - black)` against `ln d` (least squares) over the
+/// levels above 2 % of the range.
+fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
+    let black = match levels.first() {
+        Some((d, s)) if *d == 0.0 => s.max(0.0),
+        _ => bail!("no level at drive 0"),
+    };
+    let top = levels.last().map_or(0.0, |l| l.1) - black;
+    let points: Vec<(f64, f64)> = levels
+        .iter()
+        .filter(|(d, s)| *d > 0.0 && s - black > 0.02 * top)
+        .map(|(d, s)| (d.ln(), (s - black).ln()))
+        .collect();
+    if points.len() < 3 || !(top > 0.0) {
+        bail!(
+            "only {} levels rise above the black level: the CRT shows no usable range",
+            points.len()
+        );
+    }
+    let n = points.len() as f64;
+    let (sx, sy) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+    let (mx, my) = (sx / n, sy / n);
+    let (sxx, sxy) = points.iter().fold((0.0, 0.0), |(a, b), (x, y)| {
+        (a + (x - mx) * (x - mx), b + (x - mx) * (y - my))
+    });
+    let gamma = sxy / sxx;
+    let peak = (my - gamma * mx).exp();
+    if !(gamma.is_finite() && gamma > 0.0 && peak.is_finite() && peak > 0.0) {
+        bail!("the fitted curve is not a rising power (gamma {gamma}, peak {peak})");
+    }
+    Ok((gamma, peak, black))
+}
+
+/// The largest relative error of `profile` on the held-out levels.
+fn held_out_error(profile: &CrtPhotometry, levels: &[Level]) -> f64 {
+    held_out_error_of(profile, levels)
+}
+
+fn held_out_error_of(profile: &CrtPhotometry, levels: &[Level]) -> f64 {
+    levels
+        .iter()
+        .filter(|l| l.held_out && l.seen > 0.0)
+        .map(|l| {
+            let mut d = Vec3::ZERO;
+            d[l.channel] = l.drive as f32;
+            let got = f64::from(profile.seen(d)[l.channel]);
+            ((got - l.seen) / l.seen).abs()
+        })
+        .fold(0.0, f64::max)
+}
