@@ -15,6 +15,7 @@ mod gpu;
 mod hemicube;
 mod light;
 mod observer;
+mod photometric;
 mod probes;
 mod radiosity;
 mod render;

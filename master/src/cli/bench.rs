@@ -35,6 +35,13 @@ pub enum BenchTarget {
     /// physically complete world; and the live loopback cluster's update
     /// latency and cost in both modes (`--live-frames`).
     Gi,
+    /// Photometric consistency: each face calibrated through its beam
+    /// splitter by a camera in its observer's place, the recovered
+    /// parameters against the simulated devices' truth, and the observers'
+    /// CIEDE2000 over whole views and the occluding-occlusion seams,
+    /// uncalibrated, calibrated and with the true parameters (global mode,
+    /// one frame of the walk).
+    Photometric,
 }
 
 /// Arguments of `bench`.
@@ -51,7 +58,7 @@ pub struct BenchArgs {
     pub out: PathBuf,
     /// Frames per configuration (default: 600 for cluster, 30 for render,
     /// 12000 for soak; dashboard: the measured window of each run, 1200
-    /// frames = 10 s at 120 Hz; gi: the one frame of the walk judged, 60).
+    /// frames = 10 s at 120 Hz; gi and photometric: the one frame of the walk judged, 60).
     #[arg(long)]
     pub frames: Option<u64>,
     /// Cluster only: node counts to run (default: 2,4,8).
@@ -99,13 +106,14 @@ pub struct BenchArgs {
     /// Faults and dashboard: keep the work folder (config, logs, metrics).
     #[arg(long)]
     pub keep: bool,
-    /// Gi only: the scenes, each `SCENE` or `SCENE@AREA` with AREA the
+    /// Gi: the scenes, each `SCENE` or `SCENE@AREA` with AREA the
     /// largest radiosity patch in m^2 (default:
-    /// builtin:showcase,builtin:figure3,builtin:showcase@0.0004).
+    /// builtin:showcase,builtin:figure3,builtin:showcase@0.0004);
+    /// photometric: the scenes (default: builtin:showcase).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<PathBuf>,
-    /// Gi only: paths per irradiance-cache point of the complete views
-    /// (default: the demo's).
+    /// Gi and photometric: paths per irradiance-cache point of the
+    /// complete views (default: the demo's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(8..))]
     pub truth_paths: Option<u32>,
     /// Gi only: also judge the projectors' maps without occlusion shadows.
@@ -142,6 +150,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
         BenchTarget::Soak => soak(args, &pb),
         BenchTarget::Dashboard => dashboard(args, &pb),
         BenchTarget::Gi => gi(args, &pb),
+        BenchTarget::Photometric => photometric(args, &pb),
     };
     pb.finish_and_clear();
     result
@@ -427,6 +436,35 @@ fn gi(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
             bench_gi_scene(&scene, &options)
                 .with_context(|| format!("bench gi on {}", entry.display()))?,
         );
+    }
+    emit_bench(args, pb, &records)
+}
+
+fn photometric(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
+    use crate::demo::photometric::{NOMINAL_GAMMA, bench_photometric_scene};
+    let scenes = if args.scenes.is_empty() {
+        vec![PathBuf::from("builtin:showcase")]
+    } else {
+        args.scenes.clone()
+    };
+    let mut records = Vec::new();
+    for scene in &scenes {
+        pb.set_message(format!("{}", scene.display()));
+        let truth = crate::scene_file::load_any(scene)?;
+        // The nodes know the devices' geometry but not their photometry:
+        // they start from a nominal CRT behind an ideal combiner.
+        let mut nodes = truth.clone();
+        for f in &mut nodes.faces {
+            f.photometry = showcase_proto::CrtPhotometry::nominal(NOMINAL_GAMMA);
+        }
+        let (_, record) = bench_photometric_scene(
+            &truth,
+            &nodes,
+            args.frames.unwrap_or(60),
+            args.truth_paths.unwrap_or(crate::demo::TRUTH_PATHS),
+        )
+        .with_context(|| format!("bench photometric on {}", scene.display()))?;
+        records.push(record);
     }
     emit_bench(args, pb, &records)
 }

@@ -5,6 +5,7 @@
 
 pub mod gi;
 mod page;
+pub mod photometric;
 mod rendering;
 mod views;
 

@@ -241,7 +241,7 @@ pub(super) fn rendering_stage(
 }
 
 /// The rendering stage's seed of the complete views' paths.
-const COMPLETE_SEED: u64 = 24;
+pub(super) const COMPLETE_SEED: u64 = 24;
 
 /// Everything the rendering stage measured in one world (direct light
 /// only, or physically complete).

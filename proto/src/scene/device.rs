@@ -164,9 +164,12 @@ impl Default for ProjectorResponse {
 
 /// Camera photometry: value = response(exposure * radiance + noise), then
 /// quantisation to `bits`. The response per channel is a power curve with
-/// a knee: `v = signal^(1/gamma)`, and above `knee` the slope drops to
-/// `shoulder` times its own (`knee + (v - knee) * shoulder`), clipped to
-/// `0..=1` ([`Self::encode`], [`Self::decode`]).
+/// a knee, as video cameras compress their highlights: `u =
+/// signal^(1/gamma)` is amplified by `g` up to `knee`, above which the
+/// slope drops to `shoulder` times its own (`knee + (g u - knee) *
+/// shoulder`); `g` makes the full signal reach the top code (`g = knee +
+/// (1 - knee) / shoulder`), clipped to `0..=1` ([`Self::encode`],
+/// [`Self::decode`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraResponse {
     /// Exponent applied to the normalised signal, per channel.
@@ -188,6 +191,17 @@ pub struct CameraResponse {
 }
 
 impl CameraResponse {
+    /// The knee, the shoulder's slope and the gain before the knee (see
+    /// the type's docs); a shoulder of 0 or less counts as none.
+    fn knee(&self) -> (f64, f64, f64) {
+        let knee = f64::from(self.knee).clamp(0.0, 1.0);
+        let shoulder = f64::from(self.shoulder);
+        if knee >= 1.0 || shoulder.is_nan() || shoulder <= 0.0 {
+            return (1.0, 1.0, 1.0);
+        }
+        (knee, shoulder, knee + (1.0 - knee) / shoulder)
+    }
+
     /// The normalised value (`0..=1`, before quantisation) of `signal` in
     /// `channel`; non-finite or negative signal gives 0.
     pub fn encode(&self, channel: usize, signal: f64) -> f64 {
@@ -197,10 +211,10 @@ impl CameraResponse {
             0.0
         };
         let gamma = f64::from(self.gamma[channel.min(2)]).max(1e-3);
-        let v = s.powf(1.0 / gamma);
-        let knee = f64::from(self.knee);
+        let (knee, shoulder, g) = self.knee();
+        let v = g * s.powf(1.0 / gamma);
         let v = if v > knee {
-            knee + (v - knee) * f64::from(self.shoulder)
+            knee + (v - knee) * shoulder
         } else {
             v
         };
@@ -220,14 +234,13 @@ impl CameraResponse {
         } else {
             0.0
         };
-        let knee = f64::from(self.knee);
-        let shoulder = f64::from(self.shoulder);
-        let v = if v > knee && shoulder > 0.0 {
+        let (knee, shoulder, g) = self.knee();
+        let v = if v > knee {
             knee + (v - knee) / shoulder
         } else {
             v
         };
-        v.powf(f64::from(self.gamma[channel.min(2)]).max(1e-3))
+        (v / g).powf(f64::from(self.gamma[channel.min(2)]).max(1e-3))
     }
 }
 

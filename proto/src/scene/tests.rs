@@ -297,13 +297,17 @@ fn camera_response_decode_inverts_encode_below_saturation() {
                 assert!((r.decode(c, v) - s).abs() < 1e-9, "channel {c} signal {s}");
             }
         }
-        // Above the knee the slope is the shoulder's share of the curve's.
+        // Above the knee the slope is the shoulder's share of the curve's,
+        // and the full signal reaches the top code.
         let g = f64::from(r.gamma[c]);
         let knee = f64::from(r.knee);
-        let s_knee = knee.powf(g);
+        let gain = knee + (1.0 - knee) / f64::from(r.shoulder);
+        let s_knee = (knee / gain).powf(g);
         let (a, b) = (r.encode(c, s_knee * 1.01), r.encode(c, s_knee));
-        let plain = (s_knee * 1.01).powf(1.0 / g) - knee;
+        let plain = gain * (s_knee * 1.01).powf(1.0 / g) - knee;
         assert!(((a - b) / plain - 0.45).abs() < 1e-6, "{}", (a - b) / plain);
+        assert!((r.encode(c, 1.0) - 1.0).abs() < 1e-12);
+        assert!(r.encode(c, 0.999) < 1.0);
     }
     assert_eq!(r.encode(0, f64::NAN), 0.0);
     assert_eq!(r.encode(0, 1e9), 1.0);

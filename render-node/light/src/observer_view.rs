@@ -153,9 +153,13 @@ pub struct ObserverView {
 
 impl ObserverView {
     /// The occluding-occlusion seams: covered pixels whose first surface
-    /// is real, with a 3x3 neighbour also real on the other side of
-    /// [`Self::filled`] (the CRT's rendering of a real surface on one
-    /// side, the real surface on the other); both sides are marked.
+    /// is real, 2 to [`SEAM_REACH`] steps (8-connected, over such pixels
+    /// only) from the border of [`Self::filled`], off the [`Self::edge`]s:
+    /// the CRT's rendering of a real surface on one side, the real surface
+    /// on the other, both sides marked. The border's own pixels (a real
+    /// neighbour on the other side) are left out: their rays straddle it,
+    /// so they mix the two sides' light whatever the photometry; and a
+    /// virtual object's image between two pixels parts them.
     pub fn seams(&self) -> Image<bool> {
         let (w, h) = (self.filled.width, self.filled.height);
         let real = |x: i64, y: i64| -> Option<bool> {
@@ -165,14 +169,65 @@ impl ObserverView {
             let i = (y as u32 * w + x as u32) as usize;
             (self.covered.data[i] && !self.sees_virtual.data[i]).then_some(self.filled.data[i])
         };
-        Image::from_fn(w, h, |x, y| {
-            let (x, y) = (i64::from(x), i64::from(y));
-            real(x, y).is_some_and(|f| {
-                (-1..=1).any(|dy| (-1..=1).any(|dx| real(x + dx, y + dy).is_some_and(|n| n != f)))
-            })
-        })
+        let steps = [
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ];
+        // Breadth first from the border (step 1) over real pixels.
+        let mut step = vec![u32::MAX; (w * h) as usize];
+        let mut front = Vec::new();
+        for y in 0..i64::from(h) {
+            for x in 0..i64::from(w) {
+                let Some(side) = real(x, y) else {
+                    continue;
+                };
+                if steps
+                    .iter()
+                    .any(|(dx, dy)| real(x + dx, y + dy).is_some_and(|n| n != side))
+                {
+                    step[(y * i64::from(w) + x) as usize] = 1;
+                    front.push((x, y));
+                }
+            }
+        }
+        for k in 2..=SEAM_REACH {
+            let mut next = Vec::new();
+            for (x, y) in front {
+                for (dx, dy) in steps {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if real(nx, ny).is_none() {
+                        continue;
+                    }
+                    let s = &mut step[(ny * i64::from(w) + nx) as usize];
+                    if *s == u32::MAX {
+                        *s = k;
+                        next.push((nx, ny));
+                    }
+                }
+            }
+            front = next;
+        }
+        Image {
+            width: w,
+            height: h,
+            data: step
+                .iter()
+                .zip(&self.edge.data)
+                .map(|(s, e)| (2..=SEAM_REACH).contains(s) && !e)
+                .collect(),
+        }
     }
 }
+
+/// How far from an occluding-occlusion border [`ObserverView::seams`]
+/// reaches, in pixels.
+pub const SEAM_REACH: u32 = 4;
 
 /// The target's first surface on a pixel's ray: object, triangle and the
 /// light samples reaching it.
@@ -581,6 +636,7 @@ fn target_radiance(
 }
 
 pub mod complete;
+pub mod photometer;
 
 #[cfg(test)]
 mod tests;

@@ -12,10 +12,11 @@
 //!    The camera sees it through the splitter's transmission, so the ratio
 //!    of measured to predicted is the camera's scale times `T`, per
 //!    channel.
-//! 3. **The CRT's light through the mirror**, one channel at a time at a
-//!    ladder of drive levels, less the frame with the CRT switched off,
-//!    over the pixels that see the screen: the camera's scale times
-//!    `R * emit(d)`.
+//! 3. **The CRT's light through the mirror** at a ladder of grey drive
+//!    levels, each camera channel measuring its CRT channel (the profile
+//!    is per channel, without crosstalk), less the frame with the CRT
+//!    switched off, over the pixels that see the screen: the camera's
+//!    scale times `R * emit(d)`.
 //! 4. Their quotient is what the face adds, in the units of the real
 //!    surfaces behind the glass: `R / T * emit(d)`, which
 //!    [`CrtPhotometry::seen`] models. A power curve with a black level is
@@ -53,15 +54,21 @@ pub struct PhotometricOptions {
     pub held_out: Vec<u32>,
     /// Half the side of the reference spot, in projector pixels.
     pub spot_half: u32,
+    /// Frames averaged per exposure (the camera's read noise falls by
+    /// its square root; 8-bit codes of the mean, rounded).
+    pub frames_per_exposure: u32,
 }
 
 impl Default for PhotometricOptions {
     fn default() -> Self {
         Self {
-            stops: (-3..=4).collect(),
+            // Up to 128 times the base exposure: the CRT's black level
+            // and the ramp's dim end rise well above the read noise.
+            stops: (-3..=7).collect(),
             levels: 12,
             held_out: vec![1, 4, 7, 10],
             spot_half: 8,
+            frames_per_exposure: 16,
         }
     }
 }
@@ -123,6 +130,8 @@ pub struct FaceCalibration {
     pub response: RecoveredResponse,
     /// Camera pixels that see the screen (the CRT measurements' region).
     pub screen_pixels: usize,
+    /// The camera's noise floor (code), from the dark frame.
+    pub noise_floor: u32,
     /// Frames captured.
     pub frames: usize,
 }
@@ -150,30 +159,29 @@ pub fn calibrate_face(
         base.is_finite() && base > 0.0,
         "the camera's exposure time {base} s is not a positive time"
     );
-    let exposures: Vec<f64> = options
-        .stops
+    let exposures: Vec<f64> = options.stops.iter().map(|s| base * 2f64.powi(*s)).collect();
+    let k = options.frames_per_exposure.max(1) as usize;
+    let repeated: Vec<f64> = exposures
         .iter()
-        .map(|s| base * 2f64.powi(*s))
+        .flat_map(|t| std::iter::repeat_n(*t, k))
         .collect();
     let mut frames = 0;
-    let mut shoot = |rig: &mut dyn MirrorCamera, crt: CrtPattern, spot: Option<Spot>| {
-        frames += exposures.len();
-        rig.capture(crt, spot, &exposures)
+    let mut shoot = |rig: &mut dyn MirrorCamera,
+                     crt: CrtPattern,
+                     spot: Option<Spot>|
+     -> Result<Vec<Vec<[u16; 3]>>> {
+        frames += repeated.len();
+        let shot = rig.capture(crt, spot, &repeated)?;
+        anyhow::ensure!(
+            shot.len() == repeated.len() && shot.iter().all(|f| f.len() == (w * h) as usize),
+            "the camera returned {} frames for {} exposures, or frames of another size than \
+             {w}x{h}",
+            shot.len(),
+            repeated.len()
+        );
+        Ok(shot.chunks(k).map(mean_codes).collect())
     };
 
-    // 1. The camera's response, from the ramp.
-    let ramp = shoot(rig, CrtPattern::Ramp, None)?;
-    let bracket = ExposureBracket {
-        exposures_s: &exposures,
-        frames: &ramp,
-        levels: rig.levels(),
-    };
-    let response = recover_response(&bracket, &ResponseOptions::default())
-        .context("recovering the camera's response from the bracket of the CRT's ramp")?;
-    let merge = Merge {
-        response: &response,
-        exposures: &exposures,
-    };
     let screen = screen_pixels(face, camera)?;
     anyhow::ensure!(
         screen.len() >= 16,
@@ -182,8 +190,51 @@ pub fn calibrate_face(
         screen.len(),
         face.name
     );
+    // 1. The camera's response, from the ramp, over the pixels that see
+    // it (elsewhere the dark room is the camera's noise floor at every
+    // exposure, which no response explains).
+    // The camera's noise floor: what it reads of the dark room (the CRT
+    // off, the projectors black) at the shortest exposure, where hardly
+    // any light reaches it; codes up to it are noise, not response.
+    let dark = shoot(rig, CrtPattern::Off, None)?;
+    let shortest = exposures
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i);
+    let dark_codes: Vec<f64> = screen
+        .iter()
+        .flat_map(|&i| dark[shortest][i].map(f64::from))
+        .collect();
+    let noise_floor = metrics::percentile(&dark_codes, 99.0).unwrap_or(0.0) as u32 + 1;
+    let ramp = shoot(rig, CrtPattern::Ramp, None)?;
+    let on_screen: Vec<Vec<[u16; 3]>> = ramp
+        .iter()
+        .map(|f| screen.iter().map(|&i| f[i]).collect())
+        .collect();
+    let bracket = ExposureBracket {
+        exposures_s: &exposures,
+        frames: &on_screen,
+        levels: rig.levels(),
+    };
+    // A noisy camera's low codes leave a residual of about 0.1 in ln
+    // exposure on a static scene (1 % read noise before a gamma of 2: at
+    // code 30 the noise is a fifth of the signal even over 32 frames), so
+    // the residual is not the test of a moved scene here: the ramp's first
+    // and last frames are ([`check_still`]).
+    let response_options = ResponseOptions {
+        max_residual: 0.3,
+        noise_floor,
+        ..ResponseOptions::default()
+    };
+    let response = recover_response(&bracket, &response_options)
+        .context("recovering the camera's response from the bracket of the CRT's ramp")?;
+    let merge = Merge {
+        response: &response,
+        exposures: &exposures,
+    };
     let ramp_before = merge.image(&ramp);
-    let off = merge.image(&shoot(rig, CrtPattern::Off, None)?);
+    let off = merge.image(&dark);
 
     // 2. The reference.
     let (spot, point, predicted) = choose_reference(scene, camera, options.spot_half)?;
@@ -210,12 +261,14 @@ pub fn calibrate_face(
             .filter(|k| **k < options.levels)
             .map(|k| ((f64::from(*k) + 0.5) / f64::from(options.levels), true)),
     );
-    for c in 0..3 {
-        for &(d, held_out) in &drives {
-            let mut drive = Vec3::ZERO;
-            drive[c] = d as f32;
-            let img = merge.image(&shoot(rig, CrtPattern::Uniform(drive), None)?);
-            let what = format!("the CRT at drive {d:.3} in channel {}", CHANNELS[c]);
+    for &(d, held_out) in &drives {
+        let img = merge.image(&shoot(
+            rig,
+            CrtPattern::Uniform(Vec3::splat(d as f32)),
+            None,
+        )?);
+        for (c, channel) in CHANNELS.iter().enumerate() {
+            let what = format!("the CRT at drive {d:.3} in channel {channel}");
             let value = region_median(&img, &off, &screen, c, &what)?;
             levels.push(Level {
                 channel: c,
@@ -231,7 +284,7 @@ pub fn calibrate_face(
 
     // 4. The fit.
     let mut crt = CrtResponse::nominal(1.0);
-    for c in 0..3 {
+    for (c, channel) in CHANNELS.iter().enumerate() {
         let mut fitted: Vec<(f64, f64)> = levels
             .iter()
             .filter(|l| l.channel == c && !l.held_out)
@@ -240,7 +293,7 @@ pub fn calibrate_face(
         fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
         check_monotonic(&fitted, c)?;
         let (gamma, peak, black) = fit_power(&fitted)
-            .with_context(|| format!("fitting the CRT's curve in channel {}", CHANNELS[c]))?;
+            .with_context(|| format!("fitting the CRT's curve in channel {channel}"))?;
         crt.gamma[c] = gamma as f32;
         crt.peak[c] = peak as f32;
         crt.black_level[c] = black as f32;
@@ -275,11 +328,27 @@ pub fn calibrate_face(
         levels,
         response,
         screen_pixels: screen.len(),
+        noise_floor,
         frames,
     })
 }
 
 const CHANNELS: [&str; 3] = ["red", "green", "blue"];
+
+/// Frames of one exposure averaged per pixel and channel, rounded to the
+/// nearest code.
+fn mean_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
+    let n = frames.len().max(1) as f64;
+    let len = frames.first().map_or(0, Vec::len);
+    (0..len)
+        .map(|i| {
+            std::array::from_fn(|c| {
+                let sum: f64 = frames.iter().map(|f| f64::from(f[i][c])).sum();
+                (sum / n).round() as u16
+            })
+        })
+        .collect()
+}
 
 /// HDR merge of a bracket through the recovered response.
 struct Merge<'a> {
@@ -289,8 +358,10 @@ struct Merge<'a> {
 
 impl Merge<'_> {
     /// Per pixel and channel, the weighted mean of the radiance each frame
-    /// gives (hat weights over the trusted codes); NaN where no frame has a
-    /// trusted code.
+    /// gives (hat weights over the trusted codes); 0 where every frame
+    /// reads at or below the trusted codes (less light than the camera can
+    /// tell from none, even at the longest exposure), NaN where none has a
+    /// trusted code otherwise (saturated even at the shortest).
     fn image(&self, frames: &[Vec<[u16; 3]>]) -> Vec<[f64; 3]> {
         let n = frames.first().map_or(0, Vec::len);
         (0..n)
@@ -299,8 +370,10 @@ impl Merge<'_> {
                     let (lo, hi) = self.response.trusted_range(c);
                     let half = f64::from(hi.saturating_sub(lo)).max(2.0) / 2.0;
                     let (mut sum, mut weight) = (0.0, 0.0);
+                    let mut dark = true;
                     for (frame, t) in frames.iter().zip(self.exposures) {
                         let z = frame[i][c] as u32;
+                        dark &= z <= lo;
                         if z <= lo || z >= hi {
                             continue;
                         }
@@ -308,7 +381,13 @@ impl Merge<'_> {
                         sum += w * self.response.radiance(c, f64::from(z), *t);
                         weight += w;
                     }
-                    if weight > 0.0 { sum / weight } else { f64::NAN }
+                    if weight > 0.0 {
+                        sum / weight
+                    } else if dark {
+                        0.0
+                    } else {
+                        f64::NAN
+                    }
                 })
             })
             .collect()
@@ -382,7 +461,7 @@ fn spot_plateau(lit: &[[f64; 3]], off: &[[f64; 3]], width: u32) -> Result<([f64;
         .filter(|s| s.is_finite())
         .collect();
     let top = metrics::percentile(&sums, 99.9).unwrap_or(0.0);
-    if !(top > 0.0) {
+    if top.is_nan() || top <= 0.0 {
         bail!("the camera sees no light from the spot (is the surface in its view?)");
     }
     let plateau: Vec<usize> = (0..diff.len())
@@ -459,19 +538,21 @@ fn choose_reference(
             };
             // Flat around it: the spot's corners meet the same object on
             // the same plane.
-            let flat = [(-1i64, -1i64), (1, -1), (-1, 1), (1, 1)].iter().all(|(sx, sy)| {
-                let c = DVec2::new(
-                    f64::from(pixel.0) + 0.5 + (sx * i64::from(half)) as f64,
-                    f64::from(pixel.1) + 0.5 + (sy * i64::from(half)) as f64,
-                );
-                rays.ray_through(c)
-                    .and_then(|r| real.closest_hit(&r, 0.0, f64::INFINITY))
-                    .is_some_and(|c| {
-                        c.object == hit.object
-                            && c.geometric_normal.dot(hit.geometric_normal) > 0.9995
-                            && (c.point - hit.point).dot(hit.geometric_normal).abs() < 1e-4
-                    })
-            });
+            let flat = [(-1i64, -1i64), (1, -1), (-1, 1), (1, 1)]
+                .iter()
+                .all(|(sx, sy)| {
+                    let c = DVec2::new(
+                        f64::from(pixel.0) + 0.5 + (sx * i64::from(half)) as f64,
+                        f64::from(pixel.1) + 0.5 + (sy * i64::from(half)) as f64,
+                    );
+                    rays.ray_through(c)
+                        .and_then(|r| real.closest_hit(&r, 0.0, f64::INFINITY))
+                        .is_some_and(|c| {
+                            c.object == hit.object
+                                && c.geometric_normal.dot(hit.geometric_normal) > 0.9995
+                                && (c.point - hit.point).dot(hit.geometric_normal).abs() < 1e-4
+                        })
+                });
             if !flat {
                 continue;
             }
@@ -494,16 +575,23 @@ fn choose_reference(
 }
 
 /// The camera did not move: the ramp's merged images before and after
-/// agree over the screen (median relative difference within 2 %).
+/// agree over the brighter half of the screen's pixels (median relative
+/// difference within 2 %; the dim end of the ramp is the camera's noise).
 fn check_still(before: &[[f64; 3]], after: &[[f64; 3]], screen: &[usize]) -> Result<()> {
-    let diffs: Vec<f64> = screen
+    let pairs: Vec<(f64, f64)> = screen
         .iter()
         .flat_map(|&i| (0..3).map(move |c| (before[i][c], after[i][c])))
         .filter(|(a, b)| a.is_finite() && b.is_finite() && *a > 0.0)
+        .collect();
+    let values: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+    let bright = metrics::percentile(&values, 50.0).unwrap_or(0.0);
+    let diffs: Vec<f64> = pairs
+        .iter()
+        .filter(|(a, _)| *a >= bright)
         .map(|(a, b)| ((b - a) / a).abs())
         .collect();
     let median = metrics::percentile(&diffs, 50.0).unwrap_or(f64::INFINITY);
-    if !(median <= 0.02) {
+    if median.is_nan() || median > 0.02 {
         bail!(
             "the camera's first and last frames of the CRT's ramp differ by {:.1} % (median over \
              the screen): the camera or the mirror moved during the calibration; fix the tripod \
@@ -550,7 +638,7 @@ fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
         .filter(|(d, s)| *d > 0.0 && s - black > 0.02 * top)
         .map(|(d, s)| (d.ln(), (s - black).ln()))
         .collect();
-    if points.len() < 3 || !(top > 0.0) {
+    if points.len() < 3 || top.is_nan() || top <= 0.0 {
         bail!(
             "only {} levels rise above the black level: the CRT shows no usable range",
             points.len()

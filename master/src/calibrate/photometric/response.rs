@@ -109,6 +109,11 @@ pub struct ResponseOptions {
     /// Largest accepted hat-weighted rms residual of the data equations, in
     /// ln exposure; `f64::INFINITY` turns the check off.
     pub max_residual: f64,
+    /// The camera's noise floor: codes at or below it are what the camera
+    /// reads of no light (read noise clipped at black, averaged), not a
+    /// response to exposure, and are left out like clipped codes (0: no
+    /// floor beyond the clip margin).
+    pub noise_floor: u32,
 }
 
 impl Default for ResponseOptions {
@@ -117,6 +122,7 @@ impl Default for ResponseOptions {
             samples: 1000,
             smoothness: 10.0,
             max_residual: 0.1,
+            noise_floor: 0,
         }
     }
 }
@@ -381,20 +387,39 @@ pub fn recover_response(
 ) -> Result<RecoveredResponse, ResponseError> {
     validate_options(options)?;
     validate_bracket(bracket)?;
+    let (low, high) = inside_codes(bracket.levels, options.noise_floor);
+    if low + 16 > high {
+        return Err(ResponseError::InvalidOptions {
+            reason: format!(
+                "noise_floor is {}, which leaves codes {low}..={high} of {}: fewer than 16 \
+                 to recover the curve from; lower the camera's gain or its noise",
+                options.noise_floor, bracket.levels
+            ),
+        });
+    }
     let levels = bracket.levels;
     // Centred log exposure times: the mean goes into the ln E_i.
     let ln_dt: Vec<f64> = bracket.exposures_s.iter().map(|t| t.ln()).collect();
     let mean = ln_dt.iter().sum::<f64>() / ln_dt.len() as f64;
     let ln_dt: Vec<f64> = ln_dt.iter().map(|t| t - mean).collect();
-    let weights: Vec<f64> = (0..levels).map(|z| hat_weight(z, levels)).collect();
+    let floor = options.noise_floor;
+    let weights: Vec<f64> = (0..levels)
+        .map(|z| {
+            if z <= floor {
+                0.0
+            } else {
+                hat_weight(z, levels)
+            }
+        })
+        .collect();
 
     let mut log_exposure: [Vec<f64>; CHANNELS] = Default::default();
     let mut trusted = [(0, 0); CHANNELS];
     let mut residual = [0.0; CHANNELS];
     for channel in 0..CHANNELS {
-        let usable = usable_sites(bracket, channel);
+        let usable = usable_sites(bracket, channel, floor);
         if usable.len() < MIN_USABLE_SITES {
-            return Err(exposure_error(bracket, channel, usable.len()));
+            return Err(exposure_error(bracket, channel, usable.len(), floor));
         }
         let sites = select_sites(bracket, channel, &usable, options.samples);
         let observations: Vec<Vec<u16>> = sites
@@ -403,7 +428,7 @@ pub fn recover_response(
             .collect();
         let g = solve_channel(&observations, &ln_dt, &weights, options.smoothness)
             .ok_or(ResponseError::SolveFailed { channel })?;
-        let (low, high) = trusted_range(&observations, levels);
+        let (low, high) = trusted_range(&observations, levels, floor);
         check_monotonic(channel, &g, low, high)?;
         let rms = residual_rms(&observations, &ln_dt, &weights, &g);
         if rms > options.max_residual {
@@ -515,10 +540,13 @@ fn validate_bracket(bracket: &ExposureBracket) -> Result<(), ResponseError> {
 }
 
 /// The codes, inclusive, more than [`CLIP_MARGIN`] of the range from
-/// either end.
-fn inside_codes(levels: u32) -> (u32, u32) {
+/// either end and above the noise floor `floor`.
+fn inside_codes(levels: u32, floor: u32) -> (u32, u32) {
     let margin = (CLIP_MARGIN * f64::from(levels - 1)).floor() as u32;
-    (margin + 1, levels - 2 - margin)
+    (
+        (margin + 1).max(floor.saturating_add(1)),
+        levels - 2 - margin,
+    )
 }
 
 /// The hat weight: 0 at the ends of the code range, about 1 in its middle.
@@ -530,8 +558,8 @@ fn hat_weight(code: u32, levels: u32) -> f64 {
 
 /// Pixels whose codes in `channel` lie inside the range in at least two
 /// exposures.
-fn usable_sites(bracket: &ExposureBracket, channel: usize) -> Vec<usize> {
-    let (low, high) = inside_codes(bracket.levels);
+fn usable_sites(bracket: &ExposureBracket, channel: usize, floor: u32) -> Vec<usize> {
+    let (low, high) = inside_codes(bracket.levels, floor);
     (0..bracket.frames[0].len())
         .filter(|&p| {
             bracket
@@ -546,8 +574,13 @@ fn usable_sites(bracket: &ExposureBracket, channel: usize) -> Vec<usize> {
 
 /// The saturated or under-exposed error of `channel`, whichever end holds
 /// more of its codes.
-fn exposure_error(bracket: &ExposureBracket, channel: usize, usable: usize) -> ResponseError {
-    let (low, high) = inside_codes(bracket.levels);
+fn exposure_error(
+    bracket: &ExposureBracket,
+    channel: usize,
+    usable: usize,
+    floor: u32,
+) -> ResponseError {
+    let (low, high) = inside_codes(bracket.levels, floor);
     let (mut above, mut below, mut total) = (0usize, 0usize, 0usize);
     for code in bracket
         .frames
@@ -711,8 +744,8 @@ fn solve_channel(
 
 /// The trusted codes: at least [`TRUST_TAIL`] sampled inside codes lie at
 /// or below the first and at or above the last.
-fn trusted_range(observations: &[Vec<u16>], levels: u32) -> (u32, u32) {
-    let (low, high) = inside_codes(levels);
+fn trusted_range(observations: &[Vec<u16>], levels: u32, floor: u32) -> (u32, u32) {
+    let (low, high) = inside_codes(levels, floor);
     let mut histogram = vec![0usize; levels as usize];
     for &code in observations.iter().flatten() {
         if (low..=high).contains(&u32::from(code)) {

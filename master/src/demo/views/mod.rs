@@ -554,11 +554,29 @@ impl Transport {
 
 /// The complete views' targets already traced, by frame and view (the
 /// eye's device), to judge another set of node outputs of the same frame
-/// without tracing its target again.
+/// without tracing its target again; and their real parts, by frame, view
+/// and the projectors' images (a digest), to judge other face outputs
+/// under the same projector images (the photometric states) without
+/// tracing the real part again.
 #[derive(Debug, Default)]
 pub(in crate::demo) struct Targets(
     std::sync::Mutex<std::collections::HashMap<(u64, String), CompleteImage>>,
+    std::sync::Mutex<std::collections::HashMap<(u64, String, u64), CompleteImage>>,
 );
+
+/// A digest of the projectors' images, bit for bit.
+fn projector_digest(outputs: &Outputs) -> u64 {
+    let mut h = showcase_light::digest::Fnv64::default();
+    for img in &outputs.projectors {
+        h.write(&img.width.to_le_bytes());
+        for v in &img.data {
+            for c in v.to_array() {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+        }
+    }
+    h.finish()
+}
 
 /// One simulated view of the cabinet.
 pub(in crate::demo) struct Simulated {
@@ -637,12 +655,27 @@ pub(in crate::demo) fn simulate(
         Transport::Direct => None,
         Transport::Complete(options, targets) => {
             let key = (state.frame, format!("{eye:?}"));
+            let real_key = (key.0, key.1.clone(), projector_digest(outputs));
             let known = targets.0.lock().ok().and_then(|t| t.get(&key).cloned());
-            let traced = known.is_none();
-            let c = complete_view_with_target(&frame, eye, &projected, options, known)?;
-            if traced && let Ok(mut t) = targets.0.lock() {
-                t.insert(key, c.target.clone());
-            }
+            let known_real = targets
+                .1
+                .lock()
+                .ok()
+                .and_then(|t| t.get(&real_key).cloned());
+            let c = match (known, known_real) {
+                (Some(target), Some(real)) => CompleteView { real, target },
+                (known, _) => {
+                    let traced = known.is_none();
+                    let c = complete_view_with_target(&frame, eye, &projected, options, known)?;
+                    if traced && let Ok(mut t) = targets.0.lock() {
+                        t.insert(key, c.target.clone());
+                    }
+                    if let Ok(mut t) = targets.1.lock() {
+                        t.insert(real_key, c.real.clone());
+                    }
+                    c
+                }
+            };
             // Seen through the same glass as the direct view's.
             let t = view.glass.transmission;
             for i in 0..view.covered.data.len() {

@@ -571,7 +571,7 @@ fn sites_spread_over_the_codes_and_are_distinct() {
     let frames = capture(&KNEE_CAMERA, &scene(), &exposures_s);
     let b = bracket(&exposures_s, &frames);
     for channel in [0, 1, 2] {
-        let usable = usable_sites(&b, channel);
+        let usable = usable_sites(&b, channel, 0);
         let sites = select_sites(&b, channel, &usable, 200);
         assert_eq!(sites.len(), 200);
         let mut unique = sites.clone();
@@ -621,9 +621,11 @@ fn sites_spread_over_the_codes_and_are_distinct() {
 
 #[test]
 fn inside_codes_leave_two_percent_at_each_end() {
-    assert_eq!(inside_codes(256), (6, 249));
-    assert_eq!(inside_codes(16), (1, 14));
-    assert_eq!(inside_codes(1024), (21, 1002));
+    assert_eq!(inside_codes(256, 0), (6, 249));
+    assert_eq!(inside_codes(16, 0), (1, 14));
+    assert_eq!(inside_codes(1024, 0), (21, 1002));
+    // A noise floor above the margin moves the low end.
+    assert_eq!(inside_codes(256, 20), (21, 249));
     assert_eq!(hat_weight(0, 256), 0.0);
     assert_eq!(hat_weight(255, 256), 0.0);
     assert!((hat_weight(127, 256) - 127.0 / 127.5).abs() < 1e-15);

@@ -1,0 +1,339 @@
+//! Photometric consistency (`bench photometric`, the demo's photometric
+//! phase, `calibrate --photometric` on the simulated showcase): each face
+//! calibrated through its beam splitter by a camera in its observer's
+//! place ([`crate::calibrate::photometric`]), the recovered parameters
+//! judged against the simulated devices' truth, and what the observers see
+//! at one frame of the walk in global mode, in three states of the faces'
+//! profiles:
+//! - `uncalibrated`: a nominal CRT (gamma 2.2) behind an ideal combiner,
+//!   what a node assumes before calibration;
+//! - `calibrated`: the measured profiles;
+//! - `true`: the simulated devices themselves (the floor).
+//!
+//! Beside them, `ideal_photometry`: the world without the photometric
+//! chain (an ideal combiner and a nominal CRT in the cabinet too), the
+//! world of the figures before it was modelled.
+//!
+//! Each state is judged over every covered pixel and over the
+//! occluding-occlusion seams ([`ObserverView::seams`]): where the face
+//! draws a real surface next to the real surface itself.
+//!
+//! [`ObserverView::seams`]: showcase_light::observer_view::ObserverView::seams
+
+use super::INTERACTIVE_HZ;
+use super::views::{self, Backend, NodeRenderers, Outputs, Transport};
+use crate::calibrate::photometric::{
+    FaceCalibration, PhotometricOptions, SimMirrorCamera, calibrate_face,
+};
+use crate::cluster::commands::walk_tracking;
+use crate::cluster::{Show, Tracking};
+use anyhow::{Context, Result};
+use serde_json::{Value, json};
+use showcase_light::metrics::percentile;
+use showcase_light::observer_view::complete::CompleteOptions;
+use showcase_light::render::FrameScene;
+use showcase_proto::config::TrackingSource;
+use showcase_proto::{Camera, CrtPhotometry, Showcase};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The gamma a node assumes of an uncalibrated CRT.
+pub const NOMINAL_GAMMA: f32 = 2.2;
+
+/// One face's calibration, with its errors against the simulated truth.
+#[derive(Debug)]
+pub struct JudgedFace {
+    /// The face's index in the scene.
+    pub face: usize,
+    /// The calibration.
+    pub calibration: FaceCalibration,
+    /// Per channel, the largest relative error of the recovered camera
+    /// response over the middle 90 % of its range of signal (after its one
+    /// unknown scale per channel).
+    pub camera_response_error: [f64; 3],
+    /// The same over the middle 90 % of the codes.
+    pub camera_response_error_codes: [f64; 3],
+    /// Per channel, the largest relative error of the profile's light
+    /// (`R / T * emit(d)`) against the true device's, for drive 0.1 to 1.
+    pub crt_curve_error: [f64; 3],
+    /// Per channel, the relative error of the profile's `R / T * peak`.
+    pub balance_error: [f64; 3],
+    /// Seconds the calibration took.
+    pub seconds: f64,
+}
+
+/// Calibrate every face of `product` (the nodes' scene: calibrated
+/// devices) that serves an observer, in the simulated showcase `truth`,
+/// with the scene's first camera on a tripod at that observer's left eye;
+/// the real light is path-traced with `truth_paths` paths per point.
+pub fn calibrate_faces(
+    truth: &Showcase,
+    product: &Showcase,
+    options: &PhotometricOptions,
+    truth_paths: u32,
+) -> Result<Vec<JudgedFace>> {
+    let state = crate::cluster::illumination::initial_state(truth, 1);
+    let frame = FrameScene::resolve(truth, &state)?;
+    let tripod = truth
+        .cameras
+        .first()
+        .context("photometric calibration needs a camera (the scene has none)")?;
+    let mut judged = Vec::new();
+    for (f, face) in truth.faces.iter().enumerate() {
+        let Some(observer) = views::face_observer(truth, f) else {
+            continue;
+        };
+        let t = Instant::now();
+        // The observer's left eye's view at a quarter of its pixels: plenty
+        // for regions of a uniform screen and a spot.
+        let eye = views::eye_camera(truth, &state, observer);
+        let (w, h) = (eye.width / 2, eye.height / 2);
+        let camera = Camera {
+            name: format!(
+                "{} on a tripod at {}",
+                tripod.name, truth.observers[observer].name
+            ),
+            device: crate::capture::resize_device(&eye, w, h)?,
+            response: tripod.response.clone(),
+        };
+        let mut rig = SimMirrorCamera::new(
+            &frame,
+            face,
+            &camera,
+            CompleteOptions {
+                paths_per_point: truth_paths,
+                seed: 28 + f as u64,
+            },
+        )?;
+        let product_face = product
+            .faces
+            .get(f)
+            .context("the product scene lacks a face")?;
+        let calibration = calibrate_face(
+            &mut rig,
+            product,
+            product_face,
+            &camera.device,
+            &product_face.photometry,
+            options,
+        )
+        .with_context(|| format!("calibrating {} photometrically", face.name))?;
+        let seconds = t.elapsed().as_secs_f64();
+        judged.push(JudgedFace {
+            face: f,
+            camera_response_error: camera_response_error(&calibration, &camera, false),
+            camera_response_error_codes: camera_response_error(&calibration, &camera, true),
+            crt_curve_error: crt_curve_error(&calibration.profile, &face.photometry),
+            balance_error: std::array::from_fn(|c| {
+                let p = &calibration.profile;
+                let truth = &face.photometry;
+                let ratio = |ph: &CrtPhotometry| {
+                    f64::from(ph.splitter.reflection[c] / ph.splitter.transmission[c])
+                        * f64::from(ph.crt.peak[c])
+                };
+                (ratio(p) / ratio(truth) - 1.0).abs()
+            }),
+            calibration,
+            seconds,
+        });
+    }
+    Ok(judged)
+}
+
+/// The recovered response against the camera's true one: per channel, the
+/// ratio of recovered to true exposure over the codes whose true signal
+/// lies in the middle 90 % of the camera's range (5 % to 95 % of full
+/// scale: below, the read noise dominates a frame; above, the shoulder
+/// and the clip), divided by its geometric mean; the largest departure
+/// from 1. With `codes` instead over codes 5 % to 95 % of the code range.
+fn camera_response_error(calibration: &FaceCalibration, camera: &Camera, codes: bool) -> [f64; 3] {
+    let r = &calibration.response;
+    let max = f64::from(r.levels() - 1);
+    std::array::from_fn(|c| {
+        let ratios: Vec<f64> = (0..r.levels())
+            .filter_map(|z| {
+                let z = f64::from(z);
+                let truth = camera.response.decode(c, z / max);
+                let inside = if codes {
+                    (0.05 * max..=0.95 * max).contains(&z)
+                } else {
+                    (0.05..=0.95).contains(&truth)
+                };
+                inside.then(|| r.exposure(c, z) / truth)
+            })
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        if ratios.is_empty() {
+            return f64::NAN;
+        }
+        let scale = (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
+        ratios
+            .iter()
+            .map(|x| (x / scale - 1.0).abs())
+            .fold(0.0, f64::max)
+    })
+}
+
+/// Per channel, the largest relative error of `profile`'s light through
+/// the mirror against `truth`'s, for drive 0.1 to 1 in steps of 0.01.
+fn crt_curve_error(profile: &CrtPhotometry, truth: &CrtPhotometry) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        (10..=100)
+            .map(|k| {
+                let mut d = glam::Vec3::ZERO;
+                d[c] = k as f32 / 100.0;
+                let (got, want) = (profile.seen(d)[c], truth.seen(d)[c]);
+                f64::from(((got - want) / want).abs())
+            })
+            .fold(0.0, f64::max)
+    })
+}
+
+/// The profiles of one state, by face index.
+fn profiles(scene: &Showcase, by_face: impl Fn(usize) -> CrtPhotometry) -> Vec<CrtPhotometry> {
+    (0..scene.faces.len()).map(by_face).collect()
+}
+
+/// What the observers see of `outputs` (its profiles replaced by
+/// `profiles`) in `truth`: CIEDE2000 over every covered pixel and over the
+/// seams, median and p95, and the fraction of face pixels driven to the
+/// top (the CRT too dim for the light asked of it).
+fn judge_state(
+    truth: &Showcase,
+    state: &showcase_proto::FrameState,
+    outputs: &mut Outputs,
+    profiles: Vec<CrtPhotometry>,
+    transport: &Transport,
+) -> Result<Value> {
+    outputs.profiles = profiles;
+    let (mut all, mut seams) = (Vec::new(), Vec::new());
+    let mut seam_pixels = 0;
+    for o in 0..truth.observers.len() {
+        let r = views::observe(truth, state, outputs, o, transport.clone())?;
+        let mask = r.view.seams();
+        seam_pixels += mask.data.iter().filter(|m| **m).count();
+        for (d, m) in r.delta_e.iter().zip(&mask.data) {
+            if d.is_finite() {
+                all.push(*d);
+                if *m {
+                    seams.push(*d);
+                }
+            }
+        }
+    }
+    Ok(json!({
+        "observer_delta_e_median": percentile(&all, 50.0),
+        "observer_delta_e_p95": percentile(&all, 95.0),
+        "seam_delta_e_median": percentile(&seams, 50.0),
+        "seam_delta_e_p95": percentile(&seams, 95.0),
+        "seam_pixels": seam_pixels,
+    }))
+}
+
+/// `bench photometric`'s records for `scene_path` (and the demo's
+/// figures): the calibration of each face judged against the truth, and
+/// the observers at `frame` of the walk in each state.
+pub fn bench_photometric_scene(
+    truth: &Showcase,
+    calibrated: &Showcase,
+    frame: u64,
+    truth_paths: u32,
+) -> Result<(Vec<JudgedFace>, Value)> {
+    let truth = views::at_demo_resolution(truth)?;
+    let calibrated = views::at_demo_resolution(calibrated)?;
+    let t = Instant::now();
+    let faces = calibrate_faces(
+        &truth,
+        &calibrated,
+        &PhotometricOptions::default(),
+        truth_paths,
+    )?;
+    let calibration_s = t.elapsed().as_secs_f64();
+    // One frame of the walk in global mode, as the demo's cluster draws it.
+    let tracker =
+        crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;
+    let mut show = Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64);
+    let mut state = None;
+    for f in 0..=frame {
+        state = Some(show.frame_state(f, 0.0, &truth, 1).0);
+    }
+    let state = state.context("no frame")?;
+    let resolved = FrameScene::resolve(&calibrated, &state)?;
+    let (field, _) = crate::radiosity_job::indirect_field(
+        &resolved.showcase,
+        &resolved.eyes,
+        &Default::default(),
+    )?;
+    let backend = Backend::open();
+    let mut renderers = NodeRenderers::new(&backend, Arc::new(calibrated.clone()))?;
+    renderers.set_indirect(Arc::new(field));
+    let mut outputs = renderers.render(&state)?;
+    let transport = Transport::complete(CompleteOptions {
+        paths_per_point: truth_paths,
+        seed: super::rendering::COMPLETE_SEED,
+    });
+    let nominal = CrtPhotometry::nominal(NOMINAL_GAMMA);
+    let measured: Vec<(usize, CrtPhotometry)> = faces
+        .iter()
+        .map(|j| (j.face, j.calibration.profile))
+        .collect();
+    let mut states = serde_json::Map::new();
+    for (name, p) in [
+        ("uncalibrated", profiles(&truth, |_| nominal)),
+        (
+            "calibrated",
+            profiles(&truth, |f| {
+                measured
+                    .iter()
+                    .find(|(i, _)| *i == f)
+                    .map_or(nominal, |(_, p)| *p)
+            }),
+        ),
+        ("true", profiles(&truth, |f| truth.faces[f].photometry)),
+    ] {
+        states.insert(
+            name.into(),
+            judge_state(&truth, &state, &mut outputs, p, &transport)?,
+        );
+    }
+    // The world without the chain: a nominal CRT behind an ideal combiner
+    // in the cabinet, and the nodes assuming just that.
+    let mut ideal = truth.clone();
+    for f in &mut ideal.faces {
+        f.photometry = nominal;
+    }
+    states.insert(
+        "ideal_photometry".into(),
+        judge_state(
+            &ideal,
+            &state,
+            &mut outputs,
+            profiles(&ideal, |_| nominal),
+            &transport,
+        )?,
+    );
+    let record = json!({
+        "scene": truth.name,
+        "frame": state.frame,
+        "renderer": backend.describe(),
+        "calibration_s": calibration_s,
+        "faces": faces.iter().map(|j| json!({
+            "face": truth.faces[j.face].name,
+            "seconds": j.seconds,
+            "frames": j.calibration.frames,
+            "camera_response_error": j.camera_response_error,
+            "camera_response_error_codes": j.camera_response_error_codes,
+            "crt_curve_error": j.crt_curve_error,
+            "balance_error": j.balance_error,
+            "held_out_error": j.calibration.held_out_error,
+            "held_out_error_before": j.calibration.held_out_error_before,
+            "kept_previous": j.calibration.kept_previous,
+            "profile": j.calibration.profile,
+            "truth": truth.faces[j.face].photometry,
+            "reference": j.calibration.reference,
+            "screen_pixels": j.calibration.screen_pixels,
+        })).collect::<Vec<_>>(),
+        "states": states,
+    });
+    Ok((faces, record))
+}
