@@ -377,41 +377,37 @@ impl Validate for CrtFace {
         if (self.mirror.normal.length() - 1.0).abs() > 1e-3 {
             return fail("mirror.normal", "mirror normal is not unit length");
         }
-        let ph = &self.photometry;
+        within(|| "photometry".into(), self.photometry.validate())
+    }
+}
+
+impl Validate for CrtPhotometry {
+    fn validate(&self) -> R {
         for (name, v) in [
-            ("photometry.crt.gamma", ph.crt.gamma),
-            ("photometry.crt.peak", ph.crt.peak),
-            ("photometry.crt.black_level", ph.crt.black_level),
-            ("photometry.splitter.transmission", ph.splitter.transmission),
-            ("photometry.splitter.reflection", ph.splitter.reflection),
+            ("crt.gamma", self.crt.gamma),
+            ("crt.peak", self.crt.peak),
+            ("crt.black_level", self.crt.black_level),
+            ("splitter.transmission", self.splitter.transmission),
+            ("splitter.reflection", self.splitter.reflection),
         ] {
             finite3(&|| name.into(), v)?;
         }
-        if ph.crt.gamma.min_element() <= 0.0 {
-            return fail("photometry.crt.gamma", "gamma must be positive");
+        if self.crt.gamma.min_element() <= 0.0 {
+            return fail("crt.gamma", "gamma must be positive");
         }
-        if ph.crt.peak.min_element() <= 0.0 {
-            return fail("photometry.crt.peak", "peak radiance must be positive");
+        if self.crt.peak.min_element() <= 0.0 {
+            return fail("crt.peak", "peak radiance must be positive");
         }
-        if ph.crt.black_level.min_element() < 0.0 {
-            return fail(
-                "photometry.crt.black_level",
-                "black level must not be negative",
-            );
+        if self.crt.black_level.min_element() < 0.0 {
+            return fail("crt.black_level", "black level must not be negative");
         }
-        let t = ph.splitter.transmission;
+        let t = self.splitter.transmission;
         if t.min_element() < 0.0 || t.max_element() > 1.0 {
-            return fail(
-                "photometry.splitter.transmission",
-                "transmission must lie in 0..=1",
-            );
+            return fail("splitter.transmission", "transmission must lie in 0..=1");
         }
-        let r = ph.splitter.reflection;
+        let r = self.splitter.reflection;
         if r.min_element() <= 0.0 || r.max_element() > 1.0 {
-            return fail(
-                "photometry.splitter.reflection",
-                "reflection must lie in (0, 1]",
-            );
+            return fail("splitter.reflection", "reflection must lie in (0, 1]");
         }
         Ok(())
     }

@@ -1,8 +1,11 @@
 //! The `window` feature: a node shows its presented frames full screen on a
 //! real display (winit window, wgpu surface). The frame's linear values
-//! are encoded for the device at this boundary: a projector's values are
-//! already its drive values (exponent 1), a CRT face's radiance is raised
-//! to `1 / gamma` of its face (the CRT's inverse response).
+//! are encoded for the device at this boundary, as each image says
+//! ([`OutputImage::encoding`]): a projector's values are already its drive
+//! values, a CRT face's radiance goes through its face's photometric
+//! profile ([`showcase_proto::CrtPhotometry::drive`]: the splitter's
+//! `T / R`, less the black level, over the peak, to `1 / gamma`, per
+//! channel).
 //!
 //! winit owns the main thread; the node runs on another and hands each
 //! presented image over through the event loop ([`WindowSink`], a
@@ -68,20 +71,18 @@ pub fn event_loop() -> Result<(EventLoop<WindowMessage>, WindowSink), WindowErro
 }
 
 /// Run the full-screen window until the node quits or the window is
-/// closed; `encode_gamma` is the exponent's inverse applied at the device
-/// boundary (1 for projectors, the face's gamma for CRT faces).
+/// closed; `gamma_override`, if any, replaces the display gamma of every
+/// image's encoding (per channel for a CRT face's profile, 1 for values
+/// already drive values).
 pub fn run(
     event_loop: EventLoop<WindowMessage>,
     title: &str,
-    encode_gamma: f32,
+    gamma_override: Option<f32>,
 ) -> Result<(), WindowError> {
     let mut app = App {
         title: title.to_string(),
-        encode_gamma: if encode_gamma.is_finite() && encode_gamma > 0.0 {
-            encode_gamma
-        } else {
-            1.0
-        },
+        gamma_override: gamma_override.filter(|g| g.is_finite() && *g > 0.0),
+        encoding: [[1.0; 4], [0.0; 4], [1.0; 4], [1.0; 4]],
         window: None,
         gpu: None,
         error: None,
@@ -95,7 +96,10 @@ pub fn run(
 
 struct App {
     title: String,
-    encode_gamma: f32,
+    gamma_override: Option<f32>,
+    /// The shown image's encoding as the shader's rows: `T / R`, black
+    /// level, peak and `1 / gamma`, per channel.
+    encoding: [[f32; 4]; 4],
     window: Option<Arc<Window>>,
     gpu: Option<Gpu>,
     error: Option<String>,
@@ -113,7 +117,14 @@ struct Gpu {
 }
 
 const SHADER: &str = r"
-struct Params { gamma: f32, _p0: f32, target_size: vec2<f32> };
+struct Params {
+    scale: vec4<f32>,
+    black: vec4<f32>,
+    peak: vec4<f32>,
+    inv_gamma: vec4<f32>,
+    target_size: vec2<f32>,
+    _pad: vec2<f32>,
+};
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var frame: texture_2d<f32>;
 
@@ -129,8 +140,9 @@ fn fs_main(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
     let size = vec2<f32>(textureDimensions(frame));
     let target_size = params.target_size;
     let texel = vec2<i32>(clamp(p.xy / target_size * size, vec2<f32>(0.0), size - 1.0));
-    let v = clamp(textureLoad(frame, texel, 0).rgb, vec3<f32>(0.0), vec3<f32>(1.0));
-    return vec4<f32>(pow(v, vec3<f32>(1.0 / params.gamma)), 1.0);
+    let l = textureLoad(frame, texel, 0).rgb;
+    let x = clamp((l * params.scale.rgb - params.black.rgb) / params.peak.rgb, vec3<f32>(0.0), vec3<f32>(1.0));
+    return vec4<f32>(pow(x, params.inv_gamma.rgb), 1.0);
 }
 ";
 
@@ -201,7 +213,7 @@ impl App {
         .build(&device);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("present params"),
-            size: 16,
+            size: 80,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -300,12 +312,13 @@ impl App {
             // Occluded, timed out or invalid: skip this frame.
             _ => return,
         };
-        let params = [
-            self.encode_gamma,
-            0.0,
-            gpu.config.width as f32,
-            gpu.config.height as f32,
-        ];
+        let [scale, black, peak, inv_gamma] = self.encoding;
+        let mut params = [0.0f32; 20];
+        for (row, v) in [scale, black, peak, inv_gamma].iter().enumerate() {
+            params[4 * row..4 * row + 4].copy_from_slice(v);
+        }
+        params[16] = gpu.config.width as f32;
+        params[17] = gpu.config.height as f32;
         gpu.queue
             .write_buffer(&gpu.params, 0, bytemuck::cast_slice(&params));
         let view = frame
@@ -370,10 +383,87 @@ impl ApplicationHandler<WindowMessage> for App {
     fn user_event(&mut self, event_loop: &ActiveEventLoop, message: WindowMessage) {
         match message {
             WindowMessage::Frame(_, image) => {
+                self.encoding = encoding_rows(image.encoding.as_ref(), self.gamma_override);
                 self.upload(&image);
                 self.draw();
             }
             WindowMessage::Quit => event_loop.exit(),
         }
+    }
+}
+
+/// The present shader's rows for `encoding` (`None`: values already drive
+/// values): `T / R` (0 where `R` is not positive: black), black level,
+/// peak and `1 / gamma` per channel, the gamma replaced by `gamma` if
+/// given; the same arithmetic as [`showcase_proto::CrtPhotometry::drive`].
+fn encoding_rows(
+    encoding: Option<&showcase_proto::CrtPhotometry>,
+    gamma: Option<f32>,
+) -> [[f32; 4]; 4] {
+    let row = |v: glam::Vec3| [v.x, v.y, v.z, 1.0];
+    let mut rows = [[1.0; 4], [0.0; 4], [1.0; 4], [1.0; 4]];
+    if let Some(e) = encoding {
+        let (t, r) = (e.splitter.transmission, e.splitter.reflection);
+        let ratio = glam::Vec3::from_array(std::array::from_fn(|c| {
+            if r[c] > 0.0 { t[c] / r[c] } else { 0.0 }
+        }));
+        rows = [
+            row(ratio),
+            row(e.crt.black_level),
+            row(e.crt.peak.max(glam::Vec3::splat(1e-6))),
+            row(e.crt.gamma.max(glam::Vec3::splat(1e-3)).recip()),
+        ];
+    }
+    if let Some(g) = gamma {
+        rows[3] = row(glam::Vec3::splat(1.0 / g));
+    }
+    rows
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+    use showcase_proto::{BeamSplitter, CrtPhotometry, CrtResponse};
+
+    /// The present shader's arithmetic, on the CPU.
+    fn shade(rows: &[[f32; 4]; 4], l: Vec3) -> Vec3 {
+        let v = |i: usize| Vec3::new(rows[i][0], rows[i][1], rows[i][2]);
+        let x = ((l * v(0) - v(1)) / v(2)).clamp(Vec3::ZERO, Vec3::ONE);
+        Vec3::new(x.x.powf(v(3).x), x.y.powf(v(3).y), x.z.powf(v(3).z))
+    }
+
+    #[test]
+    fn the_window_encodes_what_the_profile_drives() {
+        let profile = CrtPhotometry {
+            crt: CrtResponse {
+                gamma: Vec3::new(2.4, 2.5, 2.3),
+                peak: Vec3::new(2.0, 1.8, 2.2),
+                black_level: Vec3::splat(0.004),
+            },
+            splitter: BeamSplitter {
+                transmission: Vec3::new(0.62, 0.6, 0.57),
+                reflection: Vec3::new(0.33, 0.35, 0.37),
+            },
+        };
+        let rows = encoding_rows(Some(&profile), None);
+        for l in [0.0f32, 0.003, 0.05, 0.4, 1.0, 5.0] {
+            let radiance = Vec3::new(l, 0.8 * l, 1.2 * l);
+            let (got, want) = (shade(&rows, radiance), profile.drive(radiance));
+            assert!(
+                (got - want).abs().max_element() < 1e-5,
+                "{radiance}: {got} vs {want}"
+            );
+        }
+        // Projector values pass through.
+        let plain = encoding_rows(None, None);
+        assert_eq!(
+            shade(&plain, Vec3::new(0.2, 0.5, 0.9)),
+            Vec3::new(0.2, 0.5, 0.9)
+        );
+        // An override replaces the gamma only.
+        let g = encoding_rows(Some(&profile), Some(1.0));
+        assert_eq!(g[0], rows[0]);
+        assert_eq!(g[3], [1.0; 4]);
     }
 }

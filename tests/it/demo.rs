@@ -182,12 +182,33 @@ fn short_demo_from_a_copied_binary_writes_an_honest_report() {
         "reflectance_eta_rel_error",
         "radiosity_figure3_consistency_rel_rmse",
         "radiosity_figure3_paper_consistency_rel_rmse",
+        "photometric_seam_delta_e_median",
+        "photometric_seam_delta_e_median_uncalibrated",
+        "photometric_seam_delta_e_median_true",
+        "photometric_seam_delta_e_median_ideal_photometry",
+        "photometric_observer_delta_e_p95",
+        "photometric_camera_response_error",
+        "photometric_crt_curve_error",
+        "photometric_calibration_s",
     ] {
         let v = figures[key]
             .as_f64()
             .unwrap_or_else(|| panic!("{key} missing: {figures}"));
         assert!(v.is_finite() && v >= 0.0, "{key} = {v}");
     }
+    // The photometric calibration brings the seams closer than the
+    // nominal profile does, and what it recovers is near the truth.
+    let seam = |k: &str| figures[k].as_f64().unwrap();
+    assert!(
+        seam("photometric_seam_delta_e_median")
+            < seam("photometric_seam_delta_e_median_uncalibrated"),
+        "{figures}"
+    );
+    assert!(seam("photometric_crt_curve_error") < 0.05, "{figures}");
+    assert!(
+        seam("photometric_camera_response_error") < 0.05,
+        "{figures}"
+    );
     // Calibration from 0.5 px marks: residuals of that order.
     assert!(figures["calibration_rms_px"].as_f64().unwrap() < 1.0);
     // Eta estimated within 1%, and the reflectance within 0.02 (the demo's camera is smaller than the bench's; 0.0174 measured
@@ -388,6 +409,7 @@ intensity = [0.3, 0.3, 0.3]
         ("calibration", "no projector or camera"),
         ("reflectance", "no projector"),
         ("interactive", "no CRT face or projector"),
+        ("photometric", "no CRT face serving an observer"),
         ("rendering", "no CRT face or projector"),
     ] {
         let (s, reason) = status(name);

@@ -15,26 +15,26 @@ use showcase_master::calibrate::photometric::{
 };
 use showcase_proto::{Camera, CrtPhotometry, PinholeDevice, Showcase};
 
-/// The demo cabinet with its projectors at a quarter of their width and
-/// height.
+/// The demo cabinet with its projectors at half their width and height
+/// (the demo's resolution).
 fn cabinet() -> Showcase {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
     let mut s = showcase_master::scene_file::load_scene(&path).expect("the demo scene loads");
     for p in &mut s.projectors {
         let d = &p.device;
-        p.device = showcase_master::capture::resize_device(d, d.width / 4, d.height / 4).unwrap();
+        p.device = showcase_master::capture::resize_device(d, d.width / 2, d.height / 2).unwrap();
     }
     s
 }
 
 /// The scene's camera on a tripod at the observer's left eye, looking
-/// where the observer looks, at 80x60 pixels.
+/// where the observer looks, at 160x120 pixels (the bench's).
 fn tripod(scene: &Showcase) -> Camera {
     let head = scene.observers[0].head;
     let eye = showcase_proto::Observer::eyes(&head, scene.observers[0].ipd)[0].as_dvec3();
     let forward = (head.orientation * Vec3::NEG_Z).as_dvec3();
-    let mut device = PinholeDevice::look_at(eye, eye + forward, DVec3::Y, 30.0, 80, 60);
+    let mut device = PinholeDevice::look_at(eye, eye + forward, DVec3::Y, 30.0, 160, 120);
     device.near = 0.05;
     device.far = 10.0;
     Camera {

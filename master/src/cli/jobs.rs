@@ -143,23 +143,54 @@ impl From<CalibrationMethod> for crate::calibrate::Method {
 /// Arguments of `calibrate`.
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// Input correspondences (JSON).
-    #[arg(long)]
-    pub points: PathBuf,
-    /// Output calibration (JSON).
+    /// Input correspondences (JSON), for a projector or camera.
+    #[arg(long, required_unless_present = "photometric")]
+    pub points: Option<PathBuf>,
+    /// Output calibration (JSON); with `--photometric` a folder, which
+    /// gets one `<face>-photometric.json` per face and `summary.json`.
     #[arg(long)]
     pub out: PathBuf,
     /// Solver.
     #[arg(long, value_enum, default_value_t = CalibrationMethod::Lm)]
     pub method: CalibrationMethod,
+    /// Calibrate the faces photometrically instead: each face's CRT and
+    /// beam splitter, measured by the scene's camera in its observer's
+    /// place, as the profile its node encodes with. Runs on the simulated
+    /// showcase of `--scene` (no real camera is attached to this build).
+    #[arg(long, requires = "scene", conflicts_with = "points")]
+    pub photometric: bool,
+    /// With `--photometric`: the scene, or a built-in one
+    /// (`builtin:showcase`).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// With `--photometric`: paths per irradiance-cache point of the
+    /// simulated real light.
+    #[arg(long, default_value_t = crate::demo::TRUTH_PATHS, value_parser = clap::value_parser!(u32).range(8..))]
+    pub truth_paths: u32,
 }
 
-/// `calibrate`: fit one device and report its residual.
+/// `calibrate`: fit one device and report its residual, or (with
+/// `--photometric`) the faces' profiles.
 pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
-    let c = crate::calibrate::run_calibrate_file(&args.points, &args.out, args.method.into())?;
+    if args.photometric {
+        let scene = args
+            .scene
+            .as_deref()
+            .context("--photometric needs --scene")?;
+        return crate::demo::photometric::run_calibrate_photometric(
+            scene,
+            &args.out,
+            args.truth_paths,
+        );
+    }
+    let points = args
+        .points
+        .as_deref()
+        .context("give --points (fiducial correspondences) or --photometric")?;
+    let c = crate::calibrate::run_calibrate_file(points, &args.out, args.method.into())?;
     eprintln!(
         "calibrated {} from {} points: rms {:.4} px; wrote {}",
-        args.points.display(),
+        points.display(),
         c.residuals_px.len(),
         c.rms_px,
         args.out.display()

@@ -11,6 +11,7 @@ mod views;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
+use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -80,13 +81,14 @@ pub struct GalleryRow {
 }
 
 /// Phases of the demo, in order.
-pub const PHASES: [&str; 7] = [
+pub const PHASES: [&str; 8] = [
     "scene",
     "calibration",
     "reflectance",
     "radiosity",
     "radiosity_figure3",
     "interactive",
+    "photometric",
     "rendering",
 ];
 
@@ -171,6 +173,17 @@ pub fn unsupported(scene: &showcase_proto::Showcase, name: &str) -> Option<Strin
         "interactive" if outputs == 0 => {
             "the scene has no CRT face or projector, so no render node to run"
         }
+        "photometric"
+            if !(0..scene.faces.len()).any(|f| views::face_observer(scene, f).is_some()) =>
+        {
+            "the scene has no CRT face serving an observer to calibrate"
+        }
+        "photometric" if scene.cameras.is_empty() => {
+            "the scene has no camera to put in an observer's place"
+        }
+        "photometric" if scene.projectors.is_empty() || !real => {
+            "the scene has no projector-lit real surface to give the camera a known radiance"
+        }
         "rendering" if outputs == 0 => "the scene has no CRT face or projector output to render",
         "rendering" if scene.observers.is_empty() => {
             "the scene has no observer whose view to render and compare"
@@ -209,6 +222,12 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
 
     let truth = scene.clone();
+    // The nodes know their devices' geometry from calibration, but not
+    // their photometry: they start from a nominal profile until the
+    // photometric phase measures it.
+    for f in &mut scene.faces {
+        f.photometry = showcase_proto::CrtPhotometry::nominal(photometric::NOMINAL_GAMMA);
+    }
     if let Some(reason) = unsupported(&scene, "calibration") {
         report.skipped("calibration", reason);
     } else {
@@ -257,6 +276,17 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         pb.finish_and_clear();
         report.ran("interactive", t, interactive.detail);
         report.figures.extend(interactive.figures);
+    }
+    if let Some(reason) = unsupported(&scene, "photometric") {
+        report.skipped("photometric", reason);
+    } else {
+        let t = Instant::now();
+        let pb = progress("photometric", None);
+        pb.set_message("each face through its mirror, from its observer's place");
+        let outcome = photometric_stage(&truth, &mut scene, opts)?;
+        pb.finish_and_clear();
+        report.ran("photometric", t, outcome.detail);
+        report.figures.extend(outcome.figures);
     }
     if let Some(reason) = unsupported(&scene, "rendering") {
         report.skipped("rendering", reason);
@@ -554,6 +584,91 @@ struct StageOutcome {
     detail: String,
     figures: serde_json::Map<String, serde_json::Value>,
 }
+
+/// Calibrate each face photometrically in the simulated showcase `truth`
+/// and give the nodes' scene `scene` the profiles; the figures judge the
+/// recovered parameters against the truth, and the observers at frame 60
+/// of the walk (global mode) uncalibrated, calibrated, with the true
+/// devices, and without the photometric chain.
+fn photometric_stage(
+    truth: &showcase_proto::Showcase,
+    scene: &mut showcase_proto::Showcase,
+    opts: &DemoOptions,
+) -> Result<StageOutcome> {
+    let (faces, record) =
+        photometric::bench_photometric_scene(truth, scene, PHOTOMETRIC_FRAME, opts.truth_paths)?;
+    for j in &faces {
+        if let Some(f) = scene.faces.get_mut(j.face) {
+            f.photometry = j.calibration.profile;
+        }
+    }
+    let worst =
+        |f: &dyn Fn(&photometric::JudgedFace) -> f64| faces.iter().map(f).fold(0.0, f64::max);
+    let max3 = |a: [f64; 3]| a.into_iter().fold(0.0, f64::max);
+    let mut figures = serde_json::Map::new();
+    let mut put = |k: &str, v: serde_json::Value| {
+        figures.insert(k.into(), v);
+    };
+    put(
+        "photometric_camera_response_error",
+        json!(worst(&|j| max3(j.camera_response_error))),
+    );
+    put(
+        "photometric_crt_curve_error",
+        json!(worst(&|j| max3(j.crt_curve_error))),
+    );
+    put(
+        "photometric_balance_error",
+        json!(worst(&|j| max3(j.balance_error))),
+    );
+    put(
+        "photometric_held_out_error",
+        json!(worst(&|j| j.calibration.held_out_error)),
+    );
+    put(
+        "photometric_held_out_error_uncalibrated",
+        json!(worst(&|j| j.calibration.held_out_error_before)),
+    );
+    put("photometric_calibration_s", record["calibration_s"].clone());
+    for (state, suffix) in [
+        ("calibrated", ""),
+        ("uncalibrated", "_uncalibrated"),
+        ("true", "_true"),
+        ("ideal_photometry", "_ideal_photometry"),
+    ] {
+        let s = &record["states"][state];
+        for (what, key) in [
+            ("seam_delta_e_median", "photometric_seam_delta_e_median"),
+            ("seam_delta_e_p95", "photometric_seam_delta_e_p95"),
+            (
+                "observer_delta_e_median",
+                "photometric_observer_delta_e_median",
+            ),
+            ("observer_delta_e_p95", "photometric_observer_delta_e_p95"),
+        ] {
+            put(&format!("{key}{suffix}"), s[what].clone());
+        }
+    }
+    let s = &record["states"];
+    let detail = format!(
+        "{} faces in {:.1} s; seams median {:.2} calibrated, {:.2} uncalibrated, {:.2} with the true devices",
+        faces.len(),
+        record["calibration_s"].as_f64().unwrap_or(f64::NAN),
+        s["calibrated"]["seam_delta_e_median"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+        s["uncalibrated"]["seam_delta_e_median"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+        s["true"]["seam_delta_e_median"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+    );
+    Ok(StageOutcome { detail, figures })
+}
+
+/// The frame of the walk the photometric phase judges.
+const PHOTOMETRIC_FRAME: u64 = 60;
 
 /// Frame rate of the interactive stage.
 const INTERACTIVE_HZ: f32 = 60.0;

@@ -481,7 +481,12 @@ pub(crate) fn camera(
 }
 
 /// One `[[face]]`.
-pub(crate) fn face(ctx: &Ctx, label: &str, d: &FaceDef) -> Result<CrtFace, SceneError> {
+pub(crate) fn face(
+    ctx: &Ctx,
+    label: &str,
+    d: &FaceDef,
+    base_dir: &Path,
+) -> Result<CrtFace, SceneError> {
     let normal = dv3(d.mirror.normal);
     if normal.length() < 1e-9 {
         return Err(ctx.invalid(format!("{label}.mirror.normal"), "mirror normal is zero"));
@@ -500,8 +505,64 @@ pub(crate) fn face(ctx: &Ctx, label: &str, d: &FaceDef) -> Result<CrtFace, Scene
         },
         width: d.width,
         height: d.height,
-        photometry: face_photometry(ctx, label, d)?,
+        photometry: match &d.photometric_profile {
+            Some(file) => {
+                let stated = [
+                    d.gamma.is_some(),
+                    d.crt.is_some(),
+                    d.beam_splitter.is_some(),
+                ];
+                if stated.iter().any(|s| *s) {
+                    return Err(ctx.invalid(
+                        format!("{label}.photometric_profile"),
+                        "give the measured profile or the devices (`gamma`, `crt`, \
+                         `beam_splitter`), not both",
+                    ));
+                }
+                photometric_profile(ctx, label, &d.name, &base_dir.join(file))?
+            }
+            None => face_photometry(ctx, label, d)?,
+        },
     })
+}
+
+/// A face's photometry from the profile `calibrate --photometric` wrote
+/// ([`crate::calibrate::photometric::ProfileFile`]), which must name this
+/// face and hold a valid chain.
+fn photometric_profile(
+    ctx: &Ctx,
+    label: &str,
+    face: &str,
+    path: &Path,
+) -> Result<CrtPhotometry, SceneError> {
+    use showcase_proto::Validate;
+    let field = format!("{label}.photometric_profile");
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ctx.referenced(&field, path, None, format!("cannot read: {e}")))?;
+    let file: crate::calibrate::photometric::ProfileFile =
+        serde_json::from_str(&text).map_err(|e| {
+            ctx.referenced(
+                &field,
+                path,
+                Some(e.line()).filter(|l| *l > 0),
+                e.to_string(),
+            )
+        })?;
+    if file.face != face {
+        return Err(ctx.referenced(
+            &field,
+            path,
+            None,
+            format!(
+                "the profile is of face {:?}, not {face:?}: point this face at its own profile",
+                file.face
+            ),
+        ));
+    }
+    file.photometry
+        .validate()
+        .map_err(|e| ctx.referenced(&field, path, None, e.to_string()))?;
+    Ok(file.photometry)
 }
 
 /// A face's CRT and beam splitter: `gamma` alone is a nominal CRT of that

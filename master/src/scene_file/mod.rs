@@ -101,6 +101,8 @@
 //! # cabinet's is measured by `calibrate --photometric`):
 //! # crt = { gamma = [2.4, 2.5, 2.3], peak = [2.0, 1.8, 2.2], black_level = [0.004, 0.004, 0.004] }
 //! # beam_splitter = { transmission = [0.62, 0.6, 0.57], reflection = [0.33, 0.35, 0.37] }
+//! # or the profile `calibrate --photometric` measured (relative to this file):
+//! # photometric_profile = "calibration/face-0-photometric.json"
 //!
 //! [[observer]]
 //! name = "alice"
@@ -308,7 +310,7 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
     }
     for (i, f) in def.faces.iter().enumerate() {
         let label = label("face", i, &f.name);
-        showcase.faces.push(device::face(ctx, &label, f)?);
+        showcase.faces.push(device::face(ctx, &label, f, base_dir)?);
         labels.faces.push(label);
     }
     for (i, o) in def.observers.iter().enumerate() {

@@ -311,6 +311,8 @@ pub(crate) struct FaceDef {
     pub(crate) crt: Option<CrtDef>,
     #[serde(default)]
     pub(crate) beam_splitter: Option<SplitterDef>,
+    #[serde(default)]
+    pub(crate) photometric_profile: Option<String>,
 }
 
 /// `[face.crt]`: light per drive value, per channel.

@@ -46,8 +46,8 @@ struct NodeCli {
     #[cfg(feature = "window")]
     #[arg(long)]
     window: bool,
-    /// With --window: the display's gamma, applied as 1/gamma to the
-    /// frame's linear values (default: 2.2 for a CRT face, 1 for a
+    /// With --window: replace the display gamma of the device encoding
+    /// (default: a CRT face's from its photometric profile, 1 for a
     /// projector, whose values are already drive values).
     #[cfg(feature = "window")]
     #[arg(long)]
@@ -145,14 +145,13 @@ fn run(cli: NodeCli) -> Result<()> {
     #[cfg(feature = "window")]
     if cli.window {
         use showcase_render::node::present::Presenting;
-        let gamma = cli.display_gamma.unwrap_or(match node.role {
-            showcase_proto::Role::Face => 2.2,
-            _ => 1.0,
-        });
-        anyhow::ensure!(
-            gamma.is_finite() && gamma > 0.0,
-            "--display-gamma {gamma}: must be a positive number"
-        );
+        if let Some(gamma) = cli.display_gamma {
+            anyhow::ensure!(
+                gamma.is_finite() && gamma > 0.0,
+                "--display-gamma {gamma}: must be a positive number"
+            );
+        }
+        let gamma = cli.display_gamma;
         let (event_loop, sink) = showcase_render::window::event_loop()?;
         let title = format!("showcase {}", node.name);
         let node_stop = stop.clone();

@@ -103,6 +103,7 @@ mod tests {
                     width,
                     height: 1,
                     rgba: vec![[0.0; 4]; width as usize],
+                    encoding: None,
                 }),
             })
         }

@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use showcase_proto::session::Solution;
-use showcase_proto::{FrameState, Role, Showcase};
+use showcase_proto::{CrtPhotometry, FrameState, Role, Showcase};
 
 use crate::gpu::GpuError;
 use showcase_light::render::RenderSetupError;
@@ -32,6 +32,11 @@ pub struct OutputImage {
     pub height: u32,
     /// Row-major linear RGBA.
     pub rgba: Vec<[f32; 4]>,
+    /// How the values become drive values at the device boundary (the
+    /// window): a CRT face's radiance through its photometric profile
+    /// ([`CrtPhotometry::drive`]); `None` for values that already are
+    /// (a projector's).
+    pub encoding: Option<CrtPhotometry>,
 }
 
 /// Why a frame could not be rendered, read back or shown; a node reports

@@ -54,21 +54,24 @@ pub struct PhotometricOptions {
     pub held_out: Vec<u32>,
     /// Half the side of the reference spot, in projector pixels.
     pub spot_half: u32,
-    /// Frames averaged per exposure (the camera's read noise falls by
-    /// its square root; 8-bit codes of the mean, rounded).
+    /// Frames per exposure, combined by their median code (the camera's
+    /// read noise falls about as its square root).
     pub frames_per_exposure: u32,
+    /// Pixel sites of the ramp the camera's response is recovered from.
+    pub response_samples: usize,
 }
 
 impl Default for PhotometricOptions {
     fn default() -> Self {
         Self {
-            // Up to 128 times the base exposure: the CRT's black level
-            // and the ramp's dim end rise well above the read noise.
-            stops: (-3..=7).collect(),
+            // Up to 512 times the base exposure: the ramp's dim end and
+            // the CRT's lowest levels rise well above the read noise.
+            stops: (-3..=9).collect(),
             levels: 12,
             held_out: vec![1, 4, 7, 10],
-            spot_half: 8,
+            spot_half: 10,
             frames_per_exposure: 16,
+            response_samples: 4000,
         }
     }
 }
@@ -83,11 +86,15 @@ pub struct Reference {
     pub spot: Spot,
     /// The surface point at its centre (world metres).
     pub point: [f64; 3],
-    /// Radiance the spot adds there (W/m^2/sr), predicted.
+    /// Radiance the spot adds there (W/m^2/sr), predicted: the median
+    /// over the pixels compared.
     pub radiance: [f64; 3],
-    /// What the camera measured of it (its linear units), per channel.
+    /// What the camera measured of it (its linear units), the median.
     pub measured: [f64; 3],
-    /// Camera pixels of its plateau.
+    /// The camera's scale per channel: the median of measured over
+    /// predicted, pixel by pixel.
+    pub scale: [f64; 3],
+    /// Camera pixels compared: those the spot lights wholly.
     pub pixels: usize,
 }
 
@@ -179,7 +186,7 @@ pub fn calibrate_face(
             shot.len(),
             repeated.len()
         );
-        Ok(shot.chunks(k).map(mean_codes).collect())
+        Ok(shot.chunks(k).map(median_codes).collect())
     };
 
     let screen = screen_pixels(face, camera)?;
@@ -225,6 +232,7 @@ pub fn calibrate_face(
     let response_options = ResponseOptions {
         max_residual: 0.3,
         noise_floor,
+        samples: options.response_samples,
         ..ResponseOptions::default()
     };
     let response = recover_response(&bracket, &response_options)
@@ -237,18 +245,10 @@ pub fn calibrate_face(
     let off = merge.image(&dark);
 
     // 2. The reference.
-    let (spot, point, predicted) = choose_reference(scene, camera, options.spot_half)?;
+    let (spot, point) = choose_reference(scene, camera, options.spot_half)?;
     let lit = merge.image(&shoot(rig, CrtPattern::Off, Some(spot))?);
-    let (measured, plateau) = spot_plateau(&lit, &off, w)
+    let (scale, measured, predicted, plateau) = spot_scale(&lit, &off, scene, camera, spot)
         .with_context(|| format!("measuring the reference spot at {point:.3}"))?;
-    let scale: [f64; 3] = std::array::from_fn(|c| measured[c] / predicted[c]);
-    if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-        bail!(
-            "the reference spot at {point:.3} measured {measured:?} against a predicted \
-             {predicted:?} W/m^2/sr: the camera does not see it lit; check the projector's \
-             calibration and that nothing blocks the camera's view of that surface"
-        );
-    }
 
     // 3. The CRT's light, per channel and level.
     let mut levels = Vec::new();
@@ -323,6 +323,7 @@ pub fn calibrate_face(
             point: point.to_array(),
             radiance: predicted,
             measured,
+            scale,
             pixels: plateau,
         },
         levels,
@@ -335,20 +336,36 @@ pub fn calibrate_face(
 
 const CHANNELS: [&str; 3] = ["red", "green", "blue"];
 
-/// Frames of one exposure averaged per pixel and channel, rounded to the
-/// nearest code.
-fn mean_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
-    let n = frames.len().max(1) as f64;
+/// Frames of one exposure combined per pixel and channel: the median
+/// code. A median commutes with the response (a monotonic curve), so the
+/// median code is the response of the median signal, the noise-free one;
+/// a mean of codes would carry the curve's bend into it (Jensen: about
+/// 1 % of signal at 5 % of full scale under 1 % read noise, before a
+/// gamma of 2).
+fn median_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
     let len = frames.first().map_or(0, Vec::len);
+    let mut column = Vec::with_capacity(frames.len());
     (0..len)
         .map(|i| {
             std::array::from_fn(|c| {
-                let sum: f64 = frames.iter().map(|f| f64::from(f[i][c])).sum();
-                (sum / n).round() as u16
+                column.clear();
+                column.extend(frames.iter().map(|f| f[i][c]));
+                column.sort_unstable();
+                let n = column.len();
+                if n == 0 {
+                    0
+                } else if n % 2 == 1 {
+                    column[n / 2]
+                } else {
+                    (u32::from(column[n / 2 - 1]) + u32::from(column[n / 2])).div_ceil(2) as u16
+                }
             })
         })
         .collect()
 }
+
+/// The band of the code range measurements are read from ([`Merge::band`]).
+const BAND: (f64, f64) = (0.3, 0.75);
 
 /// HDR merge of a bracket through the recovered response.
 struct Merge<'a> {
@@ -357,37 +374,50 @@ struct Merge<'a> {
 }
 
 impl Merge<'_> {
+    /// The codes a measurement is read from: the trusted codes within
+    /// [`BAND`] of the range. A bracket in steps of 2 has at least one
+    /// exposure in it for any light (2^(1/gamma) < 0.75 / 0.3), and every
+    /// measurement read from the same band of the curve shares its error
+    /// there, so ratios of measurements (the CRT's light to the reference
+    /// spot's) hardly see it.
+    fn band(&self, channel: usize) -> (u32, u32) {
+        let (lo, hi) = self.response.trusted_range(channel);
+        let max = f64::from(self.response.levels() - 1);
+        let (a, b) = ((BAND.0 * max) as u32, (BAND.1 * max) as u32);
+        (lo.max(a), hi.min(b))
+    }
+
     /// Per pixel and channel, the weighted mean of the radiance each frame
-    /// gives (hat weights over the trusted codes); 0 where every frame
-    /// reads at or below the trusted codes (less light than the camera can
-    /// tell from none, even at the longest exposure), NaN where none has a
-    /// trusted code otherwise (saturated even at the shortest).
+    /// gives, hat weights over the [`Self::band`] (over all the trusted
+    /// codes where no frame falls in it); 0 where every frame reads at or
+    /// below the trusted codes (less light than the camera can tell from
+    /// none, even at the longest exposure), NaN where none has a trusted
+    /// code otherwise (saturated even at the shortest).
     fn image(&self, frames: &[Vec<[u16; 3]>]) -> Vec<[f64; 3]> {
         let n = frames.first().map_or(0, Vec::len);
+        let mean = |i: usize, c: usize, (lo, hi): (u32, u32)| {
+            let half = f64::from(hi.saturating_sub(lo)).max(2.0) / 2.0;
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for (frame, t) in frames.iter().zip(self.exposures) {
+                let z = u32::from(frame[i][c]);
+                if z <= lo || z >= hi {
+                    continue;
+                }
+                let w = f64::from((z - lo).min(hi - z)) / half;
+                sum += w * self.response.radiance(c, f64::from(z), *t);
+                weight += w;
+            }
+            (weight > 0.0).then(|| sum / weight)
+        };
         (0..n)
             .map(|i| {
                 std::array::from_fn(|c| {
-                    let (lo, hi) = self.response.trusted_range(c);
-                    let half = f64::from(hi.saturating_sub(lo)).max(2.0) / 2.0;
-                    let (mut sum, mut weight) = (0.0, 0.0);
-                    let mut dark = true;
-                    for (frame, t) in frames.iter().zip(self.exposures) {
-                        let z = frame[i][c] as u32;
-                        dark &= z <= lo;
-                        if z <= lo || z >= hi {
-                            continue;
-                        }
-                        let w = f64::from((z - lo).min(hi - z)) / half;
-                        sum += w * self.response.radiance(c, f64::from(z), *t);
-                        weight += w;
+                    let trusted = self.response.trusted_range(c);
+                    if let Some(v) = mean(i, c, self.band(c)).or_else(|| mean(i, c, trusted)) {
+                        return v;
                     }
-                    if weight > 0.0 {
-                        sum / weight
-                    } else if dark {
-                        0.0
-                    } else {
-                        f64::NAN
-                    }
+                    let dark = frames.iter().all(|f| u32::from(f[i][c]) <= trusted.0);
+                    if dark { 0.0 } else { f64::NAN }
                 })
             })
             .collect()
@@ -446,57 +476,110 @@ fn region_median(
     metrics::percentile(&values, 50.0).context("no value")
 }
 
-/// The spot's plateau: the pixels where `lit - off`, summed over the
-/// channels, reaches 80 % of its 99th percentile; per channel the median
-/// there, and the pixel count.
-fn spot_plateau(lit: &[[f64; 3]], off: &[[f64; 3]], width: u32) -> Result<([f64; 3], usize)> {
-    let diff: Vec<[f64; 3]> = lit
-        .iter()
-        .zip(off)
-        .map(|(l, o)| std::array::from_fn(|c| l[c] - o[c]))
-        .collect();
-    let sums: Vec<f64> = diff
-        .iter()
-        .map(|d| d.iter().sum::<f64>())
-        .filter(|s| s.is_finite())
-        .collect();
-    let top = metrics::percentile(&sums, 99.9).unwrap_or(0.0);
-    if top.is_nan() || top <= 0.0 {
-        bail!("the camera sees no light from the spot (is the surface in its view?)");
-    }
-    let plateau: Vec<usize> = (0..diff.len())
-        .filter(|&i| {
-            let s: f64 = diff[i].iter().sum();
-            s.is_finite() && s >= 0.8 * top
+/// The camera's scale per channel from the reference spot: over the
+/// camera pixels whose every subsample ray meets a real surface lit by the
+/// spot (the product's geometry), the median of what the camera measured
+/// (`lit - off`) over what the product predicts the spot adds there
+/// (`rho / pi * dI * cos / d^2` per subsample, their mean); with the
+/// medians of each and the pixel count.
+#[allow(clippy::type_complexity)]
+fn spot_scale(
+    lit: &[[f64; 3]],
+    off: &[[f64; 3]],
+    scene: &Showcase,
+    camera: &PinholeDevice,
+    spot: Spot,
+) -> Result<([f64; 3], [f64; 3], [f64; 3], usize)> {
+    let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
+    let eye = DeviceRays::new(camera)?;
+    let projector = scene
+        .projectors
+        .get(spot.projector)
+        .context("the spot's projector is not in the scene")?;
+    let rays = DeviceRays::new(&projector.device)?;
+    let di = emitted_intensity(DVec3::splat(f64::from(spot.value)), &projector.response)
+        - emitted_intensity(DVec3::ZERO, &projector.response);
+    let (cx, cy) = (f64::from(spot.centre.0), f64::from(spot.centre.1));
+    let half = f64::from(spot.half);
+    // What the spot adds at the surface a ray from the camera meets.
+    let predict = |ray: &showcase_light::Ray| -> Option<DVec3> {
+        let hit = real.closest_hit(ray, 0.0, f64::INFINITY)?;
+        let normal = hit.facing_normal(ray.direction);
+        let px = rays.project(hit.point)?;
+        // Inside the square of pixels, by a margin of half a pixel.
+        if (px.x - (cx + 0.5)).abs() > half || (px.y - (cy + 0.5)).abs() > half {
+            return None;
+        }
+        if !rays.sees(&real, hit.point, normal) {
+            return None;
+        }
+        let to = rays.center() - hit.point;
+        let d = to.length();
+        let cos = normal.dot(to / d);
+        if cos.is_nan() || cos <= 0.0 {
+            return None;
+        }
+        let rho = scene.objects[hit.object as usize]
+            .material
+            .albedo_at(hit.uv.unwrap_or(glam::Vec2::ZERO))
+            .as_dvec3();
+        Some(rho * std::f64::consts::FRAC_1_PI * di * cos / (d * d))
+    };
+    let n = camera.width * camera.height;
+    let pixels: Vec<(usize, DVec3)> = (0..n)
+        .filter_map(|i| {
+            let (x, y) = (f64::from(i % camera.width), f64::from(i / camera.width));
+            let mut sum = DVec3::ZERO;
+            for (dx, dy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+                sum += predict(&eye.ray_through(DVec2::new(x + dx, y + dy))?)?;
+            }
+            Some((i as usize, sum / 4.0))
         })
         .collect();
-    if plateau.len() < 9 {
-        let (x, y) = plateau
-            .first()
-            .map_or((0, 0), |i| (*i as u32 % width, *i as u32 / width));
+    if pixels.len() < 9 {
         bail!(
-            "the spot's plateau covers {} camera pixels (near ({x}, {y})), fewer than 9: \
-             enlarge the spot (`spot_half`)",
-            plateau.len()
+            "the spot lights only {} camera pixels wholly: enlarge the spot (`spot_half`)",
+            pixels.len()
         );
     }
-    let median = |c: usize| {
-        let v: Vec<f64> = plateau.iter().map(|&i| diff[i][c]).collect();
+    let unread = pixels
+        .iter()
+        .filter(|(i, _)| (0..3).any(|c| !(lit[*i][c] - off[*i][c]).is_finite()))
+        .count();
+    if unread * 2 > pixels.len() {
+        bail!(
+            "{unread} of the {} camera pixels the spot lights have no usable code at any \
+             exposure of the bracket (saturated at the shortest): add shorter exposures \
+             (`stops`) or lower the camera's base exposure",
+            pixels.len()
+        );
+    }
+    let median = |v: Vec<f64>| {
+        let v: Vec<f64> = v.into_iter().filter(|x| x.is_finite()).collect();
         metrics::percentile(&v, 50.0).unwrap_or(f64::NAN)
     };
-    Ok(([median(0), median(1), median(2)], plateau.len()))
+    let mut scale = [0.0; 3];
+    let (mut measured, mut predicted) = ([0.0; 3], [0.0; 3]);
+    for c in 0..3 {
+        let got = |i: usize| lit[i][c] - off[i][c];
+        scale[c] = median(pixels.iter().map(|(i, p)| got(*i) / p[c]).collect());
+        measured[c] = median(pixels.iter().map(|(i, _)| got(*i)).collect());
+        predicted[c] = median(pixels.iter().map(|(_, p)| p[c]).collect());
+    }
+    if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        bail!(
+            "the camera measured {measured:?} of the spot against a predicted {predicted:?} \
+             W/m^2/sr: it does not see the spot lit; check the projector's calibration and that \
+             nothing blocks the camera's view of that surface"
+        );
+    }
+    Ok((scale, measured, predicted, pixels.len()))
 }
 
 /// The reference spot: the camera pixel nearest its centre whose real
 /// surface is flat around the spot and lit frontally by some projector;
-/// the spot, the surface point, and the radiance the product predicts the
-/// spot adds there (`rho / pi * dI * cos / d^2`, `dI` the projector's
-/// intensity at the spot's value less at 0).
-fn choose_reference(
-    scene: &Showcase,
-    camera: &PinholeDevice,
-    half: u32,
-) -> Result<(Spot, DVec3, [f64; 3])> {
+/// the spot and the surface point at its centre.
+fn choose_reference(scene: &Showcase, camera: &PinholeDevice, half: u32) -> Result<(Spot, DVec3)> {
     let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
     let eye = DeviceRays::new(camera)?;
     let projectors: Vec<DeviceRays> = scene
@@ -556,16 +639,7 @@ fn choose_reference(
             if !flat {
                 continue;
             }
-            let projector = &scene.projectors[p];
-            let di = emitted_intensity(DVec3::ONE, &projector.response)
-                - emitted_intensity(DVec3::ZERO, &projector.response);
-            let object = &scene.objects[hit.object as usize];
-            let rho = object
-                .material
-                .albedo_at(hit.uv.unwrap_or(glam::Vec2::ZERO))
-                .as_dvec3();
-            let radiance = rho * std::f64::consts::FRAC_1_PI * di * cos / (d * d);
-            return Ok((spot, hit.point, radiance.to_array()));
+            return Ok((spot, hit.point));
         }
     }
     bail!(
@@ -624,38 +698,63 @@ fn check_monotonic(levels: &[(f64, f64)], channel: usize) -> Result<()> {
 }
 
 /// `seen = black + peak * d^gamma` through `(drive, seen)` pairs sorted by
-/// drive, the first at drive 0: the black level is the first value; gamma
-/// and peak fit `ln(seen - black)` against `ln d` (least squares) over the
-/// levels above 2 % of the range.
+/// drive, the first at drive 0, by least squares of the relative residuals
+/// `(black + peak * d^gamma) / seen - 1` over every level measured above
+/// the camera's floor (a black level too dim to measure is left to the
+/// curve's shape): for each gamma, black and peak are a weighted linear
+/// fit (black at least 0); gamma minimises the residual (golden section
+/// over 0.5 to 5).
 fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
-    let black = match levels.first() {
-        Some((d, s)) if *d == 0.0 => s.max(0.0),
-        _ => bail!("no level at drive 0"),
-    };
-    let top = levels.last().map_or(0.0, |l| l.1) - black;
+    if levels.first().is_none_or(|(d, _)| *d != 0.0) {
+        bail!("no level at drive 0");
+    }
     let points: Vec<(f64, f64)> = levels
         .iter()
-        .filter(|(d, s)| *d > 0.0 && s - black > 0.02 * top)
-        .map(|(d, s)| (d.ln(), (s - black).ln()))
+        .copied()
+        .filter(|(_, s)| s.is_finite() && *s > 0.0)
         .collect();
-    if points.len() < 3 || top.is_nan() || top <= 0.0 {
-        bail!(
-            "only {} levels rise above the black level: the CRT shows no usable range",
-            points.len()
-        );
+    let rising = points.iter().filter(|(d, _)| *d > 0.0).count();
+    if rising < 3 {
+        bail!("only {rising} levels rise above the camera's floor: the CRT shows no usable range");
     }
-    let n = points.len() as f64;
-    let (sx, sy) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
-    let (mx, my) = (sx / n, sy / n);
-    let (sxx, sxy) = points.iter().fold((0.0, 0.0), |(a, b), (x, y)| {
-        (a + (x - mx) * (x - mx), b + (x - mx) * (y - my))
-    });
-    let gamma = sxy / sxx;
-    let peak = (my - gamma * mx).exp();
-    if !(gamma.is_finite() && gamma > 0.0 && peak.is_finite() && peak > 0.0) {
-        bail!("the fitted curve is not a rising power (gamma {gamma}, peak {peak})");
+    // Black and peak for one gamma, and the sum of squared relative
+    // residuals.
+    let solve = |gamma: f64| -> (f64, f64, f64) {
+        let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(d, s) in &points {
+            let (x, w) = (d.powf(gamma), 1.0 / (s * s));
+            a11 += w;
+            a12 += w * x;
+            a22 += w * x * x;
+            b1 += w * s;
+            b2 += w * s * x;
+        }
+        let det = a11 * a22 - a12 * a12;
+        let (mut black, mut peak) = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+        if black.is_nan() || black < 0.0 || !det.is_finite() || det <= 0.0 {
+            black = 0.0;
+            peak = b2 / a22;
+        }
+        let residual = points
+            .iter()
+            .map(|&(d, s)| ((black + peak * d.powf(gamma)) / s - 1.0).powi(2))
+            .sum();
+        (black, peak, residual)
+    };
+    let (mut lo, mut hi) = (0.5f64, 5.0f64);
+    let phi = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..80 {
+        let (g1, g2) = (hi - phi * (hi - lo), lo + phi * (hi - lo));
+        if solve(g1).2 <= solve(g2).2 {
+            hi = g2;
+        } else {
+            lo = g1;
+        }
+    }
+    let gamma = 0.5 * (lo + hi);
+    let (black, peak, _) = solve(gamma);
+    if !(gamma.is_finite() && peak.is_finite() && peak > 0.0 && black.is_finite()) {
+        bail!("the fitted curve is not a rising power (gamma {gamma}, peak {peak}, black {black})");
     }
     Ok((gamma, peak, black))
 }
@@ -676,4 +775,38 @@ fn held_out_error_of(profile: &CrtPhotometry, levels: &[Level]) -> f64 {
             ((got - l.seen) / l.seen).abs()
         })
         .fold(0.0, f64::max)
+}
+
+/// What `calibrate --photometric` writes per face, and a scene's
+/// `photometric_profile` reads: the profile its node encodes with, and
+/// how it was measured.
+#[derive(Clone, Debug, serde::Deserialize, Serialize)]
+pub struct ProfileFile {
+    /// The face it belongs to.
+    pub face: String,
+    /// The profile: the CRT's light through the mirror in the units of
+    /// the real surfaces behind the glass (an ideal splitter: only `R / T`
+    /// matters to a node).
+    pub photometry: CrtPhotometry,
+    /// Largest relative error on the held-out levels.
+    #[serde(default)]
+    pub held_out_error: Option<f64>,
+    /// The camera's noise floor (code) when it was measured.
+    #[serde(default)]
+    pub noise_floor: Option<u32>,
+}
+
+impl From<&FaceCalibration> for ProfileFile {
+    fn from(c: &FaceCalibration) -> Self {
+        Self {
+            face: c.face.clone(),
+            photometry: c.profile,
+            held_out_error: Some(if c.kept_previous {
+                c.held_out_error_before
+            } else {
+                c.held_out_error
+            }),
+            noise_floor: Some(c.noise_floor),
+        }
+    }
 }

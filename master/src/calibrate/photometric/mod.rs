@@ -17,7 +17,7 @@ pub mod face;
 pub mod response;
 pub mod rig;
 
-pub use face::{FaceCalibration, PhotometricOptions, calibrate_face};
+pub use face::{FaceCalibration, PhotometricOptions, ProfileFile, calibrate_face};
 pub use response::{
     ExposureBracket, RecoveredResponse, ResponseError, ResponseOptions, recover_response,
 };

@@ -554,6 +554,204 @@ const FIGURES: &[(&str, Figure)] = &[
         ),
     ),
     (
+        "photometric_seam_delta_e_median",
+        fig(
+            "CIEDE2000 across the seams, calibrated, median",
+            "ΔE00",
+            Some(Target::AtMost(1.0)),
+            "frame 60, global mode, the measured profiles: the observers' colour difference 2 to 4 pixels either side of each occluding-occlusion seam, where the face draws a real surface next to the real surface itself",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_p95",
+        fig(
+            "CIEDE2000 across the seams, calibrated, p95",
+            "ΔE00",
+            Some(Target::AtMost(2.5)),
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_median",
+        fig(
+            "CIEDE2000, whole views, calibrated, median",
+            "ΔE00",
+            Some(Target::AtMost(1.0)),
+            "frame 60, global mode, the photometric chain on and the measured profiles: every covered pixel",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_p95",
+        fig(
+            "CIEDE2000, whole views, calibrated, p95",
+            "ΔE00",
+            Some(Target::AtMost(3.0)),
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_median_uncalibrated",
+        fig(
+            "CIEDE2000 across the seams, uncalibrated, median",
+            "ΔE00",
+            None,
+            "the nodes assuming a nominal CRT (gamma 2.2) behind an ideal combiner",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_p95_uncalibrated",
+        fig(
+            "CIEDE2000 across the seams, uncalibrated, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_median_uncalibrated",
+        fig(
+            "CIEDE2000, whole views, uncalibrated, median",
+            "ΔE00",
+            None,
+            "the nodes assuming a nominal CRT behind an ideal combiner",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_p95_uncalibrated",
+        fig(
+            "CIEDE2000, whole views, uncalibrated, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_median_true",
+        fig(
+            "CIEDE2000 across the seams, true devices, median",
+            "ΔE00",
+            None,
+            "the nodes encoding with the simulated devices themselves: the floor of any profile",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_p95_true",
+        fig(
+            "CIEDE2000 across the seams, true devices, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_median_true",
+        fig(
+            "CIEDE2000, whole views, true devices, median",
+            "ΔE00",
+            None,
+            "the nodes encoding with the simulated devices themselves",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_p95_true",
+        fig(
+            "CIEDE2000, whole views, true devices, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_median_ideal_photometry",
+        fig(
+            "CIEDE2000 across the seams, no photometric chain, median",
+            "ΔE00",
+            None,
+            "a world with an ideal combiner and a nominal CRT: what the figures were before the chain was modelled",
+        ),
+    ),
+    (
+        "photometric_seam_delta_e_p95_ideal_photometry",
+        fig(
+            "CIEDE2000 across the seams, no photometric chain, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_median_ideal_photometry",
+        fig(
+            "CIEDE2000, whole views, no photometric chain, median",
+            "ΔE00",
+            None,
+            "a world with an ideal combiner and a nominal CRT",
+        ),
+    ),
+    (
+        "photometric_observer_delta_e_p95_ideal_photometry",
+        fig(
+            "CIEDE2000, whole views, no photometric chain, p95",
+            "ΔE00",
+            None,
+            "95th percentile of the same",
+        ),
+    ),
+    (
+        "photometric_camera_response_error",
+        fig(
+            "Camera response error",
+            "ratio",
+            Some(Target::AtMost(0.02)),
+            "the response recovered from the exposure bracket against the camera's true one, over the middle 90 % of its signal range (worst face and channel)",
+        ),
+    ),
+    (
+        "photometric_crt_curve_error",
+        fig(
+            "CRT response error",
+            "ratio",
+            Some(Target::AtMost(0.01)),
+            "the profile's light through the mirror (R / T times the CRT's) against the true devices', drive 0.1 to 1 (worst face and channel)",
+        ),
+    ),
+    (
+        "photometric_balance_error",
+        fig(
+            "T/R balance error",
+            "ratio",
+            None,
+            "the profile's R / T times peak against the true devices' (worst face and channel)",
+        ),
+    ),
+    (
+        "photometric_held_out_error",
+        fig(
+            "Held-out error, calibrated",
+            "ratio",
+            None,
+            "the fitted profile against the measured light at drive levels left out of the fit (worst)",
+        ),
+    ),
+    (
+        "photometric_held_out_error_uncalibrated",
+        fig(
+            "Held-out error, uncalibrated",
+            "ratio",
+            None,
+            "the nominal profile against the same measurements",
+        ),
+    ),
+    (
+        "photometric_calibration_s",
+        fig(
+            "Photometric calibration time",
+            "s",
+            Some(Target::AtMost(60.0)),
+            "every face, in the simulated showcase (path tracing the real light included)",
+        ),
+    ),
+    (
         "renderer",
         fig(
             "Renderer",

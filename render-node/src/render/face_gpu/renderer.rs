@@ -124,6 +124,7 @@ impl FaceRenderer {
                 width: 2 * face.width,
                 height: face.height,
                 rgba,
+                encoding: Some(face.photometry),
             }),
         };
         self.last = Some((key, output.clone()));

@@ -136,6 +136,7 @@ impl ProjectorRenderer {
                 width: map.width,
                 height: map.height,
                 rgba: map.value,
+                encoding: None,
             }),
         };
         self.report = FrameReport {
