@@ -2,6 +2,7 @@
 //! that need no data files.
 
 use super::*;
+use showcase_proto::{BeamSplitter, CrtPhotometry, CrtResponse};
 
 #[track_caller]
 fn load(text: &str) -> Result<Showcase, SceneError> {
@@ -106,4 +107,78 @@ fn load_any_reads_mesh_files_whole_and_everything_else_as_toml() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("calibration-good.json:1:"), "{err}");
+}
+
+/// A face reads its CRT and splitter per channel, or the profile
+/// `calibrate --photometric` wrote; stating both, a profile of another
+/// face, and values out of range are errors naming the field.
+#[test]
+fn faces_read_their_photometry_or_a_measured_profile() {
+    let dir = std::env::temp_dir().join(format!("showcase-profile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let face = |extra: &str| {
+        format!(
+            "name = \"unit\"\n[[face]]\nname = \"face-0\"\nwidth = 64\nheight = 48\n\
+             screen = {{ origin = [0.3, 0.6, 0.6], right = [-0.6, 0.0, 0.0], down = [0.0, -0.25, 0.43] }}\n\
+             mirror = {{ point = [0.0, 0.0, 0.6], normal = [0.0, 0.5, 0.866] }}\n{extra}"
+        )
+    };
+    let at = |text: &str| load_scene_str(text, &dir, "unit.toml");
+    // Nominal by default; per channel when stated.
+    let s = at(&face("")).unwrap();
+    assert_eq!(s.faces[0].photometry, CrtPhotometry::nominal(2.2));
+    let s = at(&face(
+        "crt = { gamma = [2.4, 2.5, 2.3], peak = [1.0, 0.9, 1.1], black_level = [0.001, 0.001, 0.002] }\n\
+         beam_splitter = { transmission = [0.6, 0.6, 0.55], reflection = [0.35, 0.35, 0.4] }\n",
+    ))
+    .unwrap();
+    let p = s.faces[0].photometry;
+    assert_eq!(p.crt.gamma, glam::Vec3::new(2.4, 2.5, 2.3));
+    assert_eq!(p.splitter.reflection, glam::Vec3::new(0.35, 0.35, 0.4));
+    // A measured profile.
+    let profile = CrtPhotometry {
+        crt: CrtResponse {
+            gamma: glam::Vec3::new(2.45, 2.35, 2.6),
+            peak: glam::Vec3::new(0.63, 0.52, 0.8),
+            black_level: glam::Vec3::splat(0.0002),
+        },
+        splitter: BeamSplitter::IDEAL,
+    };
+    let write = |name: &str, face: &str, p: CrtPhotometry| {
+        let file = crate::calibrate::photometric::ProfileFile {
+            face: face.into(),
+            photometry: p,
+            held_out_error: Some(0.01),
+            noise_floor: Some(20),
+        };
+        std::fs::write(dir.join(name), serde_json::to_string(&file).unwrap()).unwrap();
+    };
+    write("p.json", "face-0", profile);
+    let s = at(&face("photometric_profile = \"p.json\"\n")).unwrap();
+    assert_eq!(s.faces[0].photometry, profile);
+    let err = |extra: &str| at(&face(extra)).unwrap_err().to_string();
+    let e = err("photometric_profile = \"p.json\"\ngamma = 2.2\n");
+    assert!(
+        e.contains("photometric_profile") && e.contains("not both"),
+        "{e}"
+    );
+    write("other.json", "face-1", profile);
+    let e = err("photometric_profile = \"other.json\"\n");
+    assert!(e.contains("face-1") && e.contains("own profile"), "{e}");
+    let mut bad = profile;
+    bad.crt.peak.y = -1.0;
+    write("bad.json", "face-0", bad);
+    let e = err("photometric_profile = \"bad.json\"\n");
+    assert!(e.contains("crt.peak"), "{e}");
+    let e = err("photometric_profile = \"missing.json\"\n");
+    assert!(
+        e.contains("missing.json") && e.contains("cannot read"),
+        "{e}"
+    );
+    let e = err("crt = { gamma = [2.4, 2.5, 2.3], peak = [1.0, 0.9, 1.1] }\ngamma = 2.2\n");
+    assert!(e.contains("not both"), "{e}");
+    let e =
+        err("beam_splitter = { transmission = [0.6, 0.6, 0.55], reflection = [0.35, 0.0, 0.4] }\n");
+    assert!(e.contains("reflection"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
