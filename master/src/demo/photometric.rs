@@ -230,9 +230,11 @@ fn judge_state(
     }))
 }
 
-/// `bench photometric`'s records for `scene_path` (and the demo's
-/// figures): the calibration of each face judged against the truth, and
-/// the observers at `frame` of the walk in each state.
+/// `bench photometric`'s record of the simulated showcase `truth` whose
+/// nodes know `calibrated` (and the demo's figures), both taken to the
+/// demo's resolution: the calibration of each face, starting from
+/// `calibrated`'s profiles, judged against the truth, and the observers
+/// at `frame` of the walk in each state; with the faces judged.
 pub fn bench_photometric_scene(
     truth: &Showcase,
     calibrated: &Showcase,

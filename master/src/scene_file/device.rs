@@ -312,6 +312,25 @@ fn size(
     Ok((pick("width", w, fw)?, pick("height", h, fh)?))
 }
 
+/// The JSON file `path` that the scene's `field` names, parsed; errors
+/// name both, with the line where the JSON is wrong.
+fn read_json<T: serde::de::DeserializeOwned>(
+    ctx: &Ctx,
+    field: &str,
+    path: &Path,
+) -> Result<T, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ctx.referenced(field, path, None, format!("cannot read: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| {
+        ctx.referenced(
+            field,
+            path,
+            Some(e.line()).filter(|l| *l > 0),
+            e.to_string(),
+        )
+    })
+}
+
 /// A device from the JSON written by `showcase-master calibrate`; `size`
 /// is the table's `width` and `height`, which the file must agree with.
 pub(crate) fn calibrated(
@@ -321,16 +340,7 @@ pub(crate) fn calibrated(
     path: &Path,
 ) -> Result<PinholeDevice, SceneError> {
     let field = format!("{label}.calibration");
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ctx.referenced(&field, path, None, format!("cannot read: {e}")))?;
-    let c: CalibrationDef = serde_json::from_str(&text).map_err(|e| {
-        ctx.referenced(
-            &field,
-            path,
-            Some(e.line()).filter(|l| *l > 0),
-            e.to_string(),
-        )
-    })?;
+    let c: CalibrationDef = read_json(ctx, &field, path)?;
     let bad = |what: &str, problem: String| {
         ctx.referenced(&field, path, None, format!("{what}: {problem}"))
     };
@@ -537,17 +547,7 @@ fn photometric_profile(
 ) -> Result<CrtPhotometry, SceneError> {
     use showcase_proto::Validate;
     let field = format!("{label}.photometric_profile");
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ctx.referenced(&field, path, None, format!("cannot read: {e}")))?;
-    let file: crate::calibrate::photometric::ProfileFile =
-        serde_json::from_str(&text).map_err(|e| {
-            ctx.referenced(
-                &field,
-                path,
-                Some(e.line()).filter(|l| *l > 0),
-                e.to_string(),
-            )
-        })?;
+    let file: crate::calibrate::photometric::ProfileFile = read_json(ctx, &field, path)?;
     if file.face != face {
         return Err(ctx.referenced(
             &field,

@@ -197,9 +197,6 @@ pub fn calibrate_face(
         screen.len(),
         face.name
     );
-    // 1. The camera's response, from the ramp, over the pixels that see
-    // it (elsewhere the dark room is the camera's noise floor at every
-    // exposure, which no response explains).
     // The camera's noise floor: what it reads of the dark room (the CRT
     // off, the projectors black) at the shortest exposure, where hardly
     // any light reaches it; codes up to it are noise, not response.
@@ -214,6 +211,9 @@ pub fn calibrate_face(
         .flat_map(|&i| dark[shortest][i].map(f64::from))
         .collect();
     let noise_floor = metrics::percentile(&dark_codes, 99.0).unwrap_or(0.0) as u32 + 1;
+    // 1. The camera's response, from the ramp, over the pixels that see
+    // it (elsewhere the dark room is the camera's noise floor at every
+    // exposure, which no response explains).
     let ramp = shoot(rig, CrtPattern::Ramp, None)?;
     let on_screen: Vec<Vec<[u16; 3]>> = ramp
         .iter()
@@ -226,7 +226,7 @@ pub fn calibrate_face(
     };
     // A noisy camera's low codes leave a residual of about 0.1 in ln
     // exposure on a static scene (1 % read noise before a gamma of 2: at
-    // code 30 the noise is a fifth of the signal even over 32 frames), so
+    // code 30 the noise is a third of the signal even over 16 frames), so
     // the residual is not the test of a moved scene here: the ramp's first
     // and last frames are ([`check_still`]).
     let response_options = ResponseOptions {
