@@ -200,6 +200,23 @@ fn a_saturated_bracket_is_an_error_saying_what_to_do() {
 }
 
 #[test]
+fn an_under_exposed_bracket_is_an_error_saying_what_to_do() {
+    let e = error_of(calibrate(
+        Some(Box::new(|_, crt, _, exposures: &mut Vec<f64>| {
+            for t in exposures.iter_mut() {
+                *t *= 1e-5;
+            }
+            crt
+        })),
+        &CrtPhotometry::nominal(2.2),
+    ));
+    assert!(
+        e.contains("longer exposures") || e.contains("under-exposed"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_crt_whose_light_falls_as_its_drive_rises_is_an_error() {
     // The CRT shows 1 - d when asked for d.
     let e = error_of(calibrate(

@@ -222,6 +222,13 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
 
     let truth = scene.clone();
+    // The physically complete world, shared by the phases that judge in
+    // it: the photometric phase's frame is one the rendering stage draws.
+    let transport =
+        views::Transport::complete(showcase_light::observer_view::complete::CompleteOptions {
+            paths_per_point: opts.truth_paths,
+            seed: rendering::COMPLETE_SEED,
+        });
     // The nodes know their devices' geometry from calibration, but not
     // their photometry: they start from a nominal profile until the
     // photometric phase measures it.
@@ -283,7 +290,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         let t = Instant::now();
         let pb = progress("photometric", None);
         pb.set_message("each face through its mirror, from its observer's place");
-        let outcome = photometric_stage(&truth, &mut scene, opts)?;
+        let outcome = photometric_stage(&truth, &mut scene, &transport)?;
         pb.finish_and_clear();
         report.ran("photometric", t, outcome.detail);
         report.figures.extend(outcome.figures);
@@ -292,7 +299,8 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         report.skipped("rendering", reason);
     } else {
         let t = Instant::now();
-        let rendering = rendering::rendering_stage(&truth, &scene, opts, &mut report.gallery)?;
+        let rendering =
+            rendering::rendering_stage(&truth, &scene, opts, &transport, &mut report.gallery)?;
         report.ran("rendering", t, rendering.detail);
         report.figures.extend(rendering.figures);
     }
@@ -593,10 +601,10 @@ struct StageOutcome {
 fn photometric_stage(
     truth: &showcase_proto::Showcase,
     scene: &mut showcase_proto::Showcase,
-    opts: &DemoOptions,
+    transport: &views::Transport,
 ) -> Result<StageOutcome> {
     let (faces, record) =
-        photometric::bench_photometric_scene(truth, scene, PHOTOMETRIC_FRAME, opts.truth_paths)?;
+        photometric::photometric_record(truth, scene, PHOTOMETRIC_FRAME, transport)?;
     for j in &faces {
         if let Some(f) = scene.faces.get_mut(j.face) {
             f.photometry = j.calibration.profile;

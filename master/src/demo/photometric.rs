@@ -241,6 +241,26 @@ pub fn bench_photometric_scene(
     frame: u64,
     truth_paths: u32,
 ) -> Result<(Vec<JudgedFace>, Value)> {
+    let transport = Transport::complete(CompleteOptions {
+        paths_per_point: truth_paths,
+        seed: super::rendering::COMPLETE_SEED,
+    });
+    photometric_record(truth, calibrated, frame, &transport)
+}
+
+/// [`bench_photometric_scene`] in the complete world `transport` (its
+/// paths also trace the tripod's real light; targets and real parts
+/// traced before are reused).
+pub(super) fn photometric_record(
+    truth: &Showcase,
+    calibrated: &Showcase,
+    frame: u64,
+    transport: &Transport,
+) -> Result<(Vec<JudgedFace>, Value)> {
+    let Transport::Complete(options, _) = transport else {
+        anyhow::bail!("the photometric figures are judged in the complete world");
+    };
+    let truth_paths = options.paths_per_point;
     let truth = views::at_demo_resolution(truth)?;
     let calibrated = views::at_demo_resolution(calibrated)?;
     let t = Instant::now();
@@ -270,10 +290,6 @@ pub fn bench_photometric_scene(
     let mut renderers = NodeRenderers::new(&backend, Arc::new(calibrated.clone()))?;
     renderers.set_indirect(Arc::new(field));
     let mut outputs = renderers.render(&state)?;
-    let transport = Transport::complete(CompleteOptions {
-        paths_per_point: truth_paths,
-        seed: super::rendering::COMPLETE_SEED,
-    });
     let nominal = CrtPhotometry::nominal(NOMINAL_GAMMA);
     let measured: Vec<(usize, CrtPhotometry)> = faces
         .iter()
@@ -295,7 +311,7 @@ pub fn bench_photometric_scene(
     ] {
         states.insert(
             name.into(),
-            judge_state(&truth, &state, &mut outputs, p, &transport)?,
+            judge_state(&truth, &state, &mut outputs, p, transport)?,
         );
     }
     // The world without the chain: a nominal CRT behind an ideal combiner
@@ -311,7 +327,7 @@ pub fn bench_photometric_scene(
             &state,
             &mut outputs,
             profiles(&ideal, |_| nominal),
-            &transport,
+            transport,
         )?,
     );
     let record = json!({

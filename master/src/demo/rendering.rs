@@ -8,7 +8,6 @@ use super::{DemoOptions, GalleryRow, INTERACTIVE_HZ, StageOutcome, progress, vie
 use anyhow::{Context, Result};
 use showcase_light::RgbImage;
 use showcase_light::metrics::percentile;
-use showcase_light::observer_view::complete::CompleteOptions;
 use showcase_light::render::FrameScene;
 use std::time::Instant;
 
@@ -28,10 +27,13 @@ fn rendered_frames(frames: u64) -> Vec<u64> {
 /// devices) next to its target, with CIEDE2000 heat maps: global mode in
 /// the physically complete world (the headline figures), direct mode in
 /// it (`_direct_mode`) and in a world of direct light only (`_direct`).
+/// `complete_transport` is the complete world, with the targets and real
+/// parts earlier phases traced.
 pub(super) fn rendering_stage(
     truth: &showcase_proto::Showcase,
     calibrated: &showcase_proto::Showcase,
     opts: &DemoOptions,
+    complete_transport: &Transport,
     gallery: &mut Vec<GalleryRow>,
 ) -> Result<StageOutcome> {
     use crate::cluster::commands::walk_tracking;
@@ -65,10 +67,6 @@ pub(super) fn rendering_stage(
         backend.describe()
     );
     let observers = truth.observers.len();
-    let complete_transport = Transport::complete(CompleteOptions {
-        paths_per_point: opts.truth_paths,
-        seed: COMPLETE_SEED,
-    });
     let mut direct = Judged::new(observers, ", direct light only", "-direct");
     let mut direct_mode = Judged::new(observers, ", direct mode", "-direct-mode");
     let mut complete = Judged::new(observers, ", physically complete", "");

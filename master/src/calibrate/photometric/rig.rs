@@ -185,9 +185,11 @@ impl MirrorCamera for SimMirrorCamera<'_> {
         let shows = drive.as_ref().map_or(CrtShows::Off, CrtShows::Drive);
         let radiance = self.photometer.radiance(&real, shows)?;
         self.frames += exposures_s.len();
-        Ok(exposures_s
-            .iter()
-            .map(|t| self.photometer.capture(&radiance, *t).codes.data)
+        Ok(self
+            .photometer
+            .capture(&radiance, exposures_s)
+            .into_iter()
+            .map(|f| f.codes.data)
             .collect())
     }
 }

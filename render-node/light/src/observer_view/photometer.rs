@@ -150,20 +150,26 @@ impl<'a> Photometer<'a> {
         }
     }
 
-    /// One frame of `radiance` exposed for `exposure_s` seconds, with a
-    /// fresh noise stream.
-    pub fn capture(&mut self, radiance: &RgbImage, exposure_s: f64) -> CameraFrame {
-        let seed = pixel_seed(self.options.seed ^ 0x7E1F_0A2D, self.frames);
-        self.frames += 1;
+    /// One frame of `radiance` per exposure time in `exposures_s`, each
+    /// with a fresh noise stream (the frames are made in parallel; each
+    /// stream is keyed by the frame's number alone).
+    pub fn capture(&mut self, radiance: &RgbImage, exposures_s: &[f64]) -> Vec<CameraFrame> {
+        let first = self.frames;
+        self.frames += exposures_s.len() as u64;
         let linear: Vec<DVec3> = radiance.data.iter().map(|v| v.as_dvec3()).collect();
         let response = &self.camera.response;
-        CameraFrame {
-            codes: Image {
-                width: radiance.width,
-                height: radiance.height,
-                data: expose(response, &linear, exposure_s, seed),
-            },
-            bits: response.bits.clamp(1, 16),
-        }
+        let seed = self.options.seed ^ 0x7E1F_0A2D;
+        exposures_s
+            .par_iter()
+            .enumerate()
+            .map(|(j, t)| CameraFrame {
+                codes: Image {
+                    width: radiance.width,
+                    height: radiance.height,
+                    data: expose(response, &linear, *t, pixel_seed(seed, first + j as u64)),
+                },
+                bits: response.bits.clamp(1, 16),
+            })
+            .collect()
     }
 }
