@@ -117,7 +117,11 @@ impl Ctx {
         };
         let (line, column, source) = locate(text, span.start);
         let source = source.trim();
-        let message = if source.is_empty() {
+        let message = if span.is_empty() && span.start == 0 {
+            // toml points at the document itself for a key missing at the
+            // top level: the first line is not where the problem is.
+            format!("{message}, at the top level of the file")
+        } else if source.is_empty() {
             message
         } else {
             let shown: String = source.chars().take(120).collect();

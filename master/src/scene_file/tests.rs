@@ -182,3 +182,21 @@ fn faces_read_their_photometry_or_a_measured_profile() {
     assert!(e.contains("reflection"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A key missing at the top level is said to be missing there, not in
+/// whatever table the file happens to begin with.
+#[test]
+fn a_missing_top_level_key_names_the_top_level() {
+    let e = load(
+        "[[face]]\nname = \"face-0\"\nwidth = 64\nheight = 48\n\
+         screen = { origin = [0.3, 0.6, 0.6], right = [-0.6, 0.0, 0.0], down = [0.0, -0.25, 0.43] }\n\
+         mirror = { point = [0.0, 0.0, 0.6], normal = [0.0, 0.5, 0.866] }\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("missing field `name`"), "{e}");
+    assert!(
+        e.contains("top level") && !e.contains("in `[[face]]`"),
+        "{e}"
+    );
+}
