@@ -182,17 +182,23 @@ fn a_camera_that_moves_during_the_calibration_is_an_error() {
     assert!(e.contains("moved"), "{e}");
 }
 
-#[test]
-fn a_saturated_bracket_is_an_error_saying_what_to_do() {
-    let e = error_of(calibrate(
-        Some(Box::new(|_, crt, _, exposures: &mut Vec<f64>| {
+/// The error of a calibration whose every exposure time is `factor`
+/// times the one asked for.
+fn exposed_by(factor: f64) -> String {
+    error_of(calibrate(
+        Some(Box::new(move |_, crt, _, exposures: &mut Vec<f64>| {
             for t in exposures.iter_mut() {
-                *t *= 1000.0;
+                *t *= factor;
             }
             crt
         })),
         &CrtPhotometry::nominal(2.2),
-    ));
+    ))
+}
+
+#[test]
+fn a_saturated_bracket_is_an_error_saying_what_to_do() {
+    let e = exposed_by(1000.0);
     assert!(
         e.contains("shorter exposures") || e.contains("saturated"),
         "{e}"
@@ -201,15 +207,7 @@ fn a_saturated_bracket_is_an_error_saying_what_to_do() {
 
 #[test]
 fn an_under_exposed_bracket_is_an_error_saying_what_to_do() {
-    let e = error_of(calibrate(
-        Some(Box::new(|_, crt, _, exposures: &mut Vec<f64>| {
-            for t in exposures.iter_mut() {
-                *t *= 1e-5;
-            }
-            crt
-        })),
-        &CrtPhotometry::nominal(2.2),
-    ));
+    let e = exposed_by(1e-5);
     assert!(
         e.contains("longer exposures") || e.contains("under-exposed"),
         "{e}"

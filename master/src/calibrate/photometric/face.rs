@@ -245,9 +245,10 @@ pub fn calibrate_face(
     let off = merge.image(&dark);
 
     // 2. The reference.
-    let (spot, point) = choose_reference(scene, camera, options.spot_half)?;
+    let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
+    let (spot, point) = choose_reference(&real, scene, camera, options.spot_half)?;
     let lit = merge.image(&shoot(rig, CrtPattern::Off, Some(spot))?);
-    let (scale, measured, predicted, plateau) = spot_scale(&lit, &off, scene, camera, spot)
+    let (scale, measured, predicted, plateau) = spot_scale(&lit, &off, &real, scene, camera, spot)
         .with_context(|| format!("measuring the reference spot at {point:.3}"))?;
 
     // 3. The CRT's light, per channel and level.
@@ -304,8 +305,8 @@ pub fn calibrate_face(
     };
 
     // 5. Held out: the new profile against the one in place.
+    let held_out_error_before = held_out_error(previous, &levels);
     let held_out_error = held_out_error(&fitted, &levels);
-    let held_out_error_before = held_out_error_of(previous, &levels);
     let kept_previous = held_out_error > held_out_error_before;
     Ok(FaceCalibration {
         face: face.name.clone(),
@@ -486,11 +487,11 @@ fn region_median(
 fn spot_scale(
     lit: &[[f64; 3]],
     off: &[[f64; 3]],
+    real: &SceneGeometry,
     scene: &Showcase,
     camera: &PinholeDevice,
     spot: Spot,
 ) -> Result<([f64; 3], [f64; 3], [f64; 3], usize)> {
-    let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
     let eye = DeviceRays::new(camera)?;
     let projector = scene
         .projectors
@@ -510,7 +511,7 @@ fn spot_scale(
         if (px.x - (cx + 0.5)).abs() > half || (px.y - (cy + 0.5)).abs() > half {
             return None;
         }
-        if !rays.sees(&real, hit.point, normal) {
+        if !rays.sees(real, hit.point, normal) {
             return None;
         }
         let to = rays.center() - hit.point;
@@ -526,7 +527,7 @@ fn spot_scale(
         Some(rho * std::f64::consts::FRAC_1_PI * di * cos / (d * d))
     };
     // The light the spot sends out that the room sends back onto it.
-    let back = DVec3::ONE + spot_return(&real, scene, &rays, spot)?;
+    let back = DVec3::ONE + spot_return(real, scene, &rays, spot)?;
     let n = camera.width * camera.height;
     let pixels: Vec<(usize, DVec3)> = (0..n)
         .filter_map(|i| {
@@ -654,8 +655,12 @@ fn spot_return(
 /// The reference spot: the camera pixel nearest its centre whose real
 /// surface is flat around the spot and lit frontally by some projector;
 /// the spot and the surface point at its centre.
-fn choose_reference(scene: &Showcase, camera: &PinholeDevice, half: u32) -> Result<(Spot, DVec3)> {
-    let real = SceneGeometry::build(scene, &ObjectFilter::Real)?;
+fn choose_reference(
+    real: &SceneGeometry,
+    scene: &Showcase,
+    camera: &PinholeDevice,
+    half: u32,
+) -> Result<(Spot, DVec3)> {
     let eye = DeviceRays::new(camera)?;
     let projectors: Vec<DeviceRays> = scene
         .projectors
@@ -682,7 +687,7 @@ fn choose_reference(scene: &Showcase, camera: &PinholeDevice, half: u32) -> Resu
             let to = rays.center() - hit.point;
             let d = to.length();
             let cos = normal.dot(to / d);
-            if cos < 0.7 || !rays.sees(&real, hit.point, normal) {
+            if cos < 0.7 || !rays.sees(real, hit.point, normal) {
                 continue;
             }
             let Some(pixel) = rays.pixel_of(hit.point) else {
@@ -836,10 +841,6 @@ fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
 
 /// The largest relative error of `profile` on the held-out levels.
 fn held_out_error(profile: &CrtPhotometry, levels: &[Level]) -> f64 {
-    held_out_error_of(profile, levels)
-}
-
-fn held_out_error_of(profile: &CrtPhotometry, levels: &[Level]) -> f64 {
     levels
         .iter()
         .filter(|l| l.held_out && l.seen > 0.0)

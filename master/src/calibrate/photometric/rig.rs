@@ -99,8 +99,6 @@ pub struct SimMirrorCamera<'a> {
     photometer: Photometer<'a>,
     /// The real part under each projector pattern met so far.
     real: Vec<(Option<Spot>, RgbImage)>,
-    /// Frames captured.
-    pub frames: usize,
 }
 
 impl<'a> SimMirrorCamera<'a> {
@@ -118,7 +116,6 @@ impl<'a> SimMirrorCamera<'a> {
             face,
             photometer: Photometer::new(frame, face, camera, options)?,
             real: Vec::new(),
-            frames: 0,
         })
     }
 
@@ -184,7 +181,6 @@ impl MirrorCamera for SimMirrorCamera<'_> {
         let drive = crt.drive(self.face.width, self.face.height);
         let shows = drive.as_ref().map_or(CrtShows::Off, CrtShows::Drive);
         let radiance = self.photometer.radiance(&real, shows)?;
-        self.frames += exposures_s.len();
         Ok(self
             .photometer
             .capture(&radiance, exposures_s)

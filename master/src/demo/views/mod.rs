@@ -559,10 +559,12 @@ impl Transport {
 /// under the same projector images (the photometric states) without
 /// tracing the real part again.
 #[derive(Debug, Default)]
-pub(in crate::demo) struct Targets(
-    std::sync::Mutex<std::collections::HashMap<(u64, String), CompleteImage>>,
-    std::sync::Mutex<std::collections::HashMap<(u64, String, u64), CompleteImage>>,
-);
+pub(in crate::demo) struct Targets {
+    /// Targets by frame and view.
+    targets: std::sync::Mutex<std::collections::HashMap<(u64, String), CompleteImage>>,
+    /// Real parts by frame, view and projector digest.
+    reals: std::sync::Mutex<std::collections::HashMap<(u64, String, u64), CompleteImage>>,
+}
 
 /// A digest of the projectors' images, bit for bit.
 fn projector_digest(outputs: &Outputs) -> u64 {
@@ -656,9 +658,13 @@ pub(in crate::demo) fn simulate(
         Transport::Complete(options, targets) => {
             let key = (state.frame, format!("{eye:?}"));
             let real_key = (key.0, key.1.clone(), projector_digest(outputs));
-            let known = targets.0.lock().ok().and_then(|t| t.get(&key).cloned());
+            let known = targets
+                .targets
+                .lock()
+                .ok()
+                .and_then(|t| t.get(&key).cloned());
             let known_real = targets
-                .1
+                .reals
                 .lock()
                 .ok()
                 .and_then(|t| t.get(&real_key).cloned());
@@ -667,10 +673,10 @@ pub(in crate::demo) fn simulate(
                 (known, _) => {
                     let traced = known.is_none();
                     let c = complete_view_with_target(&frame, eye, &projected, options, known)?;
-                    if traced && let Ok(mut t) = targets.0.lock() {
+                    if traced && let Ok(mut t) = targets.targets.lock() {
                         t.insert(key, c.target.clone());
                     }
-                    if let Ok(mut t) = targets.1.lock() {
+                    if let Ok(mut t) = targets.reals.lock() {
                         t.insert(real_key, c.real.clone());
                     }
                     c
