@@ -4,6 +4,7 @@
 mod alloc_track;
 mod browser;
 mod calibration;
+mod camera;
 mod capture;
 mod check;
 mod cluster;
