@@ -184,7 +184,7 @@ async fn serve_one_snapshot(
 ) -> (
     SocketAddr,
     CancellationToken,
-    tokio::task::JoinHandle<std::io::Result<()>>,
+    showcase_master::cluster::dashboard::DashboardTask,
 ) {
     let roster = Roster::new([
         ("face-0".to_owned(), Role::Face),
@@ -208,7 +208,7 @@ async fn serve_one_snapshot(
     .unwrap();
     let addr = dash.local_addr();
     let stop = CancellationToken::new();
-    let task = dash.serve(rx, stop.clone());
+    let task = dash.serve(rx, stop.clone()).unwrap();
     (addr, stop, task)
 }
 
@@ -253,6 +253,17 @@ async fn metrics_and_state_serve_the_published_snapshot() {
         find(&samples, "showcase_scene_version", &[]).unwrap().value,
         3.0
     );
+    // The first snapshot carries the cost of none before it.
+    for counter in [
+        "showcase_dashboard_snapshots_total",
+        "showcase_dashboard_snapshot_seconds_total",
+    ] {
+        assert_eq!(
+            find(&samples, counter, &[]).unwrap().value,
+            0.0,
+            "{counter}"
+        );
+    }
     assert_eq!(
         find(&samples, "showcase_node_joins_total", &[("node", "face-0")])
             .unwrap()

@@ -388,7 +388,7 @@ pub async fn run_master(
             // `bench dashboard` and the tests read the address from this line.
             eprintln!("dashboard on http://{}/", dash.local_addr());
             let (publisher, snapshots) = LivePublisher::new(PUBLISH_EVERY);
-            let task = dash.serve(snapshots, stop.child_token());
+            let task = dash.serve(snapshots, stop.child_token())?;
             (server.publish_to(publisher), Some(task))
         }
         None => (server, None),

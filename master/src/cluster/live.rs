@@ -436,6 +436,7 @@ impl LiveStats {
                 swap_skew_ms_max: self.history.iter().map(|p| p.skew_ms).collect(),
                 tracking_to_swap_ms_max: self.history.iter().map(|p| p.latency_ms).collect(),
             },
+            dashboard: DashboardCost::default(),
         }
     }
 }
@@ -471,6 +472,18 @@ pub struct LiveSnapshot {
     pub bodies: Vec<BodySnapshot>,
     /// The plots.
     pub history: History,
+    /// What the snapshots before this one cost the frame loop.
+    pub dashboard: DashboardCost,
+}
+
+/// The dashboard's cost to the frame loop: making and publishing its
+/// snapshots (serving them costs the dashboard's own thread).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct DashboardCost {
+    /// Snapshots made.
+    pub snapshots: u64,
+    /// Time spent making and publishing them (s).
+    pub snapshot_s: f64,
 }
 
 /// One node on the dashboard.
@@ -531,12 +544,16 @@ pub struct History {
 }
 
 /// The master's side of the dashboard: publishes a snapshot at most every
-/// `every`, so the frame loop does the work a few times a second.
+/// `every`, so the frame loop does the work a few times a second, and
+/// counts the time that work takes (the dashboard's cost to the frame loop,
+/// served as `showcase_dashboard_snapshot_seconds_total`).
 #[derive(Debug)]
 pub struct LivePublisher {
     tx: watch::Sender<Arc<LiveSnapshot>>,
     every: Duration,
     next: Instant,
+    spent: Duration,
+    made: u64,
 }
 
 /// How often the live master publishes a snapshot: 5 times a second.
@@ -551,6 +568,8 @@ impl LivePublisher {
                 tx,
                 every,
                 next: Instant::now(),
+                spent: Duration::ZERO,
+                made: 0,
             },
             rx,
         )
@@ -563,8 +582,23 @@ impl LivePublisher {
 
     /// Publish `snapshot` now.
     pub fn publish(&mut self, snapshot: LiveSnapshot) {
+        self.publish_with(|| snapshot);
+    }
+
+    /// Make a snapshot with `make` and publish it now, timing both. The
+    /// snapshot carries the time spent on the ones before it.
+    pub fn publish_with(&mut self, make: impl FnOnce() -> LiveSnapshot) {
+        let t = Instant::now();
+        let mut snapshot = make();
+        snapshot.dashboard = DashboardCost {
+            snapshots: self.made,
+            snapshot_s: self.spent.as_secs_f64(),
+        };
         self.tx.send_replace(Arc::new(snapshot));
-        self.next = Instant::now() + self.every;
+        let now = Instant::now();
+        self.spent += now - t;
+        self.made += 1;
+        self.next = now + self.every;
     }
 }
 
@@ -665,6 +699,27 @@ mod tests {
         // The newest points stay, the oldest go.
         let last = live.history.back().unwrap();
         assert_eq!(last.bucket, HISTORY_POINTS as u64 * 3 - 1);
+    }
+
+    #[test]
+    fn each_snapshot_carries_the_time_spent_on_the_ones_before() {
+        let (mut publisher, rx) = LivePublisher::new(Duration::from_millis(200));
+        let slow = || {
+            std::thread::sleep(Duration::from_millis(2));
+            LiveSnapshot::default()
+        };
+        publisher.publish_with(slow);
+        assert_eq!(rx.borrow().dashboard, DashboardCost::default());
+        assert!(!publisher.due(), "a snapshot was just published");
+        publisher.publish_with(slow);
+        publisher.publish_with(slow);
+        let cost = rx.borrow().dashboard;
+        assert_eq!(cost.snapshots, 2);
+        assert!(
+            (0.004..1.0).contains(&cost.snapshot_s),
+            "two 2 ms snapshots counted as {} s",
+            cost.snapshot_s
+        );
     }
 
     #[test]

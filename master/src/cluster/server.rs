@@ -334,7 +334,7 @@ impl Server {
             if let Some(p) = publisher.as_mut()
                 && p.due()
             {
-                p.publish(live.snapshot(&run, core.scene(), core.scene_version(), now()));
+                p.publish_with(|| live.snapshot(&run, core.scene(), core.scene_version(), now()));
             }
             if let Some(limit) = settings.frames {
                 let all_swapped = core.swapped_upto().is_some_and(|f| f + 1 >= limit);
@@ -468,7 +468,7 @@ impl Server {
         run.finished_ns = now();
         run.stats = live.summary();
         if let Some(p) = publisher.as_mut() {
-            p.publish(live.snapshot(&run, core.scene(), core.scene_version(), now()));
+            p.publish_with(|| live.snapshot(&run, core.scene(), core.scene_version(), now()));
         }
         run.frame_bytes = traffic.bytes.load(Ordering::Relaxed);
         run.frame_messages = traffic.messages.load(Ordering::Relaxed);

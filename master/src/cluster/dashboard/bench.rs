@@ -78,6 +78,16 @@ pub struct DashboardBenchRecord {
     pub cpu_on_minus_off: Vec<f64>,
     /// Median of `cpu_on_minus_off` over `cpu_off_p50`.
     pub cpu_overhead_paired: f64,
+    /// The dashboard thread's own CPU (s/s) in each run with it on: what
+    /// serving costs, without the run-to-run noise of the whole master.
+    pub dashboard_thread_cpu: Vec<f64>,
+    /// The frame loop's time making and publishing snapshots (s/s) in each
+    /// run with it on, from `showcase_dashboard_snapshot_seconds_total`.
+    pub snapshot_cpu: Vec<f64>,
+    /// Median of `dashboard_thread_cpu + snapshot_cpu` over `cpu_off_p50`:
+    /// the dashboard's cost, attributed. Not in it: the client's side of the
+    /// loopback traffic, and what sharing the cores does to the frame loop.
+    pub attributed_overhead: f64,
     /// From kill -9 of a node to `/api/state` showing it evicted (ms), per
     /// run with the dashboard on; the page adds up to its 250 ms poll.
     pub eviction_to_state_ms: Vec<f64>,
@@ -141,12 +151,40 @@ fn cpu_seconds(pid: u32) -> Result<f64> {
 
 /// The sum of `pid`'s threads' run time (s), from schedstat.
 fn thread_run_time(pid: u32) -> Option<f64> {
+    threads_run_time(pid, |_| true)
+}
+
+/// The run time (s) of `pid`'s threads whose name (`comm`) `keep` accepts.
+fn threads_run_time(pid: u32, keep: impl Fn(&str) -> bool) -> Option<f64> {
     let mut ns = 0u64;
     for t in std::fs::read_dir(format!("/proc/{pid}/task")).ok()? {
-        let stat = std::fs::read_to_string(t.ok()?.path().join("schedstat")).ok()?;
+        let t = t.ok()?.path();
+        let name = std::fs::read_to_string(t.join("comm")).ok()?;
+        if !keep(name.trim_end()) {
+            continue;
+        }
+        let stat = std::fs::read_to_string(t.join("schedstat")).ok()?;
         ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
     }
     Some(ns as f64 / 1e9)
+}
+
+/// The time the master's frame loop has spent making the dashboard's
+/// snapshots (s), from `/metrics`.
+fn snapshot_seconds(addr: SocketAddr) -> Result<f64> {
+    let (status, text) = http_get(addr, "/metrics", &[])?;
+    anyhow::ensure!(status == 200, "/metrics answered {status}");
+    let name = "showcase_dashboard_snapshot_seconds_total ";
+    text.lines()
+        .find_map(|l| l.strip_prefix(name))
+        .and_then(|v| v.trim().parse().ok())
+        .with_context(|| format!("/metrics has no {}", name.trim_end()))
+}
+
+/// The dashboard thread's run time (s): what serving costs, by itself.
+fn dashboard_thread_seconds(pid: u32) -> Result<f64> {
+    threads_run_time(pid, |name| name == super::THREAD_NAME)
+        .with_context(|| format!("cannot read /proc/{pid}/task/*/schedstat (Linux only)"))
 }
 
 /// The dashboard address the master printed on its log.
@@ -172,6 +210,10 @@ pub fn node_state(addr: SocketAddr, node: &str) -> Option<String> {
 
 struct RunFigures {
     cpu: f64,
+    /// The dashboard thread's share of `cpu` (CPU s/s); 0 with it off.
+    dashboard_cpu: f64,
+    /// The frame loop's time making snapshots (s/s); 0 with it off.
+    snapshot_cpu: f64,
     eviction_ms: Option<f64>,
 }
 
@@ -248,9 +290,27 @@ fn one_run(
             fetches
         })
     });
-    let (t0, c0) = (Instant::now(), cpu_seconds(pid)?);
+    let snapshots = |addr: Option<SocketAddr>| addr.map_or(Ok(0.0), snapshot_seconds);
+    let s0 = snapshots(addr)?;
+    let (t0, c0, d0) = (
+        Instant::now(),
+        cpu_seconds(pid)?,
+        dashboard_thread_seconds(pid)?,
+    );
     std::thread::sleep(window);
-    let (c1, elapsed) = (cpu_seconds(pid)?, t0.elapsed().as_secs_f64());
+    let (c1, d1, elapsed) = (
+        cpu_seconds(pid)?,
+        dashboard_thread_seconds(pid)?,
+        t0.elapsed().as_secs_f64(),
+    );
+    let s1 = snapshots(addr)?;
+    if dashboard {
+        anyhow::ensure!(
+            d1 > 0.0,
+            "the master has no thread named {:?} (or it never ran): the dashboard's own cost cannot be told apart",
+            super::THREAD_NAME
+        );
+    }
     stop.store(true, Ordering::Relaxed);
     if let Some(c) = client {
         let fetches = c.join().unwrap_or(0);
@@ -281,6 +341,8 @@ fn one_run(
     drop(procs);
     Ok(RunFigures {
         cpu: (c1 - c0) / elapsed,
+        dashboard_cpu: (d1 - d0) / elapsed,
+        snapshot_cpu: (s1 - s0) / elapsed,
         eviction_ms,
     })
 }
@@ -299,6 +361,7 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
         dir,
     } = ProcessBench::prepare(opts.node_bin.as_deref(), &opts.scene, "dashboard", &NODES)?;
     let (mut off, mut on, mut evictions) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut thread, mut snapshot, mut attributed) = (Vec::new(), Vec::new(), Vec::new());
     let mut paired = Vec::new();
     for pair in 0..opts.runs {
         let order = if pair % 2 == 0 {
@@ -318,15 +381,20 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
                 pair * 2 + k,
             )?;
             eprintln!(
-                "bench dashboard: run {} dashboard {}: {:.4} CPU s/s, eviction seen after {:?} ms",
+                "bench dashboard: run {} dashboard {}: {:.4} CPU s/s (its thread {:.5}, snapshots {:.6}), eviction seen after {:?} ms",
                 pair * 2 + k,
                 if dashboard { "on" } else { "off" },
                 r.cpu,
+                r.dashboard_cpu,
+                r.snapshot_cpu,
                 r.eviction_ms
             );
             pair_cpu[usize::from(dashboard)] = r.cpu;
             if dashboard {
                 on.push(r.cpu);
+                thread.push(r.dashboard_cpu);
+                snapshot.push(r.snapshot_cpu);
+                attributed.push(r.dashboard_cpu + r.snapshot_cpu);
                 evictions.extend(r.eviction_ms);
             } else {
                 off.push(r.cpu);
@@ -354,6 +422,9 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
         cpu_overhead: cpu_on_p50 / cpu_off_p50 - 1.0,
         cpu_overhead_paired: median(&paired) / cpu_off_p50,
         cpu_on_minus_off: paired,
+        dashboard_thread_cpu: thread,
+        snapshot_cpu: snapshot,
+        attributed_overhead: median(&attributed) / cpu_off_p50,
         eviction_to_state_ms_p50: percentile(&evictions, 50.0),
         eviction_to_state_ms: evictions,
         work_dir: dir.display().to_string(),

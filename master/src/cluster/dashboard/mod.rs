@@ -2,7 +2,11 @@
 //! self-contained, polling `/api/state`), the JSON snapshot (`/api/state`)
 //! and a Prometheus text endpoint (`/metrics`). It reads the snapshot the
 //! frame loop publishes a few times a second ([`LivePublisher`]) and never
-//! touches the loop itself. It binds loopback unless told otherwise: a
+//! touches the loop itself: it serves from a thread of its own
+//! ([`THREAD_NAME`], a single-threaded runtime), so a client never wakes
+//! the frame loop's workers and its whole cost is that thread's CPU time,
+//! and it serialises each snapshot once, however many requests read it.
+//! It binds loopback unless told otherwise: a
 //! non-loopback address needs `--dashboard-public` and an access token,
 //! and every request then carries it (`Authorization: Bearer TOKEN` or
 //! `?token=TOKEN`).
@@ -14,15 +18,15 @@ pub mod prometheus;
 
 use super::live::LiveSnapshot;
 use axum::Router;
+use axum::body::{Body, Bytes};
 use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::watch;
-use tokio::task::JoinHandle;
 use tokio_util::sync::CancellationToken;
 
 /// The page: HTML, CSS and JavaScript in one file, no outside resources.
@@ -33,6 +37,13 @@ pub const TOKEN_ENV: &str = "SHOWCASE_DASHBOARD_TOKEN";
 
 /// The shortest access token accepted.
 pub const MIN_TOKEN_LEN: usize = 16;
+
+/// The name of the thread that serves the dashboard (`/proc/PID/task/*/comm`).
+pub const THREAD_NAME: &str = "dashboard";
+
+/// How long a stopped dashboard waits for open requests before it drops
+/// them: a browser holding a connection open does not hold the master.
+const STOP_GRACE: Duration = Duration::from_secs(2);
 
 /// Where and how to serve the dashboard.
 #[derive(Clone, Debug)]
@@ -78,6 +89,9 @@ pub enum DashboardError {
         /// The IO error.
         source: std::io::Error,
     },
+    /// Its thread or runtime could not be started.
+    #[error("cannot start the dashboard's thread: {0}")]
+    Thread(std::io::Error),
 }
 
 impl DashboardOptions {
@@ -105,50 +119,81 @@ impl DashboardOptions {
 
 /// A bound dashboard, ready to serve.
 pub struct Dashboard {
-    listener: tokio::net::TcpListener,
+    listener: std::net::TcpListener,
+    addr: SocketAddr,
     token: Option<Arc<str>>,
 }
+
+/// A served body, made once per published snapshot: requests between two
+/// snapshots share it.
+type Cached = Mutex<Option<(Arc<LiveSnapshot>, Bytes)>>;
 
 #[derive(Clone)]
 struct App {
     snapshot: watch::Receiver<Arc<LiveSnapshot>>,
     token: Option<Arc<str>>,
+    json: Arc<Cached>,
+    prometheus: Arc<Cached>,
 }
 
+impl App {
+    /// `render` of the newest snapshot, from `cache` when it already holds it.
+    fn body(
+        &self,
+        cache: &Cached,
+        render: impl FnOnce(&LiveSnapshot) -> Result<String, String>,
+    ) -> Result<Bytes, String> {
+        let snap = self.snapshot.borrow().clone();
+        let mut cached = cache.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((of, body)) = cached.as_ref()
+            && Arc::ptr_eq(of, &snap)
+        {
+            return Ok(body.clone());
+        }
+        let body = Bytes::from(render(&snap)?);
+        *cached = Some((snap, body.clone()));
+        Ok(body)
+    }
+}
+
+/// The dashboard's thread: join it with [`stop`] after cancelling its
+/// stop token.
+pub struct DashboardTask(std::thread::JoinHandle<std::io::Result<()>>);
+
 impl Dashboard {
-    /// Check the options and bind the address. Must be called inside a
-    /// tokio runtime.
+    /// Check the options and bind the address.
     pub fn bind(opts: &DashboardOptions) -> Result<Self, DashboardError> {
         opts.check()?;
         let bind = |source| DashboardError::Bind {
             addr: opts.addr,
             source,
         };
-        let std = std::net::TcpListener::bind(opts.addr).map_err(bind)?;
-        std.set_nonblocking(true).map_err(bind)?;
+        let listener = std::net::TcpListener::bind(opts.addr).map_err(bind)?;
+        listener.set_nonblocking(true).map_err(bind)?;
         Ok(Self {
-            listener: tokio::net::TcpListener::from_std(std).map_err(bind)?,
+            addr: listener.local_addr().map_err(bind)?,
+            listener,
             token: opts.token.as_deref().map(Arc::from),
         })
     }
 
     /// The bound address.
     pub fn local_addr(&self) -> SocketAddr {
-        self.listener
-            .local_addr()
-            .expect("a bound listener has an address")
+        self.addr
     }
 
-    /// Serve `snapshot` until `stop` is cancelled; the task is the caller's
-    /// to await (see [`stop`]).
+    /// Serve `snapshot` from the dashboard's own thread until `stop` is
+    /// cancelled; then open requests get [`STOP_GRACE`] to finish.
     pub fn serve(
         self,
         snapshot: watch::Receiver<Arc<LiveSnapshot>>,
         stop: CancellationToken,
-    ) -> JoinHandle<std::io::Result<()>> {
+    ) -> Result<DashboardTask, DashboardError> {
         let app = App {
             snapshot,
             token: self.token,
+            json: Arc::default(),
+            prometheus: Arc::default(),
         };
         let router = Router::new()
             .route("/", get(page))
@@ -156,22 +201,43 @@ impl Dashboard {
             .route("/metrics", get(metrics))
             .fallback(not_found)
             .with_state(app);
-        tokio::spawn(
-            axum::serve(self.listener, router)
-                .with_graceful_shutdown(stop.cancelled_owned())
-                .into_future(),
-        )
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(DashboardError::Thread)?;
+        let listener = self.listener;
+        let thread = std::thread::Builder::new()
+            .name(THREAD_NAME.to_owned())
+            .spawn(move || {
+                runtime.block_on(async move {
+                    let listener = tokio::net::TcpListener::from_std(listener)?;
+                    let serve = axum::serve(listener, router)
+                        .with_graceful_shutdown(stop.clone().cancelled_owned())
+                        .into_future();
+                    let deadline = async {
+                        stop.cancelled().await;
+                        tokio::time::sleep(STOP_GRACE).await;
+                    };
+                    tokio::select! {
+                        served = serve => served,
+                        () = deadline => Ok(()),
+                    }
+                })
+                // Dropping the runtime here drops what is still open.
+            })
+            .map_err(DashboardError::Thread)?;
+        Ok(DashboardTask(thread))
     }
 }
 
-/// Wait (at most 2 s) for a dashboard whose stop token was cancelled, then
-/// abort it: a browser holding a connection open does not hold the master.
-pub async fn stop(task: JoinHandle<std::io::Result<()>>) {
-    let abort = task.abort_handle();
-    match tokio::time::timeout(Duration::from_secs(2), task).await {
+/// Wait for a dashboard whose stop token was cancelled: at most
+/// [`STOP_GRACE`] and a little more.
+pub async fn stop(task: DashboardTask) {
+    match tokio::task::spawn_blocking(move || task.0.join()).await {
+        Ok(Ok(Ok(()))) => {}
         Ok(Ok(Err(e))) => tracing::warn!(error = %e, "dashboard"),
-        Ok(_) => {}
-        Err(_) => abort.abort(),
+        Ok(Err(_)) => tracing::warn!("the dashboard's thread panicked"),
+        Err(e) => tracing::warn!(error = %e, "waiting for the dashboard"),
     }
 }
 
@@ -253,13 +319,13 @@ fn same(a: &str, b: &str) -> bool {
             == 0
 }
 
-fn with_type(body: String, content_type: &'static str) -> Response {
+fn with_type(body: impl Into<Body>, content_type: &'static str) -> Response {
     (
         [
             (header::CONTENT_TYPE, content_type),
             (header::CACHE_CONTROL, "no-store"),
         ],
-        body,
+        body.into(),
     )
         .into_response()
 }
@@ -275,10 +341,11 @@ async fn state(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Response
     if let Some(r) = refuse(&app, &headers, &uri) {
         return r;
     }
-    let snap = app.snapshot.borrow().clone();
-    match serde_json::to_string(&*snap) {
+    match app.body(&app.json, |s| {
+        serde_json::to_string(s).map_err(|e| e.to_string())
+    }) {
         Ok(json) => with_type(json, "application/json"),
-        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e).into_response(),
     }
 }
 
@@ -286,8 +353,10 @@ async fn metrics(State(app): State<App>, headers: HeaderMap, uri: Uri) -> Respon
     if let Some(r) = refuse(&app, &headers, &uri) {
         return r;
     }
-    let snap = app.snapshot.borrow().clone();
-    with_type(prometheus::render(&snap), prometheus::CONTENT_TYPE)
+    match app.body(&app.prometheus, |s| Ok(prometheus::render(s))) {
+        Ok(text) => with_type(text, prometheus::CONTENT_TYPE),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e).into_response(),
+    }
 }
 
 async fn not_found(uri: Uri) -> Response {
@@ -361,6 +430,8 @@ mod tests {
         let app = App {
             snapshot: rx,
             token: None,
+            json: Arc::default(),
+            prometheus: Arc::default(),
         };
         let uri: Uri = "/api/state".parse().unwrap();
         let mut headers = HeaderMap::new();
@@ -370,6 +441,37 @@ mod tests {
         headers.insert(header::HOST, HeaderValue::from_static("127.0.0.1:8080"));
         assert!(refuse(&app, &headers, &uri).is_none());
         drop(tx);
+    }
+
+    #[test]
+    fn a_body_is_made_once_per_published_snapshot() {
+        let snapshot = |version| {
+            Arc::new(LiveSnapshot {
+                scene_version: version,
+                ..LiveSnapshot::default()
+            })
+        };
+        let (tx, rx) = watch::channel(snapshot(1));
+        let app = App {
+            snapshot: rx,
+            token: None,
+            json: Arc::default(),
+            prometheus: Arc::default(),
+        };
+        let made = std::cell::Cell::new(0);
+        let render = |s: &LiveSnapshot| {
+            made.set(made.get() + 1);
+            Ok(s.scene_version.to_string())
+        };
+        assert_eq!(app.body(&app.json, render).unwrap(), "1");
+        assert_eq!(app.body(&app.json, render).unwrap(), "1");
+        assert_eq!(made.get(), 1, "the second request made the body again");
+        tx.send_replace(snapshot(2));
+        assert_eq!(app.body(&app.json, render).unwrap(), "2");
+        assert_eq!(made.get(), 2);
+        // Each endpoint keeps its own body.
+        assert_eq!(app.body(&app.prometheus, render).unwrap(), "2");
+        assert_eq!(made.get(), 3);
     }
 
     #[test]

@@ -108,6 +108,18 @@ pub fn render(s: &LiveSnapshot) -> String {
         "Nodes evicted for missing a swap deadline.",
         s.evictions as f64,
     );
+    o.one(
+        "showcase_dashboard_snapshots_total",
+        "counter",
+        "Snapshots the frame loop made for the dashboard.",
+        s.dashboard.snapshots as f64,
+    );
+    o.one(
+        "showcase_dashboard_snapshot_seconds_total",
+        "counter",
+        "Time the frame loop spent making and publishing the dashboard's snapshots.",
+        s.dashboard.snapshot_s,
+    );
     o.summary(
         "showcase_swap_skew_seconds",
         "Spread of the nodes' present times per frame.",
