@@ -3,7 +3,8 @@
 # the Vulkan loader and Mesa's software Vulkan driver (lavapipe), which the
 # GPU tests and the demo's renderer use on machines without a GPU, and
 # Debian's Chromium, in which the web-page tests (the dashboard, the demo's
-# report) run headless.
+# report) run headless, and Xvfb, the X server the node window's test
+# opens its real window on.
 set -euo pipefail
 
 have_vulkan() {
@@ -15,22 +16,28 @@ have_chromium() {
     command -v chromium >/dev/null 2>&1 || [ -n "${CHROMIUM:-}" ]
 }
 
-if have_vulkan && have_chromium; then
+have_xvfb() {
+    command -v Xvfb >/dev/null 2>&1
+}
+
+if have_vulkan && have_chromium && have_xvfb; then
     exit 0
 fi
 
-echo "setup: installing what is missing of mesa-vulkan-drivers, libvulkan1 (software Vulkan) and chromium (headless page tests)" >&2
+echo "setup: installing what is missing of mesa-vulkan-drivers, libvulkan1 (software Vulkan), chromium (headless page tests) and xvfb (the window test)" >&2
 if [ "$(id -u)" -eq 0 ]; then
     SUDO=""
 elif command -v sudo >/dev/null 2>&1; then
     SUDO="sudo"
 else
-    echo "setup: need root (or sudo) to install mesa-vulkan-drivers libvulkan1 chromium" >&2
+    echo "setup: need root (or sudo) to install mesa-vulkan-drivers libvulkan1 chromium xvfb" >&2
     exit 1
 fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 have_vulkan || $SUDO apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
 have_chromium || $SUDO apt-get install -y -qq --no-install-recommends chromium >/dev/null
+have_xvfb || $SUDO apt-get install -y -qq --no-install-recommends xvfb >/dev/null
 have_vulkan || { echo "setup: Vulkan is still missing after the install" >&2; exit 1; }
 have_chromium || { echo "setup: chromium is still missing after the install" >&2; exit 1; }
+have_xvfb || { echo "setup: Xvfb is still missing after the install" >&2; exit 1; }

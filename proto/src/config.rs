@@ -215,6 +215,13 @@ pub struct NodeConfig {
     /// Local UDP address to bind, `HOST:PORT` or `IP:PORT` (default: any
     /// port).
     pub bind: Option<HostPort>,
+    /// The display output the node's window fills (`showcase-node
+    /// --window`): the monitor's name as the display server gives it
+    /// (`DP-1`, `HDMI-A-0`; `showcase-node --list-monitors` prints them) or
+    /// its index in that list. Default: the primary monitor. Two outputs
+    /// on one PC name two monitors.
+    #[serde(default)]
+    pub monitor: Option<String>,
 }
 
 /// An address as the configuration writes it: `HOST:PORT`, where HOST is
@@ -446,8 +453,20 @@ impl ClusterConfig {
         let mut names = HashSet::new();
         let mut outputs: HashMap<(Role, &str), &str> = HashMap::new();
         let mut ports: HashMap<(&str, u16), String> = HashMap::new();
+        let mut monitors: HashMap<(&str, &str), &str> = HashMap::new();
         ports.insert((m.host.as_str(), m.listen.port), "the master".into());
         for n in &self.nodes {
+            if let Some(monitor) = n.monitor.as_deref()
+                && let Some(first) = monitors.insert((n.host.as_str(), monitor), n.name.as_str())
+            {
+                out.push(invalid(
+                    &format!("node {:?}.monitor", n.name),
+                    format!(
+                        "monitor {monitor:?} of {:?} is already node {first:?}'s: two outputs on one PC need two monitors",
+                        n.host
+                    ),
+                ));
+            }
             if !names.insert(n.name.as_str()) {
                 out.push(ConfigError::DuplicateName {
                     file: file.to_owned(),
@@ -695,6 +714,36 @@ mod tests {
             |s| s.replace("\"127.0.0.1:4433\"", "\"localhost:5000\""),
             "port 5000 on host \"localhost\" is used by both the master and DTrack tracking",
         );
+    }
+
+    #[test]
+    fn two_outputs_on_one_pc_need_two_monitors() {
+        let c = ClusterConfig::parse(CABINET, "cluster.toml").unwrap();
+        let monitors = |host: &str| -> Vec<Option<&str>> {
+            c.nodes
+                .iter()
+                .filter(|n| n.host == host)
+                .map(|n| n.monitor.as_deref())
+                .collect()
+        };
+        assert_eq!(monitors("pc-1"), [Some("DP-1"), Some("DP-2")]);
+        // The same monitor twice on one PC is refused, naming both nodes.
+        let text = CABINET.replacen("monitor = \"DP-2\"", "monitor = \"DP-1\"", 1);
+        let problems: Vec<String> = ClusterConfig::from_toml(&text, "cluster.toml")
+            .unwrap()
+            .problems("cluster.toml")
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        assert_eq!(
+            problems,
+            [
+                "cluster.toml: node \"projector-0\".monitor: monitor \"DP-1\" of \"pc-1\" is \
+              already node \"face-0\"'s: two outputs on one PC need two monitors"
+            ]
+        );
+        // The same name on another PC is another monitor.
+        assert_eq!(monitors("pc-2"), [Some("DP-1"), Some("DP-2")]);
     }
 
     #[test]

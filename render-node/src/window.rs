@@ -1,5 +1,6 @@
-//! The `window` feature: a node shows its presented frames full screen on a
-//! real display (winit window, wgpu surface). The frame's linear values
+//! The `window` feature (on by default): a node shows its presented frames
+//! full screen on a real display (winit window, wgpu surface), on the
+//! monitor its configuration names ([`pick_monitor`]). The frame's linear values
 //! are encoded for the device at this boundary, as each image says
 //! ([`OutputImage::encoding`]): a projector's values are already its drive
 //! values, a CRT face's radiance goes through its face's photometric
@@ -21,6 +22,7 @@ use std::sync::Arc;
 use winit::application::ApplicationHandler;
 use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, EventLoop, EventLoopProxy};
+use winit::monitor::MonitorHandle;
 use winit::window::{Fullscreen, Window, WindowId};
 
 /// What the node thread tells the window.
@@ -63,24 +65,117 @@ impl FrameSink for WindowSink {
     }
 }
 
-/// The event loop (create it on the main thread) and a sink feeding it.
+/// The event loop and a sink feeding it. The node binary creates it on
+/// the main thread, as macOS and Windows require; on X11 and Wayland any
+/// thread may (the window tests run it on a test thread).
 pub fn event_loop() -> Result<(EventLoop<WindowMessage>, WindowSink), WindowError> {
-    let event_loop = EventLoop::<WindowMessage>::with_user_event().build()?;
+    let mut builder = EventLoop::<WindowMessage>::with_user_event();
+    #[cfg(all(unix, not(target_vendor = "apple"), not(target_os = "android")))]
+    {
+        use winit::platform::wayland::EventLoopBuilderExtWayland;
+        use winit::platform::x11::EventLoopBuilderExtX11;
+        EventLoopBuilderExtX11::with_any_thread(&mut builder, true);
+        EventLoopBuilderExtWayland::with_any_thread(&mut builder, true);
+    }
+    let event_loop = builder.build()?;
     let sink = WindowSink(event_loop.create_proxy());
     Ok((event_loop, sink))
 }
 
+/// A monitor as the display server names it, and where it is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MonitorInfo {
+    /// Its name (`DP-1`), or `monitor N` when the server gives none.
+    pub name: String,
+    /// Top-left corner on the desktop (physical pixels).
+    pub position: (i32, i32),
+    /// Size (physical pixels).
+    pub size: (u32, u32),
+}
+
+impl std::fmt::Display for MonitorInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} ({}x{} at {},{})",
+            self.name, self.size.0, self.size.1, self.position.0, self.position.1
+        )
+    }
+}
+
+fn monitor_info(i: usize, m: &MonitorHandle) -> MonitorInfo {
+    let (p, s) = (m.position(), m.size());
+    MonitorInfo {
+        name: m.name().unwrap_or_else(|| format!("monitor {i}")),
+        position: (p.x, p.y),
+        size: (s.width, s.height),
+    }
+}
+
+/// The monitor `wanted` names among `monitors`: by name, else by index
+/// (`"0"`, `"1"`); an error lists what there is.
+pub fn pick_monitor(monitors: &[MonitorInfo], wanted: &str) -> Result<usize, String> {
+    if let Some(i) = monitors.iter().position(|m| m.name == wanted) {
+        return Ok(i);
+    }
+    if let Ok(i) = wanted.parse::<usize>()
+        && i < monitors.len()
+    {
+        return Ok(i);
+    }
+    let have = if monitors.is_empty() {
+        "none".to_owned()
+    } else {
+        monitors
+            .iter()
+            .enumerate()
+            .map(|(i, m)| format!("{i}: {m}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    Err(format!(
+        "no monitor {wanted:?} on this display (it has {have}); set the node's `monitor` in the \
+         cluster configuration to one of these names or indices"
+    ))
+}
+
+/// The monitors of the display the process can reach (`$DISPLAY`,
+/// `$WAYLAND_DISPLAY`), in the server's order: what `monitor` may name.
+pub fn list_monitors() -> Result<Vec<MonitorInfo>, WindowError> {
+    struct List(Result<Vec<MonitorInfo>, WindowError>);
+    impl ApplicationHandler<WindowMessage> for List {
+        fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+            self.0 = Ok(event_loop
+                .available_monitors()
+                .enumerate()
+                .map(|(i, m)| monitor_info(i, &m))
+                .collect());
+            event_loop.exit();
+        }
+        fn window_event(&mut self, _: &ActiveEventLoop, _: WindowId, _: WindowEvent) {}
+    }
+    let (event_loop, _) = event_loop()?;
+    let mut list = List(Err(WindowError::Setup(
+        "the display never became ready".into(),
+    )));
+    event_loop.run_app(&mut list)?;
+    list.0
+}
+
 /// Run the full-screen window until the node quits or the window is
-/// closed; `gamma_override`, if any, replaces the display gamma of every
-/// image's encoding (per channel for a CRT face's profile, 1 for values
-/// already drive values).
+/// closed, on `monitor` (a name or an index, see [`pick_monitor`]; `None`:
+/// the primary monitor); `gamma_override`, if any, replaces the display
+/// gamma of every image's encoding (per channel for a CRT face's profile,
+/// 1 for values already drive values).
 pub fn run(
     event_loop: EventLoop<WindowMessage>,
     title: &str,
+    monitor: Option<&str>,
     gamma_override: Option<f32>,
 ) -> Result<(), WindowError> {
     let mut app = App {
         title: title.to_string(),
+        monitor: monitor.map(str::to_owned),
         gamma_override: gamma_override.filter(|g| g.is_finite() && *g > 0.0),
         encoding: [[1.0; 4], [0.0; 4], [1.0; 4], [1.0; 4]],
         window: None,
@@ -96,6 +191,7 @@ pub fn run(
 
 struct App {
     title: String,
+    monitor: Option<String>,
     gamma_override: Option<f32>,
     /// The shown image's encoding as the shader's rows: `T / R`, black
     /// level, peak and `1 / gamma`, per channel.
@@ -147,13 +243,39 @@ fn fs_main(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
 ";
 
 impl App {
+    /// The monitor to fill: the named one, else the primary (or the first).
+    fn monitor(&self, event_loop: &ActiveEventLoop) -> Result<MonitorHandle, String> {
+        let handles: Vec<MonitorHandle> = event_loop.available_monitors().collect();
+        match &self.monitor {
+            Some(wanted) => {
+                let infos: Vec<MonitorInfo> = handles
+                    .iter()
+                    .enumerate()
+                    .map(|(i, m)| monitor_info(i, m))
+                    .collect();
+                let i = pick_monitor(&infos, wanted)?;
+                Ok(handles[i].clone())
+            }
+            None => event_loop
+                .primary_monitor()
+                .or_else(|| handles.first().cloned())
+                .ok_or_else(|| "the display has no monitor".to_owned()),
+        }
+    }
+
     fn setup(&mut self, event_loop: &ActiveEventLoop) -> Result<(), String> {
+        let monitor = self.monitor(event_loop)?;
+        // Position and size as well as the full-screen request: without a
+        // window manager (a bare X server) the request alone does nothing.
         let window = Arc::new(
             event_loop
                 .create_window(
                     Window::default_attributes()
                         .with_title(self.title.clone())
-                        .with_fullscreen(Some(Fullscreen::Borderless(None))),
+                        .with_decorations(false)
+                        .with_position(monitor.position())
+                        .with_inner_size(monitor.size())
+                        .with_fullscreen(Some(Fullscreen::Borderless(Some(monitor)))),
                 )
                 .map_err(|e| e.to_string())?,
         );
@@ -431,6 +553,27 @@ mod tests {
         let v = |i: usize| Vec3::new(rows[i][0], rows[i][1], rows[i][2]);
         let x = ((l * v(0) - v(1)) / v(2)).clamp(Vec3::ZERO, Vec3::ONE);
         Vec3::new(x.x.powf(v(3).x), x.y.powf(v(3).y), x.z.powf(v(3).z))
+    }
+
+    #[test]
+    fn a_monitor_is_picked_by_name_or_index_and_a_wrong_one_is_listed() {
+        let m = |name: &str, x| MonitorInfo {
+            name: name.into(),
+            position: (x, 0),
+            size: (1920, 1080),
+        };
+        let monitors = [m("DP-1", 0), m("DP-2", 1920), m("1", 3840)];
+        assert_eq!(pick_monitor(&monitors, "DP-2"), Ok(1));
+        assert_eq!(pick_monitor(&monitors, "0"), Ok(0));
+        // A name wins over an index.
+        assert_eq!(pick_monitor(&monitors, "1"), Ok(2));
+        let e = pick_monitor(&monitors, "HDMI-1").unwrap_err();
+        assert!(
+            e.contains("\"HDMI-1\"") && e.contains("1: DP-2 (1920x1080 at 1920,0)"),
+            "{e}"
+        );
+        assert!(pick_monitor(&monitors, "3").is_err());
+        assert!(pick_monitor(&[], "0").unwrap_err().contains("it has none"));
     }
 
     #[test]

@@ -14,6 +14,7 @@ mod parallax;
 mod passes;
 pub(crate) mod projector;
 pub(crate) mod scenes;
+mod window;
 
 use anyhow::{Context, Result, bail};
 use showcase_render::gpu::{GpuContext, GpuError};

@@ -19,11 +19,11 @@ use tokio_util::sync::CancellationToken;
 #[command(name = "showcase-node", version, about, long_about = None)]
 struct NodeCli {
     /// Cluster configuration (see deploy/).
-    #[arg(long)]
-    config: PathBuf,
+    #[arg(long, required_unless_present = "list_monitors")]
+    config: Option<PathBuf>,
     /// This node's name in the configuration.
-    #[arg(long)]
-    name: String,
+    #[arg(long, required_unless_present = "list_monitors")]
+    name: Option<String>,
     /// Master address (HOST:PORT or IP:PORT), overriding the configuration.
     #[arg(long)]
     master: Option<String>,
@@ -41,11 +41,21 @@ struct NodeCli {
     /// Shadow map size per view, in texels a side.
     #[arg(long, default_value_t = DEFAULT_SHADOW_RES)]
     shadow_res: u32,
-    /// Show the presented frames full screen on this machine's display
-    /// (built with the `window` feature).
+    /// Show the presented frames full screen on this machine's display, on
+    /// the monitor the node's `monitor` names (default: the primary).
     #[cfg(feature = "window")]
     #[arg(long)]
     window: bool,
+    /// With --window: fill this monitor (a name or an index from
+    /// --list-monitors), overriding the configuration.
+    #[cfg(feature = "window")]
+    #[arg(long)]
+    monitor: Option<String>,
+    /// Print the monitors of this machine's display (names and indices for
+    /// a node's `monitor`) and exit.
+    #[cfg(feature = "window")]
+    #[arg(long)]
+    list_monitors: bool,
     /// With --window: replace the display gamma of the device encoding
     /// (default: a CRT face's from its photometric profile, 1 for a
     /// projector, whose values are already drive values).
@@ -91,12 +101,27 @@ fn resolve_master(master: &str) -> Result<SocketAddr> {
 }
 
 fn run(cli: NodeCli) -> Result<()> {
-    let text = std::fs::read_to_string(&cli.config)
-        .with_context(|| format!("cannot read cluster config {}", cli.config.display()))?;
-    let label = cli.config.display().to_string();
+    #[cfg(feature = "window")]
+    if cli.list_monitors {
+        let monitors = showcase_render::window::list_monitors()
+            .context("cannot reach the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;
+        if monitors.is_empty() {
+            println!("the display has no monitor");
+        }
+        for (i, m) in monitors.iter().enumerate() {
+            println!("{i}: {m}");
+        }
+        return Ok(());
+    }
+    let (Some(config), Some(name)) = (&cli.config, &cli.name) else {
+        anyhow::bail!("--config and --name are required");
+    };
+    let text = std::fs::read_to_string(config)
+        .with_context(|| format!("cannot read cluster config {}", config.display()))?;
+    let label = config.display().to_string();
     let cfg = ClusterConfig::parse(&text, &label)?;
-    let node = cfg.node(&cli.name, &label)?;
-    let base = cli.config.parent().unwrap_or(Path::new("."));
+    let node = cfg.node(name, &label)?;
+    let base = config.parent().unwrap_or(Path::new("."));
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), &node.name)?;
     let rt = NodeRuntime {
         name: node.name.clone(),
@@ -152,6 +177,7 @@ fn run(cli: NodeCli) -> Result<()> {
             );
         }
         let gamma = cli.display_gamma;
+        let monitor = cli.monitor.clone().or_else(|| node.monitor.clone());
         let (event_loop, sink) = showcase_render::window::event_loop()?;
         let title = format!("showcase {}", node.name);
         let node_stop = stop.clone();
@@ -162,7 +188,7 @@ fn run(cli: NodeCli) -> Result<()> {
             quit.quit();
             r
         });
-        let shown = showcase_render::window::run(event_loop, &title, gamma);
+        let shown = showcase_render::window::run(event_loop, &title, monitor.as_deref(), gamma);
         stop.cancel();
         let node = node_thread
             .join()
