@@ -49,6 +49,17 @@ pub fn unix_ms() -> f64 {
         .map_or(0.0, |d| d.as_secs_f64() * 1e3)
 }
 
+/// Frames presented per second: the swaps after the first over the time
+/// from the first swap to the last. `None` with fewer than two swaps. Not
+/// frames over the run's length, which holds the start-up, the wait for the
+/// last reports and any global-illumination solve, and so is not a rate of
+/// presenting.
+pub fn swap_rate_hz(frames: &[FrameMetrics]) -> Option<f64> {
+    let (first, last) = (frames.first()?, frames.last()?);
+    let span_s = (last.swap_unix_ms - first.swap_unix_ms) / 1e3;
+    (frames.len() >= 2 && span_s > 0.0).then(|| (frames.len() - 1) as f64 / span_s)
+}
+
 /// Build a frame's metrics from its state, swap and present reports;
 /// `origin_unix_ms` is the wall-clock time of master-clock zero.
 pub fn frame_metrics(
@@ -81,5 +92,34 @@ pub fn frame_metrics(
             .tracking_time_ns
             .map(|t| swap.swap_at_ns.saturating_sub(t) as f64 / 1e6),
         evicted: swap.evicted.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_swap_rate_counts_intervals_between_swaps() {
+        let at = |ms: f64| FrameMetrics {
+            frame: 0,
+            swap_unix_ms: ms,
+            heads: Vec::new(),
+            lights: Vec::new(),
+            nodes: Vec::new(),
+            swap_skew_ms: None,
+            tracking_to_swap_ms: None,
+            evicted: Vec::new(),
+        };
+        // 241 swaps 1/60 s apart: 4 s of presenting at 60 Hz.
+        let frames: Vec<FrameMetrics> = (0..241).map(|i| at(1e6 + i as f64 * 1e3 / 60.0)).collect();
+        let hz = swap_rate_hz(&frames).unwrap();
+        assert!((hz - 60.0).abs() < 1e-9, "{hz}");
+        // A gap of one tick (a dropped frame) lowers the rate.
+        let mut dropped = frames.clone();
+        dropped.remove(120);
+        assert!(swap_rate_hz(&dropped).unwrap() < 59.8);
+        assert_eq!(swap_rate_hz(&frames[..1]), None);
+        assert_eq!(swap_rate_hz(&[]), None);
     }
 }

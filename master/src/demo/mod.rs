@@ -750,11 +750,11 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         );
     }
     let mut figures = serde_json::Map::new();
-    // Frames presented per second of running frame clock (set-up excluded).
-    let running_s = result.run.finished_ns.saturating_sub(result.run.started_ns) as f64 / 1e9;
-    let fps = result.run.frames.len() as f64 / running_s.max(1e-9);
     tracing::debug!(seconds, "interactive stage wall time");
-    figures.insert("frame_rate_hz".into(), serde_json::json!(fps));
+    let fps = crate::cluster::metrics::swap_rate_hz(&result.run.frames);
+    if let Some(fps) = fps {
+        figures.insert("frame_rate_hz".into(), serde_json::json!(fps));
+    }
     figures.insert(
         "swap_skew_ms_p99".into(),
         serde_json::json!(rec.swap_skew_ms_p99),
@@ -807,8 +807,9 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
     );
     Ok(StageOutcome {
         detail: format!(
-            "{} frames on {node_count} nodes in global mode, {fps:.1} frames/s, swap skew p99 {:.3} ms (direct mode {:.3}), tracking-to-swap p99 {:.3} ms (direct mode {:.3}), {} ticks dropped; {}; session in {}",
+            "{} frames on {node_count} nodes in global mode, {:.1} frames/s, swap skew p99 {:.3} ms (direct mode {:.3}), tracking-to-swap p99 {:.3} ms (direct mode {:.3}), {} ticks dropped; {}; session in {}",
             opts.frames,
+            fps.unwrap_or(f64::NAN),
             rec.swap_skew_ms_p99.unwrap_or(f64::NAN),
             direct.swap_skew_ms_p99.unwrap_or(f64::NAN),
             rec.tracking_to_swap_ms_p99.unwrap_or(f64::NAN),

@@ -217,7 +217,7 @@ const FIGURES: &[(&str, Figure)] = &[
             "Frame rate",
             "Hz",
             None,
-            "frames presented per second of running frame clock (the clock ticks at 60 Hz)",
+            "frames presented per second, from the first swap to the last (the clock ticks at 60 Hz)",
         ),
     ),
     (
