@@ -6,6 +6,7 @@
 //! caller's monotonic clock).
 #![forbid(unsafe_code)]
 
+pub mod capture;
 pub mod codec;
 pub mod config;
 pub mod message;
@@ -25,4 +26,4 @@ pub use scene::*;
 pub use validate::{Validate, ValidationError};
 
 /// Version of the wire protocol. A node and a master must agree exactly.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;

@@ -68,6 +68,9 @@ pub struct SceneSnapshot {
     pub showcase: Showcase,
     /// The frame in flight when the snapshot was taken, for late joiners.
     pub current: Option<FrameState>,
+    /// The captured reflectance maps of this scene version (a capture
+    /// through the cluster bumps the version and sends them).
+    pub maps: Vec<crate::capture::CapturedMap>,
 }
 
 /// A node has rendered a frame and is waiting to present it.
@@ -247,6 +250,16 @@ pub enum Message {
     Illumination(Box<Illumination>),
     /// Node to master: send full solutions from this version on.
     IlluminationResync(IlluminationResync),
+    /// Master to projector node: show a pattern (capture).
+    ShowPattern(Box<crate::capture::ShowPattern>),
+    /// Projector node to master: the pattern is showing.
+    PatternShown(crate::capture::PatternShown),
+    /// Master to camera node: capture frames.
+    CaptureFrames(crate::capture::CaptureFrames),
+    /// Camera node to master: a piece of a captured frame.
+    FrameChunk(Box<crate::capture::FrameChunk>),
+    /// Node to master: a capture request failed.
+    CaptureFailed(crate::capture::CaptureFailed),
     /// Either way: leaving.
     Bye(Bye),
 }
@@ -266,6 +279,11 @@ impl Message {
             Message::ClockReply(_) => "ClockReply",
             Message::Illumination(_) => "Illumination",
             Message::IlluminationResync(_) => "IlluminationResync",
+            Message::ShowPattern(_) => "ShowPattern",
+            Message::PatternShown(_) => "PatternShown",
+            Message::CaptureFrames(_) => "CaptureFrames",
+            Message::FrameChunk(_) => "FrameChunk",
+            Message::CaptureFailed(_) => "CaptureFailed",
             Message::Bye(_) => "Bye",
         }
     }

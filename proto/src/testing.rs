@@ -290,6 +290,7 @@ pub fn snapshot() -> impl Strategy<Value = SceneSnapshot> {
                 version,
                 showcase,
                 current,
+                maps: Vec::new(),
             },
         )
     })
@@ -396,5 +397,73 @@ pub fn message() -> impl Strategy<Value = Message> {
         any::<u64>().prop_map(|version| Message::IlluminationResync(
             crate::message::IlluminationResync { version }
         )),
+        capture_message(),
+    ]
+}
+
+/// A valid projector pattern.
+pub fn pattern() -> impl Strategy<Value = crate::capture::Pattern> {
+    use crate::capture::Pattern;
+    let level = prop::array::uniform3(0.0f32..=1.0);
+    prop_oneof![
+        level.clone().prop_map(|level| Pattern::Full { level }),
+        (1u32..24, 1u32..24, level.clone(), any::<u64>()).prop_map(|(w, h, level, bits)| {
+            Pattern::mask(w, h, (0..w * h).map(|i| bits >> (i % 64) & 1 == 1), level)
+        }),
+        (any::<bool>(), 0u32..16, any::<bool>(), level).prop_map(
+            |(columns, bit, inverted, level)| Pattern::GrayCode {
+                columns,
+                bit,
+                inverted,
+                level
+            }
+        ),
+    ]
+}
+
+/// One valid frame's codes, at most 16 x 16 pixels.
+pub fn frame_codes() -> impl Strategy<Value = crate::capture::FrameCodes> {
+    (1u32..16, 1u32..16, 1u32..=16).prop_flat_map(|(width, height, bits)| {
+        let max = ((1u32 << bits) - 1) as u16;
+        prop::collection::vec(prop::array::uniform3(0..=max), (width * height) as usize).prop_map(
+            move |codes| crate::capture::FrameCodes {
+                width,
+                height,
+                bits,
+                codes,
+            },
+        )
+    })
+}
+
+/// Any valid capture message.
+pub fn capture_message() -> impl Strategy<Value = Message> {
+    use crate::capture::*;
+    prop_oneof![
+        (any::<u64>(), pattern())
+            .prop_map(|(id, pattern)| Message::ShowPattern(Box::new(ShowPattern { id, pattern }))),
+        any::<u64>().prop_map(|id| Message::PatternShown(PatternShown { id })),
+        (
+            any::<u64>(),
+            1e-4f64..1.0,
+            1e-3f64..1e3,
+            0.0f64..0.1,
+            1u32..=MAX_CAPTURE_FRAMES
+        )
+            .prop_map(|(id, exposure_s, gain, period_s, count)| {
+                Message::CaptureFrames(CaptureFrames {
+                    id,
+                    exposure_s,
+                    gain,
+                    period_s,
+                    count,
+                })
+            }),
+        (any::<u64>(), frame_codes(), 1usize..200).prop_map(|(id, f, size)| {
+            let c = split_frame(id, 0, 1, &f, size).swap_remove(0);
+            Message::FrameChunk(Box::new(c))
+        }),
+        (any::<u64>(), ".{0,64}")
+            .prop_map(|(id, reason)| Message::CaptureFailed(CaptureFailed { id, reason })),
     ]
 }

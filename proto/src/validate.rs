@@ -662,9 +662,28 @@ impl Validate for Message {
                         ),
                         Some(f) => within(|| "current".into(), f.validate_against(&s.showcase)),
                         None => Ok(()),
+                    }?;
+                    if s.maps.len() > crate::capture::MAX_MAPS {
+                        return fail(
+                            "maps",
+                            format!(
+                                "{} maps, at most {}",
+                                s.maps.len(),
+                                crate::capture::MAX_MAPS
+                            ),
+                        );
                     }
+                    for (i, m) in s.maps.iter().enumerate() {
+                        within(|| format!("maps[{i}]"), m.validate())?;
+                    }
+                    Ok(())
                 }
                 Message::FrameState(f) => f.validate(),
+                Message::ShowPattern(p) => within(|| "pattern".into(), p.pattern.validate()),
+                Message::CaptureFrames(c) => c.validate(),
+                Message::FrameChunk(c) => c.validate(),
+                Message::CaptureFailed(c) => c.validate(),
+                Message::PatternShown(_) => Ok(()),
                 Message::NodeStats(NodeStats {
                     render_ms,
                     barrier_wait_ms,

@@ -12,6 +12,8 @@
 //! not know.
 
 pub mod bench;
+pub mod cluster;
+pub mod cluster_job;
 pub mod files;
 pub mod pipeline;
 pub mod scenes;
@@ -20,7 +22,8 @@ pub use bench::{Record, bench_reflectance, write_report};
 pub use files::{read_reflectance_map, write_reflectance_map};
 pub use pipeline::{
     CaptureConfig, CaptureOutcome, EtaMode, Method, ProjectorLevels, adjust_camera_gain,
-    calibrate_projector, calibrate_reference, capture_map, capture_radiance, capture_reflectance,
+    calibrate_projector, calibrate_reference, capture_map, capture_radiance,
+    capture_radiance_pattern, capture_reflectance,
 };
 
 use crate::pfm::write_pfm;
@@ -210,29 +213,7 @@ pub fn run_capture_staged(
     begin(0);
     let t0 = Instant::now();
     let mut seconds = CaptureSeconds::default();
-    let mut scene = scene.clone();
-    if scene.cameras.is_empty() || scene.projectors.is_empty() {
-        let geometry =
-            showcase_light::SceneGeometry::build(&scene, &showcase_light::ObjectFilter::Real)?;
-        let b = geometry.bounds();
-        anyhow::ensure!(!b.is_empty(), "the scene has no real geometry");
-        let centre = b.center();
-        let size = (b.max - b.min).max_element();
-        scene.cameras.clear();
-        scene.projectors.clear();
-        scenes::add_rig(
-            &mut scene,
-            centre + DVec3::new(0.0, 0.1 * size, -1.6 * size),
-            centre + DVec3::new(0.15 * size, 0.2 * size, -1.5 * size),
-            centre,
-            (96, 96),
-            true,
-        );
-    }
-    if let Some((w, h)) = opts.camera_size {
-        let camera = &mut scene.cameras[0];
-        camera.device = resize_device(&camera.device, w, h)?;
-    }
+    let mut scene = with_capture_rig(scene, opts.camera_size)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut config = opts.capture.clone();
     config.frames = config.frames.max(1);
@@ -300,6 +281,39 @@ pub fn run_capture_staged(
         serde_json::to_string_pretty(&summary)?,
     )?;
     Ok(summary)
+}
+
+/// `scene` ready for a capture: a scene without a camera or projector gets
+/// the default rig in front of its bounds (a 96 x 96 camera), and camera 0
+/// is resampled to `camera_size` when given ([`resize_device`]).
+pub fn with_capture_rig(
+    scene: &Showcase,
+    camera_size: Option<(u32, u32)>,
+) -> anyhow::Result<Showcase> {
+    let mut scene = scene.clone();
+    if scene.cameras.is_empty() || scene.projectors.is_empty() {
+        let geometry =
+            showcase_light::SceneGeometry::build(&scene, &showcase_light::ObjectFilter::Real)?;
+        let b = geometry.bounds();
+        anyhow::ensure!(!b.is_empty(), "the scene has no real geometry");
+        let centre = b.center();
+        let size = (b.max - b.min).max_element();
+        scene.cameras.clear();
+        scene.projectors.clear();
+        scenes::add_rig(
+            &mut scene,
+            centre + DVec3::new(0.0, 0.1 * size, -1.6 * size),
+            centre + DVec3::new(0.15 * size, 0.2 * size, -1.5 * size),
+            centre,
+            (96, 96),
+            true,
+        );
+    }
+    if let Some((w, h)) = camera_size {
+        let camera = &mut scene.cameras[0];
+        camera.device = resize_device(&camera.device, w, h)?;
+    }
+    Ok(scene)
 }
 
 /// The same device seen at `width x height` pixels: pose, field of view

@@ -15,6 +15,7 @@ use showcase_light::{
     DeviceRays, Image, IntensityImage, IntensityLight, ObjectFilter, RgbImage, SceneGeometry,
     render_intensity, world_matrix,
 };
+use showcase_proto::capture::Pattern;
 use showcase_proto::{ProjectorResponse, Showcase};
 
 /// How reflectance is extracted.
@@ -187,8 +188,30 @@ pub fn capture_radiance<P: ProjectorDevice, C: CameraDevice>(
     frames: u32,
 ) -> anyhow::Result<RgbImage> {
     projector.show(image)?;
+    average_frames(projector.wheel_period_s(), camera, frames)
+}
+
+/// [`capture_radiance`] of a [`Pattern`]: the projector shows it with
+/// [`ProjectorDevice::show_pattern`] (a projector behind the network
+/// receives the pattern, not an image).
+pub fn capture_radiance_pattern<P: ProjectorDevice, C: CameraDevice>(
+    projector: &mut P,
+    camera: &mut C,
+    pattern: &Pattern,
+    frames: u32,
+) -> anyhow::Result<RgbImage> {
+    projector.show_pattern(pattern)?;
+    average_frames(projector.wheel_period_s(), camera, frames)
+}
+
+/// Average `frames` frames of `camera`, spread over the display period
+/// `period` ([`CameraDevice::capture_series`]), into `I_rad`.
+fn average_frames<C: CameraDevice>(
+    period: f64,
+    camera: &mut C,
+    frames: u32,
+) -> anyhow::Result<RgbImage> {
     let k = frames.max(1);
-    let period = projector.wheel_period_s();
     let r = camera.response().clone();
     let exposure = r.exposure_s as f64;
     let scale = std::f64::consts::PI / (r.gain as f64 * exposure);
@@ -199,13 +222,21 @@ pub fn capture_radiance<P: ProjectorDevice, C: CameraDevice>(
     );
     let d = camera.device().clone();
     let mut sum = vec![DVec3::ZERO; (d.width * d.height) as usize];
-    for i in 0..k {
-        let start = if period > 0.0 {
-            i as f64 * (4.0 + 1.0 / k as f64) * period
-        } else {
-            i as f64 / 30.0
-        };
-        let frame = camera.capture(start, exposure)?;
+    let captured = camera.capture_series(exposure, period, k)?;
+    anyhow::ensure!(
+        captured.len() == k as usize,
+        "the camera returned {} of {k} frames",
+        captured.len()
+    );
+    for frame in captured {
+        anyhow::ensure!(
+            frame.codes.data.len() == sum.len(),
+            "a {}x{} frame from a {}x{} camera",
+            frame.codes.width,
+            frame.codes.height,
+            d.width,
+            d.height
+        );
         let max = ((1u32 << frame.bits.clamp(1, 16)) - 1) as f64;
         for (s, c) in sum.iter_mut().zip(&frame.codes.data) {
             let signal: [f64; 3] = std::array::from_fn(|ch| r.decode(ch, c[ch] as f64 / max));
@@ -288,15 +319,10 @@ pub fn calibrate_projector<P: ProjectorDevice, C: CameraDevice>(
             .collect(),
     };
     let rho = Image::new(g.intensity.width, g.intensity.height, albedo);
-    let (pw, ph) = (projector.device().width, projector.device().height);
     let mut levels = Vec::new();
     for v in [1.0f32, 0.5] {
-        let i_rad = capture_radiance(
-            projector,
-            camera,
-            &Image::new(pw, ph, Vec3::splat(v)),
-            frames,
-        )?;
+        let i_rad =
+            capture_radiance_pattern(projector, camera, &Pattern::Full { level: [v; 3] }, frames)?;
         levels.push(CalibrationLevel {
             response: (v as f64).powf(gamma),
             i_rad,
@@ -341,11 +367,11 @@ pub fn capture_map<P: ProjectorDevice, C: CameraDevice>(
     let pdev = projector.device().clone();
     let light = IntensityLight::projector(&pdev, Vec3::ONE, eta + black_level)?;
     let intensity = render_intensity(&geometry, &rays, &light, &ObjectFilter::Real);
-    let white = Image::new(pdev.width, pdev.height, Vec3::ONE);
+    let white = Pattern::Full { level: [1.0; 3] };
     let mut radiance_maps = 1;
     let (reflectance, valid) = match config.method {
         Method::Naive | Method::Corrected => {
-            let i_rad = capture_radiance(projector, camera, &white, config.frames)?;
+            let i_rad = capture_radiance_pattern(projector, camera, &white, config.frames)?;
             let (rho, valid) =
                 extract_reflectance(&i_rad, &intensity.intensity, &intensity, &config.extract)?;
             if config.method == Method::Naive {
@@ -401,8 +427,9 @@ pub fn capture_map<P: ProjectorDevice, C: CameraDevice>(
             radiance_maps = pieces.len();
             for piece in pieces {
                 let mask = dilate(&piece_of.map(|p| *p == Some(piece)), config.piece_dilate_px);
-                let image = mask.map(|m| if *m { Vec3::ONE } else { Vec3::ZERO });
-                let i_rad = capture_radiance(projector, camera, &image, config.frames)?;
+                let pattern =
+                    Pattern::mask(mask.width, mask.height, mask.data.iter().copied(), [1.0; 3]);
+                let i_rad = capture_radiance_pattern(projector, camera, &pattern, config.frames)?;
                 let lit = ObjectFilter::Indices(vec![piece.0 as usize]);
                 let piece_int = render_intensity(&geometry, &rays, &light, &lit);
                 let (r, v) =

@@ -1,6 +1,8 @@
 //! The cluster master: the show (frame states from tracking), the QUIC
 //! server around the sans-IO core, and per-frame metrics.
 
+pub mod capture_link;
+pub mod capture_loopback;
 pub mod check;
 pub mod commands;
 pub mod dashboard;

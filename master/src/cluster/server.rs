@@ -160,6 +160,7 @@ pub struct Server {
     udp: Option<tokio::net::UdpSocket>,
     settings: ServerSettings,
     live: Option<LivePublisher>,
+    capture: Option<mpsc::UnboundedReceiver<super::capture_link::CaptureCommand>>,
 }
 
 impl Server {
@@ -199,6 +200,7 @@ impl Server {
             udp,
             settings,
             live: None,
+            capture: None,
         })
     }
 
@@ -212,6 +214,15 @@ impl Server {
     /// Publish live snapshots (for the dashboard) through `publisher`.
     pub fn publish_to(mut self, publisher: LivePublisher) -> Self {
         self.live = Some(publisher);
+        self
+    }
+
+    /// Take capture commands (`capture --config`) from `link`'s sender.
+    pub fn capture_from(
+        mut self,
+        commands: mpsc::UnboundedReceiver<super::capture_link::CaptureCommand>,
+    ) -> Self {
+        self.capture = Some(commands);
         self
     }
 
@@ -232,7 +243,9 @@ impl Server {
             udp,
             mut settings,
             live: mut publisher,
+            capture: mut capture_rx,
         } = self;
+        let mut captures = super::capture_link::Requests::default();
         let start = Instant::now();
         let origin_unix_ms = super::metrics::unix_ms();
         let now = || start.elapsed().as_nanos() as u64;
@@ -277,6 +290,11 @@ impl Server {
                         }
                     }
                     MasterOutput::Event(ev) => match ev {
+                        MasterEvent::Capture {
+                            conn,
+                            node,
+                            message,
+                        } => captures.answer(conn, &node, *message),
                         MasterEvent::NodeJoined {
                             conn,
                             node,
@@ -289,6 +307,7 @@ impl Server {
                         }
                         MasterEvent::NodeClosed { conn, node, reason } => {
                             info!(node = node.as_deref().unwrap_or("?"), %reason, "node closed");
+                            captures.closed(conn, node.as_deref(), &reason.to_string());
                             live.closed(node.as_deref(), conn, &reason);
                             if matches!(
                                 reason,
@@ -452,6 +471,12 @@ impl Server {
                     }
                 }
                 _ = timer.fired() => core.handle_timeout(now()),
+                Some(command) = async {
+                    match capture_rx.as_mut() {
+                        Some(r) => r.recv().await,
+                        None => std::future::pending().await,
+                    }
+                } => captures.command(&mut core, now(), command),
                 Some(solved) = async {
                     match gi.as_mut() {
                         Some(g) => g.results.recv().await,

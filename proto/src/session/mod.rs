@@ -48,8 +48,8 @@ mod tests;
 pub use barrier::MAX_FRAMES_IN_FLIGHT;
 pub use clock::{ClockError, ClockEstimator, ClockSample, clock_sample};
 pub use master::{
-    CloseReason, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, NodeInfo,
-    NodePresent, PresentReport, ReadyNode, SubmitError, SwapReport,
+    CaptureSendError, CloseReason, MasterConfig, MasterCore, MasterError, MasterEvent,
+    MasterOutput, NodeInfo, NodePresent, PresentReport, ReadyNode, SubmitError, SwapReport,
 };
 pub use node::{Backoff, NodeConfig, NodeCore, NodeError, NodeEvent, NodeOutput, Solution};
 

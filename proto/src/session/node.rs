@@ -116,7 +116,12 @@ pub enum NodeEvent {
         version: u64,
         /// The scene.
         scene: Arc<Showcase>,
+        /// The captured reflectance maps of this version.
+        maps: Arc<Vec<crate::capture::CapturedMap>>,
     },
+    /// The master asks for a capture (`ShowPattern` or `CaptureFrames`):
+    /// answer with [`NodeCore::answer_capture`].
+    Capture(Box<Message>),
     /// Render this frame, then call [`NodeCore::rendered`].
     Render {
         /// The frame state.
@@ -307,6 +312,9 @@ impl NodeCore {
             }
             (Link::Live, Message::FrameState(f)) => self.frame_state(now, *f),
             (Link::Live, Message::Swap(s)) => self.swap(now, s),
+            (Link::Live, m @ (Message::ShowPattern(_) | Message::CaptureFrames(_))) => {
+                self.event(NodeEvent::Capture(Box::new(m)))
+            }
             (link, m) => {
                 let state = match link {
                     Link::AwaitWelcome { .. } => "before Welcome",
@@ -394,6 +402,19 @@ impl NodeCore {
         Ok(())
     }
 
+    /// Answer a capture request (`PatternShown`, `FrameChunk` or
+    /// `CaptureFailed`); dropped unless the node is live (the master
+    /// forgot the request with the connection).
+    pub fn answer_capture(&mut self, message: Message) {
+        if matches!(
+            message,
+            Message::PatternShown(_) | Message::FrameChunk(_) | Message::CaptureFailed(_)
+        ) && self.is_live()
+        {
+            self.transmit(message);
+        }
+    }
+
     fn transmit(&mut self, message: Message) {
         self.out.push_back(NodeOutput::Transmit(message));
     }
@@ -471,6 +492,7 @@ impl NodeCore {
         self.event(NodeEvent::SceneChanged {
             version: s.version,
             scene,
+            maps: Arc::new(s.maps),
         });
         if let Some(current) = s.current {
             self.frame_state(now, current);

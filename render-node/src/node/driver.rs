@@ -4,8 +4,11 @@
 //! [`Renderer`], and redials with the core's backoff when the master goes
 //! away. Shutdown is a cancellation token, so tests can stop it.
 
+use super::capture::CaptureHost;
 use super::renderer::{RenderError, Renderer};
 use crate::net::{ClusterIdentity, MASTER_SERVER_NAME, MessageStream, TlsError, client_config};
+use showcase_proto::Message;
+use showcase_proto::capture;
 use showcase_proto::session::{NodeConfig, NodeCore, NodeEvent, NodeOutput};
 use showcase_proto::{Capabilities, Role};
 use std::net::SocketAddr;
@@ -54,6 +57,11 @@ pub struct NodeLog {
     pub disconnects: Vec<String>,
     /// Frame images written.
     pub written: Vec<PathBuf>,
+    /// `(scene version, captured reflectance maps)` of every scene
+    /// received, in order (a late joiner's first is its snapshot's).
+    pub scenes: Vec<(u64, usize)>,
+    /// Capture requests answered (patterns shown, captures sent, failed).
+    pub captures: u64,
     /// Rendered frames waiting for their swap.
     pending: Vec<(u64, u64)>,
 }
@@ -121,13 +129,29 @@ pub async fn run_node<R: Renderer + ?Sized>(
     renderer: &mut R,
     shutdown: CancellationToken,
 ) -> Result<NodeLog, NodeRunError> {
+    run_node_with_devices(rt, renderer, None, shutdown).await
+}
+
+/// [`run_node`] with capture devices: the master's `ShowPattern` and
+/// `CaptureFrames` go to `devices` (on a blocking thread; the node answers
+/// nothing else meanwhile, so a capture runs while the frame clock is
+/// held). A node without devices answers them with `CaptureFailed`.
+pub async fn run_node_with_devices<R: Renderer + ?Sized>(
+    rt: NodeRuntime,
+    renderer: &mut R,
+    devices: Option<CaptureHost>,
+    shutdown: CancellationToken,
+) -> Result<NodeLog, NodeRunError> {
     let span = info_span!("node", node = %rt.name);
-    run_inner(rt, renderer, shutdown).instrument(span).await
+    run_inner(rt, renderer, devices, shutdown)
+        .instrument(span)
+        .await
 }
 
 async fn run_inner<R: Renderer + ?Sized>(
     rt: NodeRuntime,
     renderer: &mut R,
+    devices: Option<CaptureHost>,
     shutdown: CancellationToken,
 ) -> Result<NodeLog, NodeRunError> {
     // A folder the node will write into is made now, so a bad path stops
@@ -201,7 +225,26 @@ async fn run_inner<R: Renderer + ?Sized>(
                         l.conn.close(0u32.into(), reason.as_bytes());
                     }
                 }
-                NodeOutput::Event(ev) => handle_event(ev, &rt, renderer, &mut core, &mut log, now)?,
+                NodeOutput::Event(NodeEvent::Capture(request)) => {
+                    let answers = tokio::select! {
+                        _ = shutdown.cancelled() => break 'run,
+                        a = answer_capture(&rt, devices.as_ref(), *request) => a,
+                    };
+                    log.captures += 1;
+                    for a in answers {
+                        core.answer_capture(a);
+                    }
+                }
+                NodeOutput::Event(ev) => {
+                    if let (NodeEvent::SceneChanged { scene, .. }, Some(d)) =
+                        (&ev, devices.as_ref())
+                    {
+                        d.0.lock()
+                            .unwrap_or_else(|e| e.into_inner())
+                            .set_scene(scene.clone());
+                    }
+                    handle_event(ev, &rt, renderer, &mut core, &mut log, now)?
+                }
             }
         }
         let deadline = core.poll_timeout();
@@ -242,6 +285,66 @@ async fn run_inner<R: Renderer + ?Sized>(
     }
 }
 
+/// Run one capture request on the node's devices (on a blocking thread)
+/// and make its answers: `PatternShown`, the frames' chunks, or
+/// `CaptureFailed` with why.
+async fn answer_capture(
+    rt: &NodeRuntime,
+    devices: Option<&CaptureHost>,
+    request: Message,
+) -> Vec<Message> {
+    let id = match &request {
+        Message::ShowPattern(p) => p.id,
+        Message::CaptureFrames(c) => c.id,
+        _ => return Vec::new(),
+    };
+    let failed = |reason: String| {
+        let mut reason = format!("node {}: {reason}", rt.name);
+        reason.truncate(capture::MAX_REASON_LEN);
+        vec![Message::CaptureFailed(capture::CaptureFailed {
+            id,
+            reason,
+        })]
+    };
+    let Some(host) = devices.cloned() else {
+        return failed(format!(
+            "this {} node has no capture device (start it with a camera or projector attached, or in sim mode)",
+            rt.role
+        ));
+    };
+    let work = tokio::task::spawn_blocking(move || {
+        let mut d = host.0.lock().unwrap_or_else(|e| e.into_inner());
+        match request {
+            Message::ShowPattern(p) => d
+                .show(&p.pattern)
+                .map(|()| vec![Message::PatternShown(capture::PatternShown { id })]),
+            Message::CaptureFrames(c) => d.capture(&c).map(|frames| {
+                let n = frames.len() as u32;
+                frames
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(k, f)| {
+                        let codes = capture::FrameCodes {
+                            width: f.codes.width,
+                            height: f.codes.height,
+                            bits: f.bits,
+                            codes: f.codes.data.clone(),
+                        };
+                        capture::split_frame(id, k as u32, n, &codes, capture::MAX_CHUNK_BYTES)
+                    })
+                    .map(|c| Message::FrameChunk(Box::new(c)))
+                    .collect()
+            }),
+            _ => Ok(Vec::new()),
+        }
+    });
+    match work.await {
+        Ok(Ok(answers)) => answers,
+        Ok(Err(reason)) => failed(reason),
+        Err(e) => failed(format!("the capture device failed: {e}")),
+    }
+}
+
 fn handle_event<R: Renderer + ?Sized>(
     ev: NodeEvent,
     rt: &NodeRuntime,
@@ -255,7 +358,15 @@ fn handle_event<R: Renderer + ?Sized>(
             log.joins += 1;
             info!(target_hz, "joined the master");
         }
-        NodeEvent::SceneChanged { version, scene } => renderer.set_scene(version, scene)?,
+        NodeEvent::SceneChanged {
+            version,
+            scene,
+            maps,
+        } => {
+            log.scenes.push((version, maps.len()));
+            renderer.set_scene(version, scene)?
+        }
+        NodeEvent::Capture(_) => {}
         NodeEvent::Render {
             frame,
             scene,

@@ -80,6 +80,35 @@ pub enum MasterError {
     },
 }
 
+/// Why a capture request could not be sent
+/// ([`MasterCore::send_capture`](super::MasterCore::send_capture)).
+#[derive(Debug, thiserror::Error)]
+pub enum CaptureSendError {
+    /// No live node of that name.
+    #[error(
+        "node {0:?} is not connected: start it (showcase-node --config CLUSTER.toml --name {0}) and check that it can reach the master"
+    )]
+    NotConnected(String),
+    /// The node drives something else.
+    #[error(
+        "node {node:?} is a {role} node; this request needs a {want} node (check the [[node]] role in the cluster config)"
+    )]
+    WrongRole {
+        /// The node.
+        node: String,
+        /// Its role.
+        role: crate::message::Role,
+        /// The role the request needs.
+        want: crate::message::Role,
+    },
+    /// The message is no capture request.
+    #[error("{0} is not a capture request")]
+    NotARequest(&'static str),
+    /// The request breaks a rule.
+    #[error("invalid capture request: {0}")]
+    Invalid(String),
+}
+
 /// Why a frame was refused by [`MasterCore::submit_frame`](super::MasterCore::submit_frame).
 #[derive(Debug, thiserror::Error)]
 pub enum SubmitError {

@@ -20,6 +20,7 @@ use super::barrier::{ReadyMark, Release, SwapBarrier};
 use super::clock::{ClockEstimator, clock_sample};
 use super::{ConnId, ms};
 use crate::PROTOCOL_VERSION;
+use crate::capture::CapturedMap;
 use crate::message::{
     Bye, Capabilities, ClockProbe, ClockReply, Hello, Message, NodeStats, Ready, Role,
     SceneSnapshot, Swap, Welcome,
@@ -37,7 +38,7 @@ mod report;
 
 use illumination::IlluminationState;
 
-pub use config::{MasterConfig, MasterError, SubmitError};
+pub use config::{CaptureSendError, MasterConfig, MasterError, SubmitError};
 pub use report::{
     CloseReason, MasterEvent, MasterOutput, NodeInfo, NodePresent, PresentReport, ReadyNode,
     SwapReport,
@@ -84,6 +85,8 @@ pub struct MasterCore {
     config: MasterConfig,
     scene: Arc<Showcase>,
     scene_version: u64,
+    /// The captured reflectance maps, sent in every snapshot.
+    maps: Arc<Vec<CapturedMap>>,
     peers: BTreeMap<ConnId, Peer>,
     names: HashMap<String, ConnId>,
     barrier: SwapBarrier,
@@ -107,6 +110,7 @@ impl MasterCore {
             config,
             scene: Arc::new(scene),
             scene_version: 1,
+            maps: Arc::new(Vec::new()),
             peers: BTreeMap::new(),
             names: HashMap::new(),
             latest: None,
@@ -227,6 +231,17 @@ impl MasterCore {
             (Peer::Live(_), Message::NodeStats(s)) => self.stats(conn, s),
             (Peer::Live(_), Message::ClockReply(r)) => self.clock_reply(now, conn, r),
             (Peer::Live(_), Message::IlluminationResync(r)) => self.illumination_resync(conn, r),
+            (
+                Peer::Live(n),
+                m @ (Message::PatternShown(_) | Message::FrameChunk(_) | Message::CaptureFailed(_)),
+            ) => {
+                let node = n.name.clone();
+                self.event(MasterEvent::Capture {
+                    conn,
+                    node,
+                    message: Box::new(m),
+                });
+            }
             (Peer::Live(_), Message::Hello(_)) => self.violation(conn, "Hello twice".into()),
             (Peer::AwaitHello { .. }, m) => {
                 self.violation(conn, format!("{} before Hello", m.kind()))
@@ -236,6 +251,71 @@ impl MasterCore {
             }
         }
         self.advance(now);
+    }
+
+    /// The captured reflectance maps the snapshots carry.
+    pub fn maps(&self) -> &Arc<Vec<CapturedMap>> {
+        &self.maps
+    }
+
+    /// New captured reflectance maps (replacing those of the same name):
+    /// bumps the scene version and sends every live node a fresh snapshot
+    /// with them; a later joiner gets them in its snapshot. Returns the new
+    /// version.
+    pub fn set_maps(&mut self, now: u64, maps: Vec<CapturedMap>) -> Result<u64, MasterError> {
+        let mut all: Vec<CapturedMap> = (*self.maps)
+            .iter()
+            .filter(|m| !maps.iter().any(|n| n.name == m.name))
+            .cloned()
+            .collect();
+        all.extend(maps);
+        let check = Message::SceneSnapshot(Box::new(SceneSnapshot {
+            version: self.scene_version + 1,
+            showcase: Showcase::default(),
+            current: None,
+            maps: all,
+        }));
+        check.validate()?;
+        let Message::SceneSnapshot(s) = check else {
+            unreachable!("built above")
+        };
+        self.maps = Arc::new(s.maps);
+        let scene = (*self.scene).clone();
+        self.set_scene(now, scene)
+    }
+
+    /// Send a capture request (`ShowPattern` to a projector node,
+    /// `CaptureFrames` to a camera node) to the live node `node`; its
+    /// answers come back as [`MasterEvent::Capture`].
+    pub fn send_capture(
+        &mut self,
+        node: &str,
+        message: Message,
+    ) -> Result<ConnId, CaptureSendError> {
+        let want = match &message {
+            Message::ShowPattern(_) => Role::Projector,
+            Message::CaptureFrames(_) => Role::Camera,
+            m => return Err(CaptureSendError::NotARequest(m.kind())),
+        };
+        message
+            .validate()
+            .map_err(|e| CaptureSendError::Invalid(e.to_string()))?;
+        let conn = *self
+            .names
+            .get(node)
+            .ok_or_else(|| CaptureSendError::NotConnected(node.to_string()))?;
+        let Some(Peer::Live(n)) = self.peers.get(&conn) else {
+            return Err(CaptureSendError::NotConnected(node.to_string()));
+        };
+        if n.role != want {
+            return Err(CaptureSendError::WrongRole {
+                node: node.to_string(),
+                role: n.role,
+                want,
+            });
+        }
+        self.transmit(conn, message);
+        Ok(conn)
     }
 
     /// Replace the scene: bumps the version and sends a fresh snapshot (with
@@ -249,6 +329,7 @@ impl MasterCore {
             version: self.scene_version,
             showcase: (*self.scene).clone(),
             current: None,
+            maps: (*self.maps).clone(),
         }));
         let live: Vec<ConnId> = self.live_conns().collect();
         for conn in live {

@@ -108,6 +108,7 @@ impl MasterCore {
                 version: self.scene_version,
                 showcase: (*self.scene).clone(),
                 current,
+                maps: (*self.maps).clone(),
             })),
         );
         if let (true, Some(frame)) = (swapped, current_frame) {

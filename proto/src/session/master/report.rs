@@ -102,6 +102,16 @@ pub enum MasterOutput {
 /// Things that happened, for logs and metrics.
 #[derive(Clone, Debug, PartialEq)]
 pub enum MasterEvent {
+    /// A node answered a capture request (`PatternShown`, `FrameChunk`,
+    /// `CaptureFailed`).
+    Capture {
+        /// Its connection.
+        conn: ConnId,
+        /// Its name.
+        node: String,
+        /// The answer.
+        message: Box<crate::message::Message>,
+    },
     /// A node completed its handshake and got a snapshot.
     NodeJoined {
         /// Its connection.

@@ -203,6 +203,7 @@ impl Cluster {
                     current_frame,
                     ..
                 } => self.log.joined.push((node, current_frame, now)),
+                MasterEvent::Capture { .. } => {}
             },
         }
     }
@@ -251,6 +252,7 @@ impl Cluster {
             NodeOutput::Event(e) => match e {
                 NodeEvent::Connected { .. } => n.log.connected.push(now),
                 NodeEvent::SceneChanged { version, .. } => n.log.scenes.push(version),
+                NodeEvent::Capture(_) => {}
                 NodeEvent::Render {
                     frame,
                     illumination,

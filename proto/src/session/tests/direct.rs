@@ -232,6 +232,7 @@ fn live_node() -> NodeCore {
             version: 1,
             showcase: test_scene(),
             current: Some(test_frame(10, 1, 0)),
+            maps: Vec::new(),
         })),
     );
     assert!(node.is_live());

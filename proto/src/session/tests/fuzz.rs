@@ -30,6 +30,7 @@ fn message() -> impl Strategy<Value = Message> {
             version: v,
             showcase: test_scene(),
             current: Some(test_frame(f, v, 0)),
+            maps: Vec::new(),
         }))),
         (n.clone(), 1u64..3).prop_map(|(f, v)| Message::FrameState(Box::new(test_frame(f, v, 0)))),
         n.clone().prop_map(|frame| Message::Ready(Ready {
@@ -162,6 +163,7 @@ proptest! {
                         version: 1,
                         showcase: test_scene(),
                         current: Some(test_frame(next_frame - 1, 1, 0)),
+                        maps: Vec::new(),
                     }))
                 }
                 _ => match unswapped.front() {

@@ -158,6 +158,7 @@ impl SimShowcase {
             });
         }
         Ok(SimCamera {
+            response: self.shared.cameras[index].response.clone(),
             shared: self.shared.clone(),
             index,
             captures: 0,
@@ -385,6 +386,21 @@ pub struct SimCamera {
     shared: Arc<Shared>,
     index: usize,
     captures: u64,
+    /// The camera's response, its gain as last fixed.
+    response: CameraResponse,
+}
+
+impl SimCamera {
+    /// Fix the gain (as an operator sets a camera's gain by hand: no
+    /// automatic gain, exposure or white balance).
+    pub fn set_gain(&mut self, gain: f32) {
+        self.response.gain = gain;
+    }
+
+    /// Fix the exposure the response reports.
+    pub fn set_exposure(&mut self, exposure_s: f32) {
+        self.response.exposure_s = exposure_s;
+    }
 }
 
 impl std::fmt::Debug for SimCamera {
@@ -401,7 +417,7 @@ impl CameraDevice for SimCamera {
     }
 
     fn response(&self) -> &CameraResponse {
-        &self.shared.cameras[self.index].response
+        &self.response
     }
 
     fn capture(&mut self, start_s: f64, exposure_s: f64) -> Result<CameraFrame, SimError> {
