@@ -14,6 +14,9 @@ pub enum BenchTarget {
     Calibration,
     /// Reflectance capture.
     Reflectance,
+    /// Reflectance capture through a loopback cluster (sim nodes) against
+    /// the in-process capture: maps' error and wall time, by method.
+    CaptureCluster,
     /// Radiosity.
     Radiosity,
     /// The real-time renderer (both roles also in global mode: variant
@@ -143,6 +146,7 @@ pub(super) fn bench(args: &BenchArgs) -> Result<()> {
     let result = match args.target {
         BenchTarget::Calibration => calibration(args, &pb),
         BenchTarget::Reflectance => reflectance(args, &pb),
+        BenchTarget::CaptureCluster => super::capture_cluster::bench(args, &pb),
         BenchTarget::Radiosity => radiosity(args, &pb),
         BenchTarget::Render => render(args, &pb),
         BenchTarget::Cluster => cluster(args, &pb),
@@ -174,6 +178,15 @@ fn machine() -> String {
 
 /// Clear the progress `pb`, then print a bench's records as one JSON
 /// array, or write them as a report.
+/// [`emit_bench`], for the targets' own modules.
+pub(super) fn emit<T: serde::Serialize>(
+    args: &BenchArgs,
+    pb: &indicatif::ProgressBar,
+    records: &[T],
+) -> Result<()> {
+    emit_bench(args, pb, records)
+}
+
 fn emit_bench<T: serde::Serialize>(
     args: &BenchArgs,
     pb: &indicatif::ProgressBar,

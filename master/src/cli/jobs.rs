@@ -202,8 +202,23 @@ pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
 #[derive(Debug, Args)]
 pub struct CaptureArgs {
     /// Scene file.
+    #[arg(long, required_unless_present = "config")]
+    pub scene: Option<PathBuf>,
+    /// Capture through the cluster of this configuration: its master
+    /// listens, its projector and camera nodes (those of the scene's
+    /// projector 0 and camera 0) show and capture; the maps are published
+    /// to the running nodes. With `--sim` the nodes run with `--sim-light`.
+    #[arg(long, conflicts_with = "scene")]
+    pub config: Option<PathBuf>,
+    /// With `--config`: `naive`, `piecewise`, `corrected` or `all`.
     #[arg(long)]
-    pub scene: PathBuf,
+    pub method: Option<String>,
+    /// With `--config`: frames averaged per radiance map.
+    #[arg(long, default_value_t = 16)]
+    pub frames: u32,
+    /// With `--config`: seconds to wait for the nodes to join.
+    #[arg(long, default_value_t = 30)]
+    pub wait_s: u64,
     /// Capture from the simulated showcase.
     #[arg(long)]
     pub sim: bool,
@@ -217,12 +232,15 @@ pub struct CaptureArgs {
 
 /// `capture --sim`: the capture job with its default options.
 pub(super) fn capture(args: &CaptureArgs) -> Result<()> {
+    if let Some(config) = &args.config {
+        return super::capture_cluster::capture(args, config);
+    }
     if !args.sim {
         anyhow::bail!(
             "capture: only --sim (the simulated showcase) is available; real projector and camera drivers are not part of this build"
         );
     }
-    let scene = crate::scene_file::load_any(&args.scene)?;
+    let scene = crate::scene_file::load_any(args.scene.as_deref().context("give --scene")?)?;
     let stages = crate::capture::CAPTURE_STAGES.len() as u64;
     let pb = crate::progress::bar("capture", stages);
     let to_log = !std::io::IsTerminal::is_terminal(&std::io::stderr());

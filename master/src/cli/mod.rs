@@ -4,6 +4,7 @@
 //! that does the work, so only this module knows clap.
 
 mod bench;
+mod capture_cluster;
 mod jobs;
 mod sim;
 

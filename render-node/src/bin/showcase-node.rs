@@ -7,7 +7,10 @@ use clap::Parser;
 use showcase_proto::config::{ClusterConfig, HostPort};
 use showcase_render::gpu::GpuContext;
 use showcase_render::net::{ClusterIdentity, resolve};
-use showcase_render::node::{NodeRuntime, OutputRenderer, Renderer, StateHashRenderer, run_node};
+use showcase_render::node::{
+    CaptureHost, LightBus, NodeRuntime, OutputRenderer, Renderer, SimCameraNode,
+    SimProjectorNode, StateHashRenderer, run_node_with_devices,
+};
 use showcase_render::render::gpu_frame::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -38,6 +41,17 @@ struct NodeCli {
     /// of each frame's state, no pixels: for cluster tests).
     #[arg(long, value_enum, default_value_t = RendererKind::Gpu)]
     renderer: RendererKind,
+    /// Sim mode: hold the simulated device of this node's output for the
+    /// master's capture requests, the room's light shared through this
+    /// folder (a projector node writes what it shows there, a camera
+    /// node lights its simulated showcase from it). Every node of one
+    /// simulated room names the same folder.
+    #[arg(long)]
+    sim_light: Option<PathBuf>,
+    /// With --sim-light: paths per camera pixel of the sim's light
+    /// transport.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
+    sim_samples: u32,
     /// Shadow map size per view, in texels a side.
     #[arg(long, default_value_t = DEFAULT_SHADOW_RES)]
     shadow_res: u32,
@@ -166,6 +180,28 @@ fn run(cli: NodeCli) -> Result<()> {
             )?)
         }
     };
+    let devices = match (&cli.sim_light, node.role) {
+        (None, _) => None,
+        (Some(dir), role) => {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("--sim-light {}: cannot create", dir.display()))?;
+            let bus = LightBus::Dir(dir.clone());
+            match role {
+                showcase_proto::Role::Projector => {
+                    Some(CaptureHost::new(SimProjectorNode::new(&node.output, bus)))
+                }
+                showcase_proto::Role::Camera => Some(CaptureHost::new(SimCameraNode::new(
+                    &node.output,
+                    bus,
+                    showcase_light::sim::SimConfig {
+                        samples_per_pixel: cli.sim_samples,
+                        ..Default::default()
+                    },
+                ))),
+                showcase_proto::Role::Face => None,
+            }
+        }
+    };
     let stop = CancellationToken::new();
     #[cfg(feature = "window")]
     if cli.window {
@@ -184,7 +220,7 @@ fn run(cli: NodeCli) -> Result<()> {
         let quit = sink.clone();
         let node_thread = std::thread::spawn(move || {
             let mut presenting = Presenting::new(renderer, sink);
-            let r = drive(rt, &mut presenting, node_stop);
+            let r = drive(rt, &mut presenting, devices, node_stop);
             quit.quit();
             r
         });
@@ -196,13 +232,14 @@ fn run(cli: NodeCli) -> Result<()> {
         shown?;
         return node;
     }
-    drive(rt, renderer.as_mut(), stop)
+    drive(rt, renderer.as_mut(), devices, stop)
 }
 
 /// Run the node until SIGINT or SIGTERM, `stop`, or a fatal error.
 fn drive<R: Renderer + ?Sized>(
     rt: NodeRuntime,
     renderer: &mut R,
+    devices: Option<CaptureHost>,
     stop: CancellationToken,
 ) -> Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -211,7 +248,7 @@ fn drive<R: Renderer + ?Sized>(
         .context("cannot start the async runtime")?;
     runtime.block_on(async {
         showcase_render::node::cancel_on_stop_signal(stop.clone());
-        let log = run_node(rt, renderer, stop).await?;
+        let log = run_node_with_devices(rt, renderer, devices, stop).await?;
         eprintln!(
             "node stopped after presenting {} frames ({} joins)",
             log.presented_count, log.joins
