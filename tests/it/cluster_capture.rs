@@ -188,11 +188,16 @@ fn saturated_and_dark_frames_say_what_to_change() {
         width: 10,
         height: 10,
         bits: 12,
-        codes: (0..100).map(|i| if i < 5 { [v; 3] } else { [800; 3] }).collect(),
+        codes: (0..100)
+            .map(|i| if i < 5 { [v; 3] } else { [800; 3] })
+            .collect(),
     };
     assert!(check_exposure(&frame(800), "camera-0", 1.0).is_ok());
     let e = check_exposure(&frame(4095), "camera-0", 1.0).unwrap_err();
-    assert!(e.contains("saturated") && e.contains("lower the camera gain"), "{e}");
+    assert!(
+        e.contains("saturated") && e.contains("lower the camera gain"),
+        "{e}"
+    );
     let dark = FrameCodes {
         codes: vec![[10; 3]; 100],
         ..frame(0)

@@ -6,7 +6,7 @@
 //! each method asked, writes each map as soon as it is done (a later
 //! failure keeps them), and publishes the maps to the cluster (a scene
 //! version bump; later joiners get them in their snapshot).
-//! [`loopback_capture`] runs it all on one machine: the master and sim
+//! [`loopback_capture`](crate::cluster::capture_loopback::loopback_capture) runs it all on one machine: the master and sim
 //! nodes as tasks talking QUIC over loopback.
 
 use super::pipeline::{

@@ -8,8 +8,8 @@ use showcase_proto::config::{ClusterConfig, HostPort};
 use showcase_render::gpu::GpuContext;
 use showcase_render::net::{ClusterIdentity, resolve};
 use showcase_render::node::{
-    CaptureHost, LightBus, NodeRuntime, OutputRenderer, Renderer, SimCameraNode,
-    SimProjectorNode, StateHashRenderer, run_node_with_devices,
+    CaptureHost, LightBus, NodeRuntime, OutputRenderer, Renderer, SimCameraNode, SimProjectorNode,
+    StateHashRenderer, run_node_with_devices,
 };
 use showcase_render::render::gpu_frame::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
