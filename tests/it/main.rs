@@ -27,5 +27,6 @@ mod scene_files;
 mod session;
 mod shutdown;
 mod sim;
+mod structured_light;
 mod tracking;
 mod transport;

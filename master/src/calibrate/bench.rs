@@ -25,26 +25,60 @@ pub const BENCH_SEEDS: u64 = 5;
 /// Held-out points per case, never used in the fit.
 pub const HELDOUT_POINTS: usize = 50;
 
+/// Where a record's correspondences come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// Marked fiducials (simulated: the true projection plus Gaussian noise).
+    #[default]
+    Fiducials,
+    /// Decoded Gray-code patterns ([`super::structured_light`]).
+    StructuredLight,
+}
+
+impl Source {
+    /// Fiducials (the key is left out of the records then).
+    pub fn is_fiducials(&self) -> bool {
+        *self == Source::Fiducials
+    }
+}
+
 /// One line of the benchmark: medians over [`BENCH_SEEDS`] seeds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BenchRecord {
     /// `lm` or `powell`.
     pub method: Method,
+    /// Fiducials or structured light (written only for structured light).
+    #[serde(skip_serializing_if = "Source::is_fiducials")]
+    pub source: Source,
+    /// The showcase scene's projector, for the records on it; none for the
+    /// synthetic sweep.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
     /// Fit points.
     pub points: usize,
-    /// Pixel noise (standard deviation per axis).
+    /// Pixel noise of the correspondences (standard deviation per axis):
+    /// the simulated marking's, or for structured light the measured
+    /// distance of the decoded pixels from the true projection.
     pub noise_px: f64,
     /// Coplanar fiducials with known intrinsics (else a non-coplanar rig, unknown intrinsics).
     pub coplanar: bool,
     /// RMS pixel error on the fit points.
     pub rms_fit_px: f64,
-    /// RMS pixel error on held-out points.
+    /// RMS pixel error on held-out points, against their marked (noisy)
+    /// or decoded pixels: what can be measured without the truth.
     pub rms_heldout_px: f64,
+    /// The showcase's records: RMS pixel distance between the fitted and
+    /// the true projector's projections of held-out points where its light
+    /// lands on the scene (no marking noise; one metric for every method).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rms_heldout_true_px: Option<f64>,
     /// Distance of the solved centre of projection from the truth (metres).
     pub center_error_m: f64,
     /// Angle between the solved and the true rotation (degrees).
     pub rotation_error_deg: f64,
-    /// Solve time (seconds).
+    /// Solve time (seconds); for structured light the whole job of one
+    /// projector (the sim's light transport, capture, decode and solves).
     pub seconds: f64,
 }
 
@@ -123,7 +157,7 @@ pub fn rotation_angle_deg(a: &DMat3, b: &DMat3) -> f64 {
 /// The solve time of `f`: the fastest of five blocks, each averaging
 /// enough calls to span a millisecond (the minimum is the least disturbed
 /// by other load on the machine).
-fn time_per_call<T>(mut f: impl FnMut() -> T) -> (T, f64) {
+pub(crate) fn time_per_call<T>(mut f: impl FnMut() -> T) -> (T, f64) {
     let out = f();
     let mut best = f64::INFINITY;
     for _ in 0..5 {
@@ -176,11 +210,14 @@ pub fn bench_configuration(
         cols.map(|v| percentile(&v, 50.0).unwrap_or(f64::NAN));
     Some(BenchRecord {
         method,
+        source: Source::Fiducials,
+        device: None,
         points,
         noise_px,
         coplanar,
         rms_fit_px: fit,
         rms_heldout_px: heldout,
+        rms_heldout_true_px: None,
         center_error_m: center,
         rotation_error_deg: rotation,
         seconds,
@@ -227,17 +264,20 @@ pub fn bench_calibration_with(done: &dyn Fn(usize, &str)) -> Vec<BenchRecord> {
 pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut csv = String::from(
-        "method,points,noise_px,coplanar,rms_fit_px,rms_heldout_px,center_error_m,rotation_error_deg,seconds\n",
+        "method,points,noise_px,coplanar,rms_fit_px,rms_heldout_px,center_error_m,rotation_error_deg,seconds,source,device,rms_heldout_true_px\n",
     );
     let mut md = String::from(
         "# Calibration: error against time\n\nMedians over seeds. LM = Levenberg-Marquardt, Powell = the paper's baseline.\n\n\
-         | method | points | noise px | coplanar | rms fit px | rms held-out px | centre err m | rot err deg | seconds |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+         | method | points | noise px | coplanar | rms fit px | rms held-out px | centre err m | rot err deg | seconds | source | device | held-out vs truth px |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in records {
+        let truth = r
+            .rms_heldout_true_px
+            .map_or(String::new(), |v| format!("{v:.6}"));
         let _ = writeln!(
             csv,
-            "{},{},{},{},{:.6},{:.6},{:.6e},{:.6e},{:.6e}",
+            "{},{},{},{},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{},{},{truth}",
             r.method,
             r.points,
             r.noise_px,
@@ -246,11 +286,13 @@ pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Resul
             r.rms_heldout_px,
             r.center_error_m,
             r.rotation_error_deg,
-            r.seconds
+            r.seconds,
+            source_name(r.source),
+            r.device.as_deref().unwrap_or(""),
         );
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.4} | {:.4} | {:.2e} | {:.2e} | {:.2e} |",
+            "| {} | {} | {:.3} | {} | {:.4} | {:.4} | {:.2e} | {:.2e} | {:.2e} | {} | {} | {} |",
             r.method,
             r.points,
             r.noise_px,
@@ -259,13 +301,21 @@ pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Resul
             r.rms_heldout_px,
             r.center_error_m,
             r.rotation_error_deg,
-            r.seconds
+            r.seconds,
+            source_name(r.source),
+            r.device.as_deref().unwrap_or("synthetic"),
+            r.rms_heldout_true_px
+                .map_or("-".to_string(), |v| format!("{v:.4}")),
         );
     }
     md.push_str("\n## Powell time / LM time\n\n| points | noise px | coplanar | speed-up | LM held-out px | Powell held-out px |\n|---|---|---|---|---|---|\n");
-    for lm in records.iter().filter(|r| r.method == Method::Lm) {
+    for lm in records
+        .iter()
+        .filter(|r| r.method == Method::Lm && r.source == Source::Fiducials && r.device.is_none())
+    {
         if let Some(pw) = records.iter().find(|r| {
             r.method == Method::Powell
+                && r.device.is_none()
                 && r.points == lm.points
                 && r.noise_px == lm.noise_px
                 && r.coplanar == lm.coplanar
@@ -287,15 +337,22 @@ pub fn write_bench_report(records: &[BenchRecord], dir: &Path) -> std::io::Resul
     std::fs::write(dir.join("calibration.svg"), scatter_svg(records))
 }
 
+fn source_name(s: Source) -> &'static str {
+    match s {
+        Source::Fiducials => "fiducials",
+        Source::StructuredLight => "structured_light",
+    }
+}
+
 /// A log-log scatter of held-out error against time, LM against Powell.
 fn scatter_svg(records: &[BenchRecord]) -> String {
-    let series = |method: Method, name: &str, colour: &str| Series {
+    let series = |method: Method, source: Source, name: &str, colour: &str| Series {
         name: name.into(),
         colour: colour.into(),
         joined: false,
         points: records
             .iter()
-            .filter(|r| r.method == method)
+            .filter(|r| r.method == method && r.source == source)
             .map(|r| Point {
                 marker: if r.coplanar {
                     Marker::Square
@@ -315,11 +372,17 @@ fn scatter_svg(records: &[BenchRecord]) -> String {
     };
     Plot {
         title: "Calibration: held-out error against solve time".into(),
-        x_label: "solve time (s)".into(),
-        y_label: "held-out RMS (px)".into(),
+        x_label: "solve time (s); structured light: the whole job".into(),
+        y_label: "held-out RMS (px): marked or decoded points".into(),
         series: vec![
-            series(Method::Lm, "LM", "#1f77b4"),
-            series(Method::Powell, "Powell", "#d62728"),
+            series(Method::Lm, Source::Fiducials, "LM", "#1f77b4"),
+            series(Method::Powell, Source::Fiducials, "Powell", "#d62728"),
+            series(
+                Method::Lm,
+                Source::StructuredLight,
+                "structured light + LM",
+                "#2ca02c",
+            ),
         ],
         note: "circle: rig, square: coplanar (known K)".into(),
         ..Plot::default()

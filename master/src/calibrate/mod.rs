@@ -14,7 +14,7 @@
 //!    or of the pose alone when the intrinsics are known;
 //! 4. every point must end in front of the device.
 
-mod bench;
+pub(crate) mod bench;
 mod camera;
 mod dlt;
 mod io;
@@ -24,11 +24,12 @@ pub mod photometric;
 mod pnp;
 mod powell;
 mod simulate;
+pub mod structured_light;
 
 pub use bench::{
     BENCH_CONFIGURATIONS, BENCH_NOISE_PX, BENCH_POINTS, BENCH_SEEDS, BenchRecord, HELDOUT_POINTS,
-    SyntheticCase, bench_calibration, bench_calibration_with, bench_configuration, heldout_rms,
-    rotation_angle_deg, synthetic_case, write_bench_report,
+    Source, SyntheticCase, bench_calibration, bench_calibration_with, bench_configuration,
+    heldout_rms, rotation_angle_deg, synthetic_case, write_bench_report,
 };
 pub use io::{DEVICE_FAR_M, DEVICE_NEAR_M};
 pub use simulate::{

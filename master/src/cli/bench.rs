@@ -216,11 +216,23 @@ fn emit_bench<T: serde::Serialize>(
 }
 
 fn calibration(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
-    as_bar(pb, crate::calibrate::BENCH_CONFIGURATIONS as u64);
-    let records = crate::calibrate::bench_calibration_with(&|k, what| {
+    use crate::calibrate::structured_light::{SIM_SAMPLES, StructuredLightOptions, bench};
+    let scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
+    let sweep = crate::calibrate::BENCH_CONFIGURATIONS;
+    as_bar(pb, (sweep + 3 * scene.projectors.len()) as u64);
+    let mut records = crate::calibrate::bench_calibration_with(&|k, what| {
         pb.set_position(k as u64);
         pb.set_message(what.to_string());
     });
+    records.extend(bench::bench_showcase(
+        &scene,
+        &StructuredLightOptions::default(),
+        SIM_SAMPLES,
+        &|k, what| {
+            pb.set_position((sweep + k) as u64);
+            pb.set_message(what.to_string());
+        },
+    )?);
     if !args.json {
         crate::calibrate::write_bench_report(&records, &args.out)
             .with_context(|| format!("cannot write the report to {}", args.out.display()))?;

@@ -144,10 +144,13 @@ impl From<CalibrationMethod> for crate::calibrate::Method {
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// Input correspondences (JSON), for a projector or camera.
-    #[arg(long, required_unless_present = "photometric")]
+    #[arg(long, required_unless_present_any = ["photometric", "structured_light"])]
     pub points: Option<PathBuf>,
     /// Output calibration (JSON); with `--photometric` a folder, which
-    /// gets one `<face>-photometric.json` per face and `summary.json`.
+    /// gets one `<face>-photometric.json` per face and `summary.json`;
+    /// with `--structured-light` a folder, which gets one
+    /// `<projector>.json` per projector (the file `--points` writes) and
+    /// `summary.json`.
     #[arg(long)]
     pub out: PathBuf,
     /// Solver.
@@ -159,10 +162,37 @@ pub struct CalibrateArgs {
     /// showcase of `--scene` (no real camera is attached to this build).
     #[arg(long, requires = "scene", conflicts_with = "points")]
     pub photometric: bool,
+    /// Calibrate every projector of `--config` by structured light: Gray
+    /// codes shown by each projector, decoded from the config's camera
+    /// (trusted as calibrated), each decoded pixel a 2D-3D
+    /// correspondence on the known scene, solved by DLT + LM. Runs on the
+    /// simulated showcase of the config's scene.
+    #[arg(long, requires = "config", conflicts_with_all = ["points", "photometric"])]
+    pub structured_light: bool,
+    /// With `--structured-light`: the cluster configuration (its scene,
+    /// camera node and projector nodes).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// With `--photometric`: the scene, or a built-in one
-    /// (`builtin:showcase`).
+    /// (`builtin:showcase`); with `--structured-light`, another scene than
+    /// the config's.
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// With `--structured-light`: camera exposure in seconds (default: the
+    /// camera's own), rounded to whole colour-wheel turns.
+    #[arg(long)]
+    pub exposure: Option<f64>,
+    /// With `--structured-light`: the projector's pixel value for lit
+    /// pattern pixels, 0 to 1.
+    #[arg(long, default_value_t = 1.0)]
+    pub level: f32,
+    /// With `--structured-light`: camera frames averaged per pattern.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub frames: u32,
+    /// With `--structured-light`: paths per camera pixel of the simulated
+    /// showcase's light transport (a full-white pattern).
+    #[arg(long, default_value_t = crate::calibrate::structured_light::SIM_SAMPLES, value_parser = clap::value_parser!(u32).range(1..))]
+    pub sim_samples: u32,
     /// With `--photometric`: paths per irradiance-cache point of the
     /// simulated real light.
     #[arg(long, default_value_t = crate::demo::TRUTH_PATHS, value_parser = clap::value_parser!(u32).range(8..))]
@@ -172,6 +202,9 @@ pub struct CalibrateArgs {
 /// `calibrate`: fit one device and report its residual, or (with
 /// `--photometric`) the faces' profiles.
 pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
+    if args.structured_light {
+        return calibrate_structured_light(args);
+    }
     if args.photometric {
         let scene = args
             .scene
@@ -194,6 +227,87 @@ pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
         c.residuals_px.len(),
         c.rms_px,
         args.out.display()
+    );
+    Ok(())
+}
+
+/// `calibrate --structured-light`: a bar per projector, a line per
+/// projector, the files.
+fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
+    use crate::calibrate::structured_light::{
+        StructuredLightJob, StructuredLightOptions, run_structured_light,
+    };
+    if let Some(e) = args.exposure
+        && !(e > 0.0 && e.is_finite())
+    {
+        anyhow::bail!("--exposure {e} must be a positive number of seconds");
+    }
+    if !(args.level > 0.0 && args.level <= 1.0) {
+        anyhow::bail!("--level {} must be in (0, 1]", args.level);
+    }
+    let job = StructuredLightJob {
+        config: args
+            .config
+            .clone()
+            .context("--structured-light needs --config")?,
+        scene: args.scene.clone(),
+        out: args.out.clone(),
+        options: StructuredLightOptions {
+            exposure_s: args.exposure,
+            frames: args.frames,
+            level: args.level,
+            ..StructuredLightOptions::default()
+        },
+        sim_samples: args.sim_samples,
+    };
+    let bars = std::sync::Mutex::new(None::<(String, indicatif::ProgressBar)>);
+    let lines = crate::progress::LogLines::default();
+    let summary = run_structured_light(&job, &|name, done, total, what| {
+        let mut bars = bars.lock().unwrap_or_else(|e| e.into_inner());
+        if bars.as_ref().is_none_or(|(n, _)| n != name) {
+            if let Some((_, pb)) = bars.take() {
+                pb.finish_and_clear();
+            }
+            let pb = crate::progress::bar(format!("structured light {name}"), total as u64);
+            *bars = Some((name.to_string(), pb));
+        }
+        if let Some((_, pb)) = bars.as_ref() {
+            pb.set_position(done as u64);
+            pb.set_message(what.to_string());
+        }
+        lines.say(|| format!("calibrate: {name}: {done}/{total} patterns ({what})"));
+    });
+    if let Some((_, pb)) = bars.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        pb.finish_and_clear();
+    }
+    let summary = summary?;
+    for p in &summary.projectors {
+        let o = &p.outcome;
+        eprintln!(
+            "calibrated {} by structured light: {} patterns, {} of {} lit camera pixels decoded, {} correspondences ({} outliers dropped), fit rms {:.3} px, held-out {:.3} px (decoded), {:.3} px against the sim's true projector, in {:.1} s; wrote {}{}",
+            p.device,
+            o.patterns,
+            o.valid_pixels,
+            o.lit_pixels,
+            o.fit_points,
+            o.outliers,
+            o.calibration.rms_px,
+            o.heldout_rms_px,
+            p.sim_true_heldout_px,
+            p.seconds,
+            p.file.display(),
+            match &p.node_reads {
+                Some(f) if f != &p.file => format!(" (its node reads {})", f.display()),
+                _ => String::new(),
+            }
+        );
+    }
+    eprintln!(
+        "calibrate: {} projectors seen by {} in {:.1} s; wrote {}",
+        summary.projectors.len(),
+        summary.camera,
+        summary.seconds,
+        args.out.join("summary.json").display()
     );
     Ok(())
 }
