@@ -14,8 +14,8 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use showcase_light::reflectance::CorrectionParams;
 use showcase_light::sim::SimConfig;
-use showcase_proto::Role;
 use showcase_proto::config::ClusterConfig;
+use showcase_proto::{Role, Showcase};
 use showcase_render::net::ClusterIdentity;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -66,18 +66,45 @@ pub fn run_config_capture(
     };
     let pnode = node_for(&cfg, Role::Projector, &projector.name)?.to_string();
     let cnode = node_for(&cfg, Role::Camera, &camera.name)?.to_string();
+    with_config_master(&cfg, base, scene.clone(), &|s| stage(s), |link| {
+        run_cluster_capture(
+            &scene,
+            link,
+            &pnode,
+            &cnode,
+            &opts.out,
+            &opts.capture,
+            &|s| stage(s),
+        )
+    })
+}
+
+/// Bind the master of `cfg` (whose folder is `base`) serving `scene`,
+/// its frame clock held, run `job` on its capture link on this thread,
+/// then let the nodes get what the job published and stop the master:
+/// the start-up every job through the configured cluster's nodes shares
+/// (`capture --config`, `calibrate --structured-light --config`). `stage`
+/// is told where the master listens.
+pub fn with_config_master<T>(
+    cfg: &ClusterConfig,
+    base: &Path,
+    scene: Showcase,
+    stage: &dyn Fn(&str),
+    job: impl FnOnce(&CaptureLink) -> Result<T>,
+) -> Result<T> {
     let listen = showcase_render::net::resolve(&cfg.master.listen, "master.listen")?;
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
-    runtime.block_on(async {
-        let (link, commands) = CaptureLink::new(Duration::from_secs(600));
+    let (link, commands) = CaptureLink::new(Duration::from_secs(600));
+    let (master, stop) = {
+        let _inside = runtime.enter();
         let server = Server::bind(ServerSettings {
             listen,
             identity,
-            roster: crate::cluster::Roster::from_config(&cfg),
+            roster: crate::cluster::Roster::from_config(cfg),
             core: crate::cluster::cluster_core_defaults(),
             // The frame clock is held while the nodes capture.
             frames: Some(0),
@@ -93,29 +120,18 @@ pub fn run_config_capture(
         stage(&format!("master listening on {}", server.local_addr()));
         let stop = CancellationToken::new();
         let show = Show::new(Tracking::None, cfg.master.target_hz as f64);
-        let master = tokio::spawn(server.run(scene.clone(), show, stop.clone()));
-        let job = {
-            let opts = opts.clone();
-            let stage = stage.clone();
-            tokio::task::spawn_blocking(move || {
-                run_cluster_capture(
-                    &scene,
-                    &link,
-                    &pnode,
-                    &cnode,
-                    &opts.out,
-                    &opts.capture,
-                    &|s| stage(s),
-                )
-            })
-        };
-        let summary = job.await.context("the capture job panicked")?;
-        // Let the nodes get the maps' snapshot before the Bye.
+        (runtime.spawn(server.run(scene, show, stop.clone())), stop)
+    };
+    // The master's tasks run on the runtime's workers while the job
+    // blocks this thread on its requests.
+    let result = job(&link);
+    runtime.block_on(async {
+        // Let the nodes get a published snapshot before the Bye.
         tokio::time::sleep(Duration::from_millis(200)).await;
         stop.cancel();
         let _ = tokio::time::timeout(Duration::from_secs(10), master).await;
-        summary
-    })
+    });
+    result
 }
 
 /// One record of `bench capture-cluster`: one method captured in process

@@ -165,10 +165,26 @@ pub struct CalibrateArgs {
     /// Calibrate every projector of `--config` by structured light: Gray
     /// codes shown by each projector, decoded from the config's camera
     /// (trusted as calibrated), each decoded pixel a 2D-3D
-    /// correspondence on the known scene, solved by DLT + LM. Runs on the
-    /// simulated showcase of the config's scene.
+    /// correspondence on the known scene, solved by DLT + LM. Runs
+    /// through the config's nodes: this process listens as its master,
+    /// its projector nodes show the patterns, its camera node captures
+    /// them (as `capture --config`); with `--sim-in-process`, on an
+    /// in-process simulated showcase of the config's scene instead.
     #[arg(long, requires = "config", conflicts_with_all = ["points", "photometric"])]
     pub structured_light: bool,
+    /// With `--structured-light`: no nodes, the simulated showcase of the
+    /// config's scene in this process.
+    #[arg(long, requires = "structured_light")]
+    pub sim_in_process: bool,
+    /// With `--structured-light` through the nodes: they run in sim mode
+    /// (`showcase-node --sim-light`), so each fit is judged against the
+    /// scene's projector.
+    #[arg(long, requires = "structured_light", conflicts_with = "sim_in_process")]
+    pub sim: bool,
+    /// With `--structured-light` through the nodes: seconds to wait for
+    /// the camera and projector nodes to join.
+    #[arg(long, default_value_t = 30)]
+    pub wait_s: u64,
     /// With `--structured-light`: the cluster configuration (its scene,
     /// camera node and projector nodes).
     #[arg(long)]
@@ -189,8 +205,8 @@ pub struct CalibrateArgs {
     /// With `--structured-light`: camera frames averaged per pattern.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub frames: u32,
-    /// With `--structured-light`: paths per camera pixel of the simulated
-    /// showcase's light transport (a full-white pattern).
+    /// With `--structured-light --sim-in-process`: paths per camera pixel
+    /// of the simulated showcase's light transport (a full-white pattern).
     #[arg(long, default_value_t = crate::calibrate::structured_light::SIM_SAMPLES, value_parser = clap::value_parser!(u32).range(1..))]
     pub sim_samples: u32,
     /// With `--photometric`: paths per irradiance-cache point of the
@@ -235,7 +251,8 @@ pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
 /// projector, the files.
 fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
     use crate::calibrate::structured_light::{
-        StructuredLightJob, StructuredLightOptions, run_structured_light,
+        StructuredLightJob, StructuredLightOptions, ThroughNodes, run_config_structured_light,
+        run_structured_light,
     };
     if let Some(e) = args.exposure
         && !(e > 0.0 && e.is_finite())
@@ -262,7 +279,7 @@ fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
     };
     let bars = std::sync::Mutex::new(None::<(String, indicatif::ProgressBar)>);
     let lines = crate::progress::LogLines::default();
-    let summary = run_structured_light(&job, &|name, done, total, what| {
+    let progress = |name: &str, done: usize, total: usize, what: &str| {
         let mut bars = bars.lock().unwrap_or_else(|e| e.into_inner());
         if bars.as_ref().is_none_or(|(n, _)| n != name) {
             if let Some((_, pb)) = bars.take() {
@@ -276,7 +293,16 @@ fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
             pb.set_message(what.to_string());
         }
         lines.say(|| format!("calibrate: {name}: {done}/{total} patterns ({what})"));
-    });
+    };
+    let summary = if args.sim_in_process {
+        run_structured_light(&job, &progress)
+    } else {
+        let nodes = ThroughNodes {
+            wait: std::time::Duration::from_secs(args.wait_s.max(1)),
+            sim: args.sim,
+        };
+        run_config_structured_light(&job, &nodes, &|s| eprintln!("calibrate: {s}..."), &progress)
+    };
     if let Some((_, pb)) = bars.lock().unwrap_or_else(|e| e.into_inner()).take() {
         pb.finish_and_clear();
     }
@@ -284,7 +310,7 @@ fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
     for p in &summary.projectors {
         let o = &p.outcome;
         eprintln!(
-            "calibrated {} by structured light: {} patterns, {} of {} lit camera pixels decoded, {} correspondences ({} outliers dropped), fit rms {:.3} px, held-out {:.3} px (decoded), {:.3} px against the sim's true projector, in {:.1} s; wrote {}{}",
+            "calibrated {} by structured light: {} patterns, {} of {} lit camera pixels decoded, {} correspondences ({} outliers dropped), fit rms {:.3} px, held-out {:.3} px (decoded){}, in {:.1} s; wrote {}{}",
             p.device,
             o.patterns,
             o.valid_pixels,
@@ -293,7 +319,14 @@ fn calibrate_structured_light(args: &CalibrateArgs) -> Result<()> {
             o.outliers,
             o.calibration.rms_px,
             o.heldout_rms_px,
-            p.sim_true_heldout_px,
+            if p.sim_true_heldout_px >= 0.0 {
+                format!(
+                    ", {:.3} px against the sim's true projector",
+                    p.sim_true_heldout_px
+                )
+            } else {
+                String::new()
+            },
             p.seconds,
             p.file.display(),
             match &p.node_reads {

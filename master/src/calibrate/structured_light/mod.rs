@@ -36,7 +36,11 @@ pub use capture::{Captured, MAX_EXPOSURE_S, capture_and_decode};
 pub use correspondences::{CorrespondenceSettings, Correspondences, Dropped, correspondences};
 pub use decode::{DecodeSettings, Decoded};
 pub use error::StructuredLightError;
-pub use job::{ProjectorSummary, StructuredLightJob, StructuredLightSummary, run_structured_light};
+pub use job::{
+    ProjectorSummary, StructuredLightJob, StructuredLightSummary, Target, Targets, ThroughNodes,
+    calibrate_targets, run_config_structured_light, run_structured_light,
+    run_structured_light_on_nodes,
+};
 pub use patterns::{Axis, Pattern, PatternSet, bits_for, gray, gray_inverse};
 
 use super::{CalibrateOptions, Calibration, CalibrationInput, calibrate};
