@@ -298,3 +298,112 @@ pub fn bench_capture_cluster(
     std::fs::remove_dir_all(&opts.scratch).ok();
     Ok(records)
 }
+
+/// The structured-light record of `bench capture-cluster`: every
+/// projector of the demo cabinet calibrated by Gray codes in process and
+/// through the loopback cluster's sim nodes, same seeds and sizes.
+#[derive(Clone, Debug, Serialize)]
+pub struct StructuredLightClusterRecord {
+    /// Scene.
+    pub scene: String,
+    /// The job (`structured-light`).
+    pub method: String,
+    /// Camera `[width, height]`.
+    pub camera: [u32; 2],
+    /// Projectors calibrated.
+    pub projectors: usize,
+    /// Paths per pixel of the sim.
+    pub samples_per_pixel: u32,
+    /// Patterns the projector nodes showed.
+    pub patterns: u64,
+    /// Every calibration through the cluster equals the in-process one.
+    pub identical: bool,
+    /// The worst projector's held-out RMS against the true projector
+    /// through the cluster (px).
+    pub true_heldout_px: f64,
+    /// Wall seconds of the in-process job.
+    pub seconds_in_process: f64,
+    /// Wall seconds of the job through the cluster (patterns and frames
+    /// over QUIC).
+    pub seconds_cluster: f64,
+    /// `seconds_cluster / seconds_in_process`.
+    pub time_ratio: f64,
+    /// Wall seconds of the whole loopback run: certificates, the master
+    /// and the nodes started and stopped, the job.
+    pub seconds_cluster_with_start: f64,
+}
+
+/// Run the structured-light record of `bench capture-cluster` on the demo
+/// cabinet with its camera at `camera` and `samples` paths per pixel.
+pub fn bench_structured_light_cluster(
+    camera: (u32, u32),
+    samples: u32,
+    scratch: &Path,
+) -> Result<StructuredLightClusterRecord> {
+    use crate::calibrate::structured_light::{StructuredLightOptions, Targets, calibrate_targets};
+    use crate::cluster::capture_loopback::{StructuredLightLoopback, loopback_structured_light};
+    let mut scene = crate::scene_file::load_any(&crate::demo::default_scene())?;
+    let c = scene
+        .cameras
+        .first_mut()
+        .context("the demo scene has no camera")?;
+    c.device = resize_device(&c.device, camera.0, camera.1)?;
+    let sim = SimConfig {
+        samples_per_pixel: samples,
+        ..SimConfig::default()
+    };
+    let targets = Targets::of_scene(&scene)?;
+    let options = StructuredLightOptions::default();
+    let t = Instant::now();
+    let world = showcase_light::sim::SimShowcase::new(&scene, sim.clone())?;
+    let local = calibrate_targets(
+        &targets,
+        &scratch.join("sl-in-process"),
+        &options,
+        &mut world.camera(0)?,
+        &mut |t| Ok(world.projector(t.index)?),
+        true,
+        t,
+        &|_, _, _, _| {},
+    )?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let t = Instant::now();
+    let r = runtime.block_on(loopback_structured_light(StructuredLightLoopback {
+        scene: scene.clone(),
+        sim,
+        options,
+        out: scratch.join("sl-cluster"),
+        wait: Duration::from_secs(30),
+        request_timeout: Duration::from_secs(600),
+        absent: None,
+    }))?;
+    let with_start = t.elapsed().as_secs_f64();
+    let s = r.summary.map_err(|e| anyhow::anyhow!(e))?;
+    let identical = s.projectors.len() == local.projectors.len()
+        && s.projectors
+            .iter()
+            .zip(&local.projectors)
+            .all(|(a, b)| a.outcome.calibration == b.outcome.calibration);
+    std::fs::remove_dir_all(scratch).ok();
+    Ok(StructuredLightClusterRecord {
+        scene: scene.name.clone(),
+        method: "structured-light".into(),
+        camera: [camera.0, camera.1],
+        projectors: s.projectors.len(),
+        samples_per_pixel: samples,
+        patterns: r.patterns_shown,
+        identical,
+        true_heldout_px: s
+            .projectors
+            .iter()
+            .map(|p| p.sim_true_heldout_px)
+            .fold(0.0, f64::max),
+        seconds_in_process: local.seconds,
+        seconds_cluster: s.seconds,
+        time_ratio: s.seconds / local.seconds,
+        seconds_cluster_with_start: with_start,
+    })
+}

@@ -6,7 +6,8 @@ use super::bench::BenchArgs;
 use super::jobs::CaptureArgs;
 use crate::capture::cluster::ClusterCaptureOptions;
 use crate::capture::cluster_job::{
-    ClusterBenchOptions, ConfigCaptureOptions, bench_capture_cluster, run_config_capture,
+    ClusterBenchOptions, ConfigCaptureOptions, bench_capture_cluster,
+    bench_structured_light_cluster, run_config_capture,
 };
 use crate::capture::pipeline::{CaptureConfig, Method};
 use anyhow::Result;
@@ -62,13 +63,24 @@ pub(super) fn capture(args: &CaptureArgs, config: &std::path::Path) -> Result<()
     Ok(())
 }
 
-/// `bench capture-cluster`.
+/// `bench capture-cluster`: the capture's records, then structured
+/// light's (the demo cabinet, a 240 x 180 camera).
 pub(super) fn bench(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
     let opts = ClusterBenchOptions::default();
-    pb.set_length(opts.methods.len() as u64);
-    let records = bench_capture_cluster(&opts, &|k, what| {
+    pb.set_length(opts.methods.len() as u64 + 1);
+    let mut records = bench_capture_cluster(&opts, &|k, what| {
         pb.set_position(k as u64);
         pb.set_message(what.to_string());
-    })?;
+    })?
+    .into_iter()
+    .map(serde_json::to_value)
+    .collect::<Result<Vec<_>, _>>()?;
+    pb.set_position(opts.methods.len() as u64);
+    pb.set_message("structured light");
+    records.push(serde_json::to_value(bench_structured_light_cluster(
+        (240, 180),
+        crate::calibrate::structured_light::SIM_SAMPLES,
+        &opts.scratch.join("structured-light"),
+    )?)?);
     super::bench::emit(args, pb, &records)
 }
