@@ -5,6 +5,7 @@ mod alloc_track;
 mod browser;
 mod calibration;
 mod camera;
+mod camera_node;
 mod capture;
 mod capture_chunks;
 mod check;

@@ -8,8 +8,8 @@ use showcase_proto::config::{ClusterConfig, HostPort};
 use showcase_render::gpu::GpuContext;
 use showcase_render::net::{ClusterIdentity, resolve};
 use showcase_render::node::{
-    CaptureHost, LightBus, NodeRuntime, OutputRenderer, Renderer, SimCameraNode, SimProjectorNode,
-    StateHashRenderer, run_node_with_devices,
+    CameraSpec, CaptureHost, LightBus, NodeRuntime, OutputRenderer, Renderer, SimCameraNode,
+    SimProjectorNode, StateHashRenderer, V4l2NodeOptions, run_node_with_devices,
 };
 use showcase_render::render::gpu_frame::DEFAULT_SHADOW_RES;
 use std::net::SocketAddr;
@@ -48,6 +48,22 @@ struct NodeCli {
     /// simulated room names the same folder.
     #[arg(long)]
     sim_light: Option<PathBuf>,
+    /// A camera node's camera: `v4l2:/dev/videoN[:WIDTHxHEIGHT[:FORMAT]]`
+    /// (a real camera, built with `--features v4l2`; the size defaults to
+    /// the scene camera's, which it must equal) or `recorded:DIR` (a
+    /// folder `showcase-camera record` made, replayed). Exposure and gain
+    /// are fixed by each capture request; auto exposure, gain and white
+    /// balance stay off.
+    #[arg(long, conflicts_with = "sim_light")]
+    camera: Option<CameraSpec>,
+    /// With --camera v4l2:...: the gain control's value the camera was
+    /// calibrated at (`showcase-camera formats` shows its range; left as it
+    /// is when not given).
+    #[arg(long, requires = "camera")]
+    camera_gain: Option<i32>,
+    /// With --camera v4l2:...: fixed white balance in kelvin.
+    #[arg(long, requires = "camera")]
+    camera_white_balance_k: Option<i32>,
     /// With --sim-light: paths per camera pixel of the sim's light
     /// transport.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
@@ -181,7 +197,7 @@ fn run(cli: NodeCli) -> Result<()> {
         }
     };
     let devices = match (&cli.sim_light, node.role) {
-        (None, _) => None,
+        (None, _) => host_camera(&cli, node.role, &node.output)?,
         (Some(dir), role) => {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("--sim-light {}: cannot create", dir.display()))?;
@@ -235,6 +251,30 @@ fn run(cli: NodeCli) -> Result<()> {
     drive(rt, renderer.as_mut(), devices, stop)
 }
 
+/// The devices of `--camera`: a camera node only.
+fn host_camera(
+    cli: &NodeCli,
+    role: showcase_proto::Role,
+    output: &str,
+) -> Result<Option<CaptureHost>> {
+    let Some(spec) = &cli.camera else {
+        return Ok(None);
+    };
+    if role != showcase_proto::Role::Camera {
+        anyhow::bail!(
+            "--camera: this node drives a {role:?} output ({output:?}); only a camera node hosts a camera: give --camera to the node whose role is camera"
+        );
+    }
+    let options = V4l2NodeOptions {
+        gain: cli.camera_gain,
+        white_balance_k: cli.camera_white_balance_k,
+    };
+    let host = showcase_render::node::camera_node(output, spec, options)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    tracing::info!(camera = ?spec, "camera node: captures with this machine's camera");
+    Ok(Some(host))
+}
+
 /// Run the node until SIGINT or SIGTERM, `stop`, or a fatal error.
 fn drive<R: Renderer + ?Sized>(
     rt: NodeRuntime,
@@ -260,6 +300,40 @@ fn drive<R: Renderer + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_a_camera_node_hosts_a_camera() {
+        let cli = NodeCli::try_parse_from([
+            "showcase-node",
+            "--config",
+            "c.toml",
+            "--name",
+            "face-0",
+            "--camera",
+            "recorded:/nonexistent",
+        ])
+        .unwrap();
+        let e = host_camera(&cli, showcase_proto::Role::Face, "face-0")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("only a camera node hosts a camera"), "{e}");
+        let e = host_camera(&cli, showcase_proto::Role::Camera, "camera-0")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent"), "{e}");
+        let e = NodeCli::try_parse_from([
+            "showcase-node",
+            "--config",
+            "c.toml",
+            "--name",
+            "camera-0",
+            "--camera",
+            "usb:0",
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("v4l2:/dev/videoN"), "{e}");
+    }
 
     #[test]
     fn master_flag_takes_host_names_and_ips() {

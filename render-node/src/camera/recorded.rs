@@ -111,6 +111,20 @@ pub enum RecordedError {
         /// Asked exposure, ms.
         asked_ms: f64,
     },
+    /// The capture asks for another gain than the recording's.
+    #[error(
+        "{dir}: the recording's camera has gain {recorded}, the capture asks {asked}: a \
+         recording cannot change its gain; capture with the recording's camera calibration, or \
+         record again at the new gain"
+    )]
+    Gain {
+        /// The folder.
+        dir: PathBuf,
+        /// The recording's gain.
+        recorded: f64,
+        /// The asked gain.
+        asked: f64,
+    },
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> RecordedError + '_ {
@@ -205,6 +219,11 @@ impl RecordedCamera {
         })
     }
 
+    /// The recording's folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
     /// The recording's index.
     pub fn index(&self) -> &RecordingIndex {
         &self.index
@@ -218,6 +237,41 @@ impl RecordedCamera {
     /// Starts the replay over.
     pub fn rewind(&mut self) {
         self.next = 0;
+    }
+
+    /// `Err` when the next frame was recorded with another exposure than
+    /// `exposure_s` (more than 1 % off): a recording cannot change its
+    /// exposure. `Ok` when no frame is left ([`Self::next_frame`] says so).
+    pub fn check_exposure(&self, exposure_s: f64) -> Result<(), RecordedError> {
+        if let Some(entry) = self.index.frames.get(self.next) {
+            let recorded = entry.exposure_s;
+            let off = (exposure_s - recorded).abs();
+            if off.is_nan() || off > 0.01 * recorded.max(1e-9) {
+                return Err(RecordedError::Exposure {
+                    dir: self.dir.clone(),
+                    index: self.next,
+                    recorded_ms: recorded * 1e3,
+                    asked_ms: exposure_s * 1e3,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// `Err` when `gain` (signal per unit radiance and second) is not the
+    /// recording's calibrated gain (more than 0.1 % off): a recording cannot
+    /// change its gain.
+    pub fn check_gain(&self, gain: f64) -> Result<(), RecordedError> {
+        let recorded = f64::from(self.index.response.gain);
+        let off = (gain - recorded).abs();
+        if off.is_nan() || off > 1e-3 * recorded.abs().max(1e-9) {
+            return Err(RecordedError::Gain {
+                dir: self.dir.clone(),
+                recorded,
+                asked: gain,
+            });
+        }
+        Ok(())
     }
 
     /// The next frame, whatever its exposure.
@@ -269,18 +323,7 @@ impl CameraDevice for RecordedCamera {
     /// timestamps are), the exposure must match the recorded one within
     /// 1 %.
     fn capture(&mut self, _start_s: f64, exposure_s: f64) -> Result<CameraFrame, RecordedError> {
-        if let Some(entry) = self.index.frames.get(self.next) {
-            let recorded = entry.exposure_s;
-            let off = (exposure_s - recorded).abs();
-            if off.is_nan() || off > 0.01 * recorded.max(1e-9) {
-                return Err(RecordedError::Exposure {
-                    dir: self.dir.clone(),
-                    index: self.next,
-                    recorded_ms: recorded * 1e3,
-                    asked_ms: exposure_s * 1e3,
-                });
-            }
-        }
+        self.check_exposure(exposure_s)?;
         self.next_frame().map(|f| f.frame)
     }
 }

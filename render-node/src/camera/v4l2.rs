@@ -1008,6 +1008,11 @@ impl V4l2Camera {
         Ok(maps)
     }
 
+    /// The device node.
+    pub fn path(&self) -> &Path {
+        &self.dev.path
+    }
+
     /// The format and size in use.
     pub fn format(&self) -> FormatChoice {
         self.choice

@@ -3,6 +3,7 @@
 //! (declared in `crate::render::renderer`, re-exported here), the
 //! renderer a real node runs, presenting and PNG output.
 
+pub mod camera_node;
 pub mod capture;
 pub mod driver;
 pub mod output;
@@ -11,6 +12,7 @@ pub mod present;
 pub mod renderer;
 pub mod signal;
 
+pub use camera_node::{CameraNode, CameraSpec, ManualCamera, V4l2NodeOptions, camera_node};
 pub use capture::{CaptureDevices, CaptureHost, LightBus, SimCameraNode, SimProjectorNode};
 pub use driver::{NodeLog, NodeRunError, NodeRuntime, run_node, run_node_with_devices};
 pub use output::{OutputRenderer, observer_in_front};
