@@ -11,8 +11,8 @@ use showcase_light::{DeviceRays, ObjectFilter, SceneGeometry};
 use showcase_master::calibrate::structured_light::bench::{surface_points, true_rms};
 use showcase_master::calibrate::structured_light::{
     CorrespondenceSettings, StructuredLightError, StructuredLightJob, StructuredLightOptions,
-    Targets, calibrate_structured_light, calibrate_targets, capture_and_decode, correspondences,
-    run_structured_light,
+    StructuredLightOutcome, Targets, calibrate_structured_light, calibrate_targets,
+    capture_and_decode, correspondences, run_structured_light,
 };
 use showcase_master::cluster::capture_loopback::{
     StructuredLightLoopback, loopback_structured_light,
@@ -143,20 +143,33 @@ fn decode_under_camera_noise_finds_the_true_projector_pixels_and_masks_the_unlit
     );
 }
 
-#[test]
-fn structured_light_calibrates_a_showcase_projector_within_0_3_px_of_the_truth() {
-    let scene = small_showcase();
-    let sim = sim(&scene);
-    let geometry = SceneGeometry::build(&scene, &ObjectFilter::Real).unwrap();
+/// Calibrate projector `index` of `scene` in its sim, seen by camera 0,
+/// with the default options; the real surfaces' geometry it used.
+fn calibrate_in_sim(
+    scene: &Showcase,
+    index: usize,
+) -> (
+    Result<StructuredLightOutcome, StructuredLightError>,
+    SceneGeometry,
+) {
+    let sim = sim(scene);
+    let geometry = SceneGeometry::build(scene, &ObjectFilter::Real).unwrap();
     let outcome = calibrate_structured_light(
-        "projector-1",
-        &mut sim.projector(1).unwrap(),
+        &format!("projector-{index}"),
+        &mut sim.projector(index).unwrap(),
         &mut sim.camera(0).unwrap(),
         &geometry,
         &StructuredLightOptions::default(),
         &|_, _, _| {},
-    )
-    .unwrap();
+    );
+    (outcome, geometry)
+}
+
+#[test]
+fn structured_light_calibrates_a_showcase_projector_within_0_3_px_of_the_truth() {
+    let scene = small_showcase();
+    let (outcome, geometry) = calibrate_in_sim(&scene, 1);
+    let outcome = outcome.unwrap();
     let truth = &scene.projectors[1].device;
     let points = surface_points(truth, &geometry, 2000, 1);
     assert!(points.len() > 1000, "{} held-out points", points.len());
@@ -239,17 +252,7 @@ fn too_few_valid_pixels_say_how_many_and_what_to_check() {
     // A camera so noisy that hardly a bit reads clearly.
     let mut scene = small_showcase();
     scene.cameras[0].response.read_noise = 0.3;
-    let sim = sim(&scene);
-    let geometry = SceneGeometry::build(&scene, &ObjectFilter::Real).unwrap();
-    let err = calibrate_structured_light(
-        "projector-0",
-        &mut sim.projector(0).unwrap(),
-        &mut sim.camera(0).unwrap(),
-        &geometry,
-        &StructuredLightOptions::default(),
-        &|_, _, _| {},
-    )
-    .unwrap_err();
+    let err = calibrate_in_sim(&scene, 0).0.unwrap_err();
     let StructuredLightError::TooFewValid { valid, needed, .. } = err else {
         panic!("{err:?}");
     };
