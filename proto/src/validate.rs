@@ -327,6 +327,22 @@ impl Validate for ProjectorResponse {
         for (i, s) in self.wheel_segments.iter().enumerate() {
             nonneg3(&|| format!("wheel_segments[{i}]"), *s)?;
         }
+        if let Some(p) = &self.photometry {
+            for (name, v) in [
+                ("photometry.gamma", p.gamma),
+                ("photometry.peak", p.peak),
+                ("photometry.black_level", p.black_level),
+            ] {
+                finite3(&|| name.into(), v)?;
+            }
+            if p.gamma.min_element() <= 0.0 {
+                return fail("photometry.gamma", "gamma must be positive");
+            }
+            if p.peak.min_element() <= 0.0 {
+                return fail("photometry.peak", "peak intensity must be positive");
+            }
+            nonneg3(&|| "photometry.black_level".into(), p.black_level)?;
+        }
         Ok(())
     }
 }

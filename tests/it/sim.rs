@@ -188,6 +188,7 @@ fn projector_direct_light_is_equation_3_1() {
         black_level: 0.1,
         wheel_segments: Vec::new(),
         wheel_period_s: 1.0 / 120.0,
+        photometry: None,
     };
     let sim = SimShowcase::new(
         &scene,

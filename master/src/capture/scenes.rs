@@ -19,6 +19,7 @@ pub fn rig_projector_response() -> ProjectorResponse {
         black_level: 0.01,
         wheel_segments: vec![Vec3::X, Vec3::Y, Vec3::Z],
         wheel_period_s: 1.0 / 120.0,
+        photometry: None,
     }
 }
 

@@ -1,6 +1,7 @@
 //! Projectors and cameras: the OpenCV pinhole model with its one mapping
 //! to wgpu clip space, and each device's photometric response.
 
+use crate::CrtResponse;
 use glam::{DMat3, DMat4, DVec3, DVec4, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -135,6 +136,13 @@ impl PinholeDevice {
 }
 
 /// Projector photometry: radiance out = `eta * response(pixel) + black_level`.
+///
+/// `gamma`, `eta` and `black_level` are the model the product computes
+/// pixel values in (one curve for every channel). [`Self::photometry`],
+/// when given, is the projector's light per pixel value and channel: in
+/// the simulated showcase the device itself, for a node the profile it
+/// encodes its values with at the device boundary (the light the model
+/// wants of a value, shown by the device value that gives it).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ProjectorResponse {
     /// Exponent of the pixel-value response curve (`value^gamma`).
@@ -148,6 +156,52 @@ pub struct ProjectorResponse {
     pub wheel_segments: Vec<Vec3>,
     /// Duration of one wheel turn in seconds.
     pub wheel_period_s: f32,
+    /// The light per device value, per channel (W/sr): `black_level +
+    /// peak * value^gamma`; `None`: exactly the model above (see the
+    /// type's docs).
+    #[serde(default)]
+    pub photometry: Option<CrtResponse>,
+}
+
+impl ProjectorResponse {
+    /// The model's light (W/sr) for pixel values `value` (clamped to
+    /// `0..=1`; non-finite counts as 0): `eta * value^gamma +
+    /// black_level` per channel.
+    pub fn model(&self, value: Vec3) -> Vec3 {
+        self.model_curve().emit(value)
+    }
+
+    /// The model as a per-channel curve.
+    pub fn model_curve(&self) -> CrtResponse {
+        CrtResponse {
+            gamma: Vec3::splat(self.gamma),
+            peak: Vec3::splat(self.eta),
+            black_level: Vec3::splat(self.black_level),
+        }
+    }
+
+    /// The light the device emits (W/sr) at device values `value`: its
+    /// [`Self::photometry`], or the model where there is none.
+    pub fn light(&self, value: Vec3) -> Vec3 {
+        self.photometry
+            .unwrap_or_else(|| self.model_curve())
+            .emit(value)
+    }
+
+    /// The device values a node sends for the model's pixel values
+    /// `value`: through [`Self::photometry`] the values whose light is the
+    /// model's (clamped to what the device can show), else `value`
+    /// itself. Non-finite values show black.
+    pub fn encode(&self, value: Vec3) -> Vec3 {
+        match &self.photometry {
+            None => value,
+            Some(curve) => crate::CrtPhotometry {
+                crt: *curve,
+                splitter: crate::BeamSplitter::IDEAL,
+            }
+            .drive(self.model(value)),
+        }
+    }
 }
 
 impl Default for ProjectorResponse {
@@ -158,6 +212,7 @@ impl Default for ProjectorResponse {
             black_level: 0.0,
             wheel_segments: Vec::new(),
             wheel_period_s: 1.0 / 120.0,
+            photometry: None,
         }
     }
 }

@@ -87,7 +87,9 @@ impl BeamSplitter {
 }
 
 /// A CRT's light per drive value `d` in `0..=1`, per channel:
-/// `black_level + peak * d^gamma` (radiance, W/m^2/sr).
+/// `black_level + peak * d^gamma` (radiance, W/m^2/sr). A projector's
+/// per-channel photometry is the same curve in W/sr
+/// ([`crate::ProjectorResponse::photometry`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CrtResponse {
     /// Exponent of the drive value, per channel.

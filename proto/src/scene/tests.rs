@@ -312,3 +312,45 @@ fn camera_response_decode_inverts_encode_below_saturation() {
     assert_eq!(r.encode(0, f64::NAN), 0.0);
     assert_eq!(r.encode(0, 1e9), 1.0);
 }
+
+/// A projector's node sends the device values whose light is the model's:
+/// through its own curve per channel, the model's light comes out; with
+/// no curve the values go as they are; a value the device cannot show
+/// clips to its range.
+#[test]
+fn a_projector_encodes_the_model_through_its_photometry() {
+    let model = ProjectorResponse {
+        gamma: 2.2,
+        eta: 4.0,
+        black_level: 0.002,
+        ..ProjectorResponse::default()
+    };
+    let v = Vec3::new(0.3, 0.6, 0.9);
+    assert_eq!(model.encode(v), v);
+    assert_eq!(model.light(v), model.model(v));
+    let device = ProjectorResponse {
+        photometry: Some(CrtResponse {
+            gamma: Vec3::new(2.35, 2.1, 2.5),
+            peak: Vec3::new(3.997, 3.998, 3.996),
+            black_level: Vec3::new(0.005, 0.004, 0.006),
+        }),
+        ..model.clone()
+    };
+    for x in [0.1f32, 0.5, 1.0] {
+        let v = Vec3::new(x, 0.8 * x, 0.9 * x);
+        let got = device.light(device.encode(v));
+        let want = model.model(v);
+        assert!(
+            ((got - want) / want).abs().max_element() < 1e-4,
+            "{v}: {got} against {want}"
+        );
+        assert_ne!(device.encode(v), v);
+    }
+    // The model's black (0.002) is below the device's: it shows its black.
+    assert_eq!(device.encode(Vec3::ZERO), Vec3::ZERO);
+    assert_eq!(device.encode(Vec3::splat(f32::NAN)), Vec3::ZERO);
+    let mut bad = device.clone();
+    bad.photometry.as_mut().unwrap().gamma.y = -1.0;
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("photometry.gamma"), "{e}");
+}

@@ -51,7 +51,7 @@
 use crate::finite::finite_or_zero;
 use crate::render::cube_map::{environment, reflect};
 use crate::render::projector::{
-    Occluders, emitted_intensity, in_occlusion_shadow, target_irradiance,
+    Occluders, device_intensity, in_occlusion_shadow, target_irradiance,
 };
 use crate::render::{FrameScene, RenderSetupError};
 use crate::{DeviceRays, Image, Ray, RgbImage, SceneGeometry};
@@ -542,7 +542,8 @@ fn real_radiance(
         let Some(v) = value.get(px, py) else {
             continue;
         };
-        let j = emitted_intensity(v.as_dvec3(), &projector.response);
+        // The device's own light (the simulated showcase's truth).
+        let j = device_intensity(v.as_dvec3(), &projector.response);
         let to = rays.center() - hit.point;
         let r2 = to.length_squared();
         e += j * (facing.dot(to) / r2.sqrt() / r2);

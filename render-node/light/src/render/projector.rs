@@ -153,6 +153,17 @@ pub fn emitted_intensity(value: DVec3, response: &ProjectorResponse) -> DVec3 {
     finite_or_zero(j)
 }
 
+/// The radiant intensity (W/sr) a projector device emits at device values
+/// `value`: its per-channel photometry where it has one
+/// ([`ProjectorResponse::light`]), else the model ([`emitted_intensity`],
+/// the same numbers).
+pub fn device_intensity(value: DVec3, response: &ProjectorResponse) -> DVec3 {
+    if response.photometry.is_none() {
+        return emitted_intensity(value, response);
+    }
+    finite_or_zero(response.light(value.as_vec3()).as_dvec3())
+}
+
 /// What produced a pixel of the map; neighbouring pixels whose states
 /// differ lie on a silhouette or shadow edge.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

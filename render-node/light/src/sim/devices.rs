@@ -266,8 +266,18 @@ impl Shared {
 }
 
 /// Average radiant intensity (W/sr) of a projector pixel of value `value`:
-/// `eta * clamp(value, 0, 1)^gamma + black_level` per channel.
+/// the device's own per-channel curve where the scene states one
+/// ([`ProjectorResponse::photometry`], the simulated showcase's truth),
+/// else `eta * clamp(value, 0, 1)^gamma + black_level` per channel.
 pub fn projector_intensity(response: &ProjectorResponse, value: Vec3) -> Vec3 {
+    if response.photometry.is_some() {
+        let out = response.light(value);
+        return if out.is_finite() {
+            out.max(Vec3::ZERO)
+        } else {
+            Vec3::ZERO
+        };
+    }
     let v = DVec3::from(value.to_array().map(|c| {
         let c = finite_or_zero(c).clamp(0.0, 1.0);
         c as f64

@@ -129,7 +129,15 @@ impl ProjectorRenderer {
         }
         self.pipeline
             .draw(&self.ctx, &resolved, projector, &passes, false)?;
-        let map = self.pipeline.read_output(&self.ctx)?;
+        let mut map = self.pipeline.read_output(&self.ctx)?;
+        // The device boundary: the model's values become the device's
+        // through its photometric profile, if it has one.
+        if projector.response.photometry.is_some() {
+            for p in &mut map.value {
+                let v = projector.response.encode(glam::Vec3::new(p[0], p[1], p[2]));
+                [p[0], p[1], p[2]] = v.to_array();
+            }
+        }
         let output = RenderOutput {
             hash: hash_pixels(&map.value),
             image: Some(OutputImage {

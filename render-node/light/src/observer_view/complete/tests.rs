@@ -70,6 +70,7 @@ fn projector() -> Projector {
             black_level: 0.0,
             wheel_segments: Vec::new(),
             wheel_period_s: 0.0,
+            photometry: None,
         },
     }
 }
