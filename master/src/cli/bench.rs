@@ -477,10 +477,14 @@ fn photometric(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         pb.set_message(format!("{}", scene.display()));
         let truth = crate::scene_file::load_any(scene)?;
         // The nodes know the devices' geometry but not their photometry:
-        // they start from a nominal CRT behind an ideal combiner.
+        // they start from a nominal CRT behind an ideal combiner, and from
+        // the projectors' model.
         let mut nodes = truth.clone();
         for f in &mut nodes.faces {
             f.photometry = showcase_proto::CrtPhotometry::nominal(NOMINAL_GAMMA);
+        }
+        for p in &mut nodes.projectors {
+            p.response.photometry = None;
         }
         let (_, record) = bench_photometric_scene(
             &truth,

@@ -147,7 +147,8 @@ pub struct CalibrateArgs {
     #[arg(long, required_unless_present_any = ["photometric", "structured_light"])]
     pub points: Option<PathBuf>,
     /// Output calibration (JSON); with `--photometric` a folder, which
-    /// gets one `<face>-photometric.json` per face and `summary.json`;
+    /// gets one `<face>-photometric.json` per face, one
+    /// `<projector>-photometric.json` per projector and `summary.json`;
     /// with `--structured-light` a folder, which gets one
     /// `<projector>.json` per projector (the file `--points` writes) and
     /// `summary.json`.
@@ -156,9 +157,10 @@ pub struct CalibrateArgs {
     /// Solver.
     #[arg(long, value_enum, default_value_t = CalibrationMethod::Lm)]
     pub method: CalibrationMethod,
-    /// Calibrate the faces photometrically instead: each face's CRT and
-    /// beam splitter, measured by the scene's camera in its observer's
-    /// place, as the profile its node encodes with. Runs on the simulated
+    /// Calibrate the faces and projectors photometrically instead: each
+    /// face's CRT and beam splitter, measured by the scene's camera in its
+    /// observer's place, and each projector's light per value and channel
+    /// by the same camera, as the profile its node encodes with. Runs on the simulated
     /// showcase of `--scene` (no real camera is attached to this build).
     #[arg(long, requires = "scene", conflicts_with = "points")]
     pub photometric: bool,
@@ -216,7 +218,7 @@ pub struct CalibrateArgs {
 }
 
 /// `calibrate`: fit one device and report its residual, or (with
-/// `--photometric`) the faces' profiles.
+/// `--photometric`) the faces' and projectors' profiles.
 pub(super) fn calibrate(args: &CalibrateArgs) -> Result<()> {
     if args.structured_light {
         return calibrate_structured_light(args);

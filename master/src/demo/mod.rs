@@ -235,6 +235,9 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     for f in &mut scene.faces {
         f.photometry = showcase_proto::CrtPhotometry::nominal(photometric::NOMINAL_GAMMA);
     }
+    for p in &mut scene.projectors {
+        p.response.photometry = None;
+    }
     if let Some(reason) = unsupported(&scene, "calibration") {
         report.skipped("calibration", reason);
     } else {
@@ -603,11 +606,17 @@ fn photometric_stage(
     scene: &mut showcase_proto::Showcase,
     transport: &views::Transport,
 ) -> Result<StageOutcome> {
-    let (faces, record) =
+    let (judged, record) =
         photometric::photometric_record(truth, scene, PHOTOMETRIC_FRAME, transport)?;
-    for j in &faces {
+    let faces = &judged.faces;
+    for j in faces {
         if let Some(f) = scene.faces.get_mut(j.face) {
             f.photometry = j.calibration.profile;
+        }
+    }
+    for j in &judged.projectors {
+        if let Some(p) = scene.projectors.get_mut(j.projector) {
+            p.response.photometry = Some(j.calibration.profile);
         }
     }
     let worst =
@@ -637,6 +646,26 @@ fn photometric_stage(
         "photometric_held_out_error_uncalibrated",
         json!(worst(&|j| j.calibration.held_out_error_before)),
     );
+    let worst_projector = |f: &dyn Fn(&photometric::JudgedProjector) -> f64| {
+        judged.projectors.iter().map(f).fold(0.0, f64::max)
+    };
+    let abs3 = |a: [f64; 3]| a.into_iter().map(f64::abs).fold(0.0, f64::max);
+    put(
+        "photometric_projector_curve_error",
+        json!(worst_projector(&|j| max3(j.curve_error))),
+    );
+    put(
+        "photometric_projector_curve_error_uncalibrated",
+        json!(worst_projector(&|j| max3(j.curve_error_before))),
+    );
+    put(
+        "photometric_projector_gamma_error",
+        json!(worst_projector(&|j| abs3(j.gamma_error))),
+    );
+    put(
+        "photometric_projector_black_error",
+        json!(worst_projector(&|j| abs3(j.black_error))),
+    );
     put("photometric_calibration_s", record["calibration_s"].clone());
     for (state, suffix) in [
         ("calibrated", ""),
@@ -659,8 +688,9 @@ fn photometric_stage(
     }
     let s = &record["states"];
     let detail = format!(
-        "{} faces in {:.1} s; seams median {:.2} calibrated, {:.2} uncalibrated, {:.2} with the true devices",
+        "{} faces and {} projectors in {:.1} s; seams median {:.2} calibrated, {:.2} uncalibrated, {:.2} with the true devices",
         faces.len(),
+        judged.projectors.len(),
         record["calibration_s"].as_f64().unwrap_or(f64::NAN),
         s["calibrated"]["seam_delta_e_median"]
             .as_f64()

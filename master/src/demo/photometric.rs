@@ -23,7 +23,8 @@
 use super::INTERACTIVE_HZ;
 use super::views::{self, Backend, NodeRenderers, Outputs, Transport};
 use crate::calibrate::photometric::{
-    FaceCalibration, PhotometricOptions, SimMirrorCamera, calibrate_face,
+    FaceCalibration, PhotometricOptions, ProjectorCalibration, SimMirrorCamera, calibrate_face,
+    calibrate_projector,
 };
 use crate::cluster::commands::walk_tracking;
 use crate::cluster::{Show, Tracking};
@@ -33,7 +34,7 @@ use showcase_light::metrics::percentile;
 use showcase_light::observer_view::complete::CompleteOptions;
 use showcase_light::render::FrameScene;
 use showcase_proto::config::TrackingSource;
-use showcase_proto::{Camera, CrtPhotometry, Showcase};
+use showcase_proto::{Camera, CrtPhotometry, CrtResponse, ProjectorResponse, Showcase};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -62,16 +63,69 @@ pub struct JudgedFace {
     pub seconds: f64,
 }
 
+/// One projector's calibration, with its errors against the simulated
+/// truth.
+#[derive(Debug)]
+pub struct JudgedProjector {
+    /// The projector's index in the scene.
+    pub projector: usize,
+    /// The calibration.
+    pub calibration: ProjectorCalibration,
+    /// Per channel, the largest relative error of the profile's light
+    /// against the true device's, for device value 0.1 to 1.
+    pub curve_error: [f64; 3],
+    /// The same of the product's model alone (uncalibrated).
+    pub curve_error_before: [f64; 3],
+    /// Per channel, the profile's gamma less the true one.
+    pub gamma_error: [f64; 3],
+    /// Per channel, the profile's black level over the true one, less 1.
+    pub black_error: [f64; 3],
+    /// Seconds the calibration took.
+    pub seconds: f64,
+}
+
+/// Every device calibrated photometrically: the faces, then the
+/// projectors.
+#[derive(Debug)]
+pub struct Judged {
+    /// The faces.
+    pub faces: Vec<JudgedFace>,
+    /// The projectors.
+    pub projectors: Vec<JudgedProjector>,
+}
+
+/// Per channel, the largest relative error of `curve`'s light against
+/// `truth`'s, for value 0.1 to 1 in steps of 0.01.
+pub fn projector_curve_error(curve: &CrtResponse, truth: &CrtResponse) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        (10..=100)
+            .map(|k| {
+                let d = glam::Vec3::splat(k as f32 / 100.0);
+                let (got, want) = (curve.emit(d)[c], truth.emit(d)[c]);
+                f64::from(((got - want) / want).abs())
+            })
+            .fold(0.0, f64::max)
+    })
+}
+
+/// A projector's light per device value: its photometry, or its model.
+fn curve_of(r: &ProjectorResponse) -> CrtResponse {
+    r.photometry.unwrap_or_else(|| r.model_curve())
+}
+
 /// Calibrate every face of `product` (the nodes' scene: calibrated
 /// devices) that serves an observer, in the simulated showcase `truth`,
 /// with the scene's first camera on a tripod at that observer's left eye;
-/// the real light is path-traced with `truth_paths` paths per point.
+/// then every projector, with the first face's tripod and its recovered
+/// response; the real light is path-traced with `truth_paths` paths per
+/// point.
 pub fn calibrate_faces(
     truth: &Showcase,
     product: &Showcase,
     options: &PhotometricOptions,
     truth_paths: u32,
-) -> Result<Vec<JudgedFace>> {
+) -> Result<Judged> {
+    let mut projectors = Vec::new();
     let state = crate::cluster::illumination::initial_state(truth, 1);
     let frame = FrameScene::resolve(truth, &state)?;
     let tripod = truth
@@ -136,8 +190,44 @@ pub fn calibrate_faces(
             calibration,
             seconds,
         });
+        if !projectors.is_empty() || truth.projectors.is_empty() {
+            continue;
+        }
+        let response = &judged
+            .last()
+            .context("just calibrated")?
+            .calibration
+            .response;
+        for (p, true_projector) in truth.projectors.iter().enumerate() {
+            let t = Instant::now();
+            let node = product
+                .projectors
+                .get(p)
+                .context("the product scene lacks a projector")?;
+            let calibration = calibrate_projector(&mut rig, p, node, response, options)
+                .with_context(|| format!("calibrating {} photometrically", node.name))?;
+            let truth_curve = curve_of(&true_projector.response);
+            let model = node.response.model_curve();
+            let got = calibration.profile;
+            projectors.push(JudgedProjector {
+                projector: p,
+                curve_error: projector_curve_error(&got, &truth_curve),
+                curve_error_before: projector_curve_error(&model, &truth_curve),
+                gamma_error: std::array::from_fn(|c| {
+                    f64::from(got.gamma[c]) - f64::from(truth_curve.gamma[c])
+                }),
+                black_error: std::array::from_fn(|c| {
+                    f64::from(got.black_level[c]) / f64::from(truth_curve.black_level[c]) - 1.0
+                }),
+                calibration,
+                seconds: t.elapsed().as_secs_f64(),
+            });
+        }
     }
-    Ok(judged)
+    Ok(Judged {
+        faces: judged,
+        projectors,
+    })
 }
 
 /// The recovered response against the camera's true one: per channel, the
@@ -194,18 +284,19 @@ fn profiles(scene: &Showcase, by_face: impl Fn(usize) -> CrtPhotometry) -> Vec<C
     (0..scene.faces.len()).map(by_face).collect()
 }
 
-/// What the observers see of `outputs` (its profiles replaced by
-/// `profiles`) in `truth`: CIEDE2000 over every covered pixel and over the
+/// What the observers see of `outputs` (its faces' and projectors'
+/// profiles replaced by `profiles`) in `truth`: CIEDE2000 over every covered pixel and over the
 /// seams, median and p95, and the fraction of face pixels driven to the
 /// top (the CRT too dim for the light asked of it).
 fn judge_state(
     truth: &Showcase,
     state: &showcase_proto::FrameState,
     outputs: &mut Outputs,
-    profiles: Vec<CrtPhotometry>,
+    (profiles, projector_profiles): (Vec<CrtPhotometry>, Vec<ProjectorResponse>),
     transport: &Transport,
 ) -> Result<Value> {
     outputs.profiles = profiles;
+    outputs.projector_profiles = projector_profiles;
     let (mut all, mut seams) = (Vec::new(), Vec::new());
     let mut seam_pixels = 0;
     for o in 0..truth.observers.len() {
@@ -240,7 +331,7 @@ pub fn bench_photometric_scene(
     calibrated: &Showcase,
     frame: u64,
     truth_paths: u32,
-) -> Result<(Vec<JudgedFace>, Value)> {
+) -> Result<(Judged, Value)> {
     let transport = Transport::complete(CompleteOptions {
         paths_per_point: truth_paths,
         seed: super::rendering::COMPLETE_SEED,
@@ -256,7 +347,7 @@ pub(super) fn photometric_record(
     calibrated: &Showcase,
     frame: u64,
     transport: &Transport,
-) -> Result<(Vec<JudgedFace>, Value)> {
+) -> Result<(Judged, Value)> {
     let Transport::Complete(options, _) = transport else {
         anyhow::bail!("the photometric figures are judged in the complete world");
     };
@@ -264,13 +355,14 @@ pub(super) fn photometric_record(
     let truth = views::at_demo_resolution(truth)?;
     let calibrated = views::at_demo_resolution(calibrated)?;
     let t = Instant::now();
-    let faces = calibrate_faces(
+    let judged = calibrate_faces(
         &truth,
         &calibrated,
         &PhotometricOptions::default(),
         truth_paths,
     )?;
     let calibration_s = t.elapsed().as_secs_f64();
+    let faces = &judged.faces;
     // One frame of the walk in global mode, as the demo's cluster draws it.
     let tracker =
         crate::tracking::Tracker::new(&walk_tracking(&truth, TrackingSource::Scripted), &truth)?;
@@ -295,19 +387,59 @@ pub(super) fn photometric_record(
         .iter()
         .map(|j| (j.face, j.calibration.profile))
         .collect();
+    // The projectors' nodes: the model alone, the measured profile, the
+    // true device.
+    let model: Vec<ProjectorResponse> = calibrated
+        .projectors
+        .iter()
+        .map(|p| ProjectorResponse {
+            photometry: None,
+            ..p.response.clone()
+        })
+        .collect();
+    let with = |curve: &dyn Fn(usize) -> Option<CrtResponse>| -> Vec<ProjectorResponse> {
+        model
+            .iter()
+            .enumerate()
+            .map(|(i, r)| ProjectorResponse {
+                photometry: curve(i),
+                ..r.clone()
+            })
+            .collect()
+    };
+    let projectors_measured = with(&|i| {
+        judged
+            .projectors
+            .iter()
+            .find(|j| j.projector == i)
+            .map(|j| j.calibration.profile)
+    });
+    let projectors_true = with(&|i| Some(curve_of(&truth.projectors[i].response)));
     let mut states = serde_json::Map::new();
     for (name, p) in [
-        ("uncalibrated", profiles(&truth, |_| nominal)),
+        (
+            "uncalibrated",
+            (profiles(&truth, |_| nominal), model.clone()),
+        ),
         (
             "calibrated",
-            profiles(&truth, |f| {
-                measured
-                    .iter()
-                    .find(|(i, _)| *i == f)
-                    .map_or(nominal, |(_, p)| *p)
-            }),
+            (
+                profiles(&truth, |f| {
+                    measured
+                        .iter()
+                        .find(|(i, _)| *i == f)
+                        .map_or(nominal, |(_, p)| *p)
+                }),
+                projectors_measured,
+            ),
         ),
-        ("true", profiles(&truth, |f| truth.faces[f].photometry)),
+        (
+            "true",
+            (
+                profiles(&truth, |f| truth.faces[f].photometry),
+                projectors_true,
+            ),
+        ),
     ] {
         states.insert(
             name.into(),
@@ -320,13 +452,16 @@ pub(super) fn photometric_record(
     for f in &mut ideal.faces {
         f.photometry = nominal;
     }
+    for p in &mut ideal.projectors {
+        p.response.photometry = None;
+    }
     states.insert(
         "ideal_photometry".into(),
         judge_state(
             &ideal,
             &state,
             &mut outputs,
-            profiles(&ideal, |_| nominal),
+            (profiles(&ideal, |_| nominal), model.clone()),
             transport,
         )?,
     );
@@ -351,16 +486,33 @@ pub(super) fn photometric_record(
             "reference": j.calibration.reference,
             "screen_pixels": j.calibration.screen_pixels,
         })).collect::<Vec<_>>(),
+        "projectors": judged.projectors.iter().map(|j| json!({
+            "projector": truth.projectors[j.projector].name,
+            "seconds": j.seconds,
+            "frames": j.calibration.frames,
+            "pixels": j.calibration.pixels,
+            "curve_error": j.curve_error,
+            "curve_error_uncalibrated": j.curve_error_before,
+            "gamma_error": j.gamma_error,
+            "black_error": j.black_error,
+            "held_out_error": j.calibration.held_out_error,
+            "held_out_error_before": j.calibration.held_out_error_before,
+            "kept_previous": j.calibration.kept_previous,
+            "profile": j.calibration.profile,
+            "truth": curve_of(&truth.projectors[j.projector].response),
+        })).collect::<Vec<_>>(),
         "states": states,
     });
-    Ok((faces, record))
+    Ok((judged, record))
 }
 
 /// `calibrate --photometric --scene SCENE --out DIR`: calibrate each face
-/// of the simulated showcase `scene` (its nodes starting from the nominal
-/// profile) and write `DIR/<face>-photometric.json` (what a face's
-/// `photometric_profile` reads) and `DIR/summary.json` (the measurements
-/// and, the sim knowing them, the errors against the true devices).
+/// and projector of the simulated showcase `scene` (its nodes starting
+/// from the nominal profile and the projectors' model) and write
+/// `DIR/<face>-photometric.json` and `DIR/<projector>-photometric.json`
+/// (what a face's or projector's `photometric_profile` reads) and
+/// `DIR/summary.json` (the measurements and, the sim knowing them, the
+/// errors against the true devices).
 pub fn run_calibrate_photometric(
     scene: &std::path::Path,
     out: &std::path::Path,
@@ -378,13 +530,16 @@ pub fn run_calibrate_photometric(
     for f in &mut nodes.faces {
         f.photometry = CrtPhotometry::nominal(NOMINAL_GAMMA);
     }
+    for p in &mut nodes.projectors {
+        p.response.photometry = None;
+    }
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let pb = crate::progress::spinner("calibrate --photometric", None);
     pb.set_message("each face through its mirror, from its observer's place");
-    let faces = calibrate_faces(&truth, &nodes, &PhotometricOptions::default(), truth_paths)?;
+    let judged = calibrate_faces(&truth, &nodes, &PhotometricOptions::default(), truth_paths)?;
     pb.finish_and_clear();
     let mut summary = Vec::new();
-    for j in &faces {
+    for j in &judged.faces {
         let c = &j.calibration;
         let file = out.join(format!("{}-photometric.json", c.face));
         let profile = crate::calibrate::photometric::ProfileFile::from(c);
@@ -422,6 +577,44 @@ pub fn run_calibrate_photometric(
             "camera_response_error_codes": j.camera_response_error_codes,
             "crt_curve_error": j.crt_curve_error,
             "balance_error": j.balance_error,
+        }));
+    }
+    for j in &judged.projectors {
+        let c = &j.calibration;
+        let file = out.join(format!("{}-photometric.json", c.projector));
+        let profile = crate::calibrate::photometric::ProjectorProfileFile::from(c);
+        std::fs::write(&file, serde_json::to_string_pretty(&profile)? + "\n")
+            .with_context(|| format!("cannot write {}", file.display()))?;
+        eprintln!(
+            "{}: {} frames in {:.1} s, held-out error {:.2} % (its model {:.1} %){}; wrote {}",
+            c.projector,
+            c.frames,
+            j.seconds,
+            100.0 * c.held_out_error,
+            100.0 * c.held_out_error_before,
+            if c.kept_previous {
+                ", worse than the profile in place, which is kept"
+            } else {
+                ""
+            },
+            file.display()
+        );
+        summary.push(json!({
+            "projector": c.projector,
+            "seconds": j.seconds,
+            "frames": c.frames,
+            "profile": c.profile,
+            "fitted": c.fitted,
+            "kept_previous": c.kept_previous,
+            "held_out_error": c.held_out_error,
+            "held_out_error_before": c.held_out_error_before,
+            "pixels": c.pixels,
+            "levels": c.levels,
+            "truth": curve_of(&truth.projectors[j.projector].response),
+            "curve_error": j.curve_error,
+            "curve_error_uncalibrated": j.curve_error_before,
+            "gamma_error": j.gamma_error,
+            "black_error": j.black_error,
         }));
     }
     let path = out.join("summary.json");

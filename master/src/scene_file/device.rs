@@ -440,8 +440,62 @@ pub(crate) fn projector(
                 .as_ref()
                 .map_or(def.wheel_segments, |s| s.iter().map(|c| v3(*c)).collect()),
             wheel_period_s: f(d.wheel_period_s, def.wheel_period_s),
+            photometry: match (&d.photometry, &d.photometric_profile) {
+                (Some(_), Some(_)) => {
+                    return Err(ctx.invalid(
+                        format!("{label}.photometric_profile"),
+                        "give the measured profile or the device (`photometry`), not both",
+                    ));
+                }
+                (Some(c), None) => Some(CrtResponse {
+                    gamma: v3(c.gamma),
+                    peak: v3(c.peak),
+                    black_level: c.black_level.map_or(Vec3::ZERO, v3),
+                }),
+                (None, Some(file)) => Some(projector_profile(
+                    ctx,
+                    label,
+                    &d.name,
+                    &base_dir.join(file),
+                )?),
+                (None, None) => None,
+            },
         },
     })
+}
+
+/// A projector's photometry from the profile `calibrate --photometric`
+/// wrote ([`crate::calibrate::photometric::ProjectorProfileFile`]), which
+/// must name this projector and hold a valid curve.
+fn projector_profile(
+    ctx: &Ctx,
+    label: &str,
+    projector: &str,
+    path: &Path,
+) -> Result<CrtResponse, SceneError> {
+    use showcase_proto::Validate;
+    let field = format!("{label}.photometric_profile");
+    let file: crate::calibrate::photometric::ProjectorProfileFile = read_json(ctx, &field, path)?;
+    if file.projector != projector {
+        return Err(ctx.referenced(
+            &field,
+            path,
+            None,
+            format!(
+                "the profile is of projector {:?}, not {projector:?}: point this projector at \
+                 its own profile",
+                file.projector
+            ),
+        ));
+    }
+    let check = ProjectorResponse {
+        photometry: Some(file.photometry),
+        ..ProjectorResponse::default()
+    };
+    check
+        .validate()
+        .map_err(|e| ctx.referenced(&field, path, None, e.to_string()))?;
+    Ok(file.photometry)
 }
 
 /// One `[[camera]]`.
@@ -460,6 +514,8 @@ pub(crate) fn camera(
             ("black_level", d.black_level.is_some()),
             ("wheel_segments", d.wheel_segments.is_some()),
             ("wheel_period_s", d.wheel_period_s.is_some()),
+            ("photometry", d.photometry.is_some()),
+            ("photometric_profile", d.photometric_profile.is_some()),
         ],
     )?;
     let def = CameraResponse::default();

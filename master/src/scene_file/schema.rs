@@ -260,6 +260,12 @@ pub(crate) struct DeviceDef {
     pub(crate) wheel_segments: Option<Vec<N3>>,
     #[serde(default)]
     pub(crate) wheel_period_s: Option<Num>,
+    /// The projector's own light per channel (the simulated device).
+    #[serde(default)]
+    pub(crate) photometry: Option<CrtDef>,
+    /// Or the profile `calibrate --photometric` measured of it.
+    #[serde(default)]
+    pub(crate) photometric_profile: Option<String>,
     // Camera response.
     #[serde(default)]
     pub(crate) gamma_rgb: Option<N3>,

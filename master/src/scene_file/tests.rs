@@ -200,3 +200,69 @@ fn a_missing_top_level_key_names_the_top_level() {
         "{e}"
     );
 }
+
+/// A projector reads its own light per channel, or the profile
+/// `calibrate --photometric` wrote; none is its model alone; stating both,
+/// a profile of another projector, a falling curve and a camera with the
+/// key are errors naming the field.
+#[test]
+fn projectors_read_their_photometry_or_a_measured_profile() {
+    let dir =
+        std::env::temp_dir().join(format!("showcase-projector-profile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let projector = |extra: &str| {
+        format!(
+            "name = \"unit\"\n[[projector]]\nname = \"projector-0\"\nwidth = 64\nheight = 48\n\
+             look_at = {{ eye = [0.0, 1.0, 0.0], target = [0.0, 0.0, 0.0], up = [0.0, 0.0, 1.0], \
+             fov_deg = 60.0 }}\n{extra}"
+        )
+    };
+    let at = |text: &str| load_scene_str(text, &dir, "unit.toml");
+    let s = at(&projector("")).unwrap();
+    assert_eq!(s.projectors[0].response.photometry, None);
+    let s = at(&projector(
+        "photometry = { gamma = [2.3, 2.1, 2.5], peak = [3.9, 4.0, 3.8], black_level = [0.005, 0.004, 0.006] }\n",
+    ))
+    .unwrap();
+    let p = s.projectors[0].response.photometry.unwrap();
+    assert_eq!(p.gamma, glam::Vec3::new(2.3, 2.1, 2.5));
+    assert_eq!(p.black_level, glam::Vec3::new(0.005, 0.004, 0.006));
+    let curve = CrtResponse {
+        gamma: glam::Vec3::new(2.34, 2.11, 2.49),
+        peak: glam::Vec3::new(3.99, 3.98, 4.0),
+        black_level: glam::Vec3::splat(0.005),
+    };
+    let write = |name: &str, projector: &str, c: CrtResponse| {
+        let file = crate::calibrate::photometric::ProjectorProfileFile {
+            projector: projector.into(),
+            photometry: c,
+            held_out_error: Some(0.004),
+        };
+        std::fs::write(dir.join(name), serde_json::to_string(&file).unwrap()).unwrap();
+    };
+    write("p.json", "projector-0", curve);
+    let s = at(&projector("photometric_profile = \"p.json\"\n")).unwrap();
+    assert_eq!(s.projectors[0].response.photometry, Some(curve));
+    let err = |extra: &str| at(&projector(extra)).unwrap_err().to_string();
+    let e = err(
+        "photometric_profile = \"p.json\"\nphotometry = { gamma = [2.2, 2.2, 2.2], peak = [1.0, 1.0, 1.0] }\n",
+    );
+    assert!(
+        e.contains("photometric_profile") && e.contains("not both"),
+        "{e}"
+    );
+    write("other.json", "projector-1", curve);
+    let e = err("photometric_profile = \"other.json\"\n");
+    assert!(
+        e.contains("projector-1") && e.contains("own profile"),
+        "{e}"
+    );
+    let mut bad = curve;
+    bad.gamma.z = 0.0;
+    write("bad.json", "projector-0", bad);
+    let e = err("photometric_profile = \"bad.json\"\n");
+    assert!(e.contains("photometry.gamma"), "{e}");
+    let e = err("photometry = { gamma = [2.2, 2.2, 2.2], peak = [1.0, -1.0, 1.0] }\n");
+    assert!(e.contains("photometry.peak"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}

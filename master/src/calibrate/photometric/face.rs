@@ -36,7 +36,7 @@ use super::rig::{CrtPattern, MirrorCamera, Spot};
 use anyhow::{Context, Result, bail};
 use glam::{DVec2, DVec3, Vec3};
 use serde::Serialize;
-use showcase_light::render::projector::emitted_intensity;
+use showcase_light::render::projector::device_intensity;
 use showcase_light::{DeviceRays, ObjectFilter, SceneGeometry, metrics};
 use showcase_proto::{BeamSplitter, CrtFace, CrtPhotometry, CrtResponse, PinholeDevice, Showcase};
 
@@ -335,7 +335,7 @@ pub fn calibrate_face(
     })
 }
 
-const CHANNELS: [&str; 3] = ["red", "green", "blue"];
+pub(super) const CHANNELS: [&str; 3] = ["red", "green", "blue"];
 
 /// Frames of one exposure combined per pixel and channel: the median
 /// code. A median commutes with the response (a monotonic curve), so the
@@ -343,7 +343,7 @@ const CHANNELS: [&str; 3] = ["red", "green", "blue"];
 /// a mean of codes would carry the curve's bend into it (Jensen: about
 /// 1 % of signal at 5 % of full scale under 1 % read noise, before a
 /// gamma of 2).
-fn median_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
+pub(super) fn median_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
     let len = frames.first().map_or(0, Vec::len);
     let mut column = Vec::with_capacity(frames.len());
     (0..len)
@@ -369,9 +369,9 @@ fn median_codes(frames: &[Vec<[u16; 3]>]) -> Vec<[u16; 3]> {
 const BAND: (f64, f64) = (0.3, 0.75);
 
 /// HDR merge of a bracket through the recovered response.
-struct Merge<'a> {
-    response: &'a RecoveredResponse,
-    exposures: &'a [f64],
+pub(super) struct Merge<'a> {
+    pub(super) response: &'a RecoveredResponse,
+    pub(super) exposures: &'a [f64],
 }
 
 impl Merge<'_> {
@@ -394,7 +394,7 @@ impl Merge<'_> {
     /// below the trusted codes (less light than the camera can tell from
     /// none, even at the longest exposure), NaN where none has a trusted
     /// code otherwise (saturated even at the shortest).
-    fn image(&self, frames: &[Vec<[u16; 3]>]) -> Vec<[f64; 3]> {
+    pub(super) fn image(&self, frames: &[Vec<[u16; 3]>]) -> Vec<[f64; 3]> {
         let n = frames.first().map_or(0, Vec::len);
         let mean = |i: usize, c: usize, (lo, hi): (u32, u32)| {
             let half = f64::from(hi.saturating_sub(lo)).max(2.0) / 2.0;
@@ -451,7 +451,7 @@ fn screen_pixels(face: &CrtFace, camera: &PinholeDevice) -> Result<Vec<usize>> {
 
 /// The median over `region` of `img - off` in `channel`; an error naming
 /// `what` when most of the region has no trusted code in any exposure.
-fn region_median(
+pub(super) fn region_median(
     img: &[[f64; 3]],
     off: &[[f64; 3]],
     region: &[usize],
@@ -498,8 +498,10 @@ fn spot_scale(
         .get(spot.projector)
         .context("the spot's projector is not in the scene")?;
     let rays = DeviceRays::new(&projector.device)?;
-    let di = emitted_intensity(DVec3::splat(f64::from(spot.value)), &projector.response)
-        - emitted_intensity(DVec3::ZERO, &projector.response);
+    // The spot's device value through the projector's profile (the
+    // product's model where it has none).
+    let di = device_intensity(DVec3::splat(f64::from(spot.value)), &projector.response)
+        - device_intensity(DVec3::ZERO, &projector.response);
     let (cx, cy) = (f64::from(spot.centre.0), f64::from(spot.centre.1));
     let half = f64::from(spot.half);
     // What the spot adds at the surface a ray from the camera meets.
@@ -732,6 +734,16 @@ fn choose_reference(
 /// agree over the brighter half of the screen's pixels (median relative
 /// difference within 2 %; the dim end of the ramp is the camera's noise).
 fn check_still(before: &[[f64; 3]], after: &[[f64; 3]], screen: &[usize]) -> Result<()> {
+    check_still_of(before, after, screen, "the CRT's ramp")
+}
+
+/// [`check_still`] of any two images of `what` (a pattern shown twice).
+pub(super) fn check_still_of(
+    before: &[[f64; 3]],
+    after: &[[f64; 3]],
+    screen: &[usize],
+    what: &str,
+) -> Result<()> {
     let pairs: Vec<(f64, f64)> = screen
         .iter()
         .flat_map(|&i| (0..3).map(move |c| (before[i][c], after[i][c])))
@@ -747,9 +759,9 @@ fn check_still(before: &[[f64; 3]], after: &[[f64; 3]], screen: &[usize]) -> Res
     let median = metrics::percentile(&diffs, 50.0).unwrap_or(f64::INFINITY);
     if median.is_nan() || median > 0.02 {
         bail!(
-            "the camera's first and last frames of the CRT's ramp differ by {:.1} % (median over \
-             the screen): the camera or the mirror moved during the calibration; fix the tripod \
-             and run it again",
+            "the camera's first and last frames of {what} differ by {:.1} % (median over the \
+             pixels compared): the camera or the mirror moved during the calibration; fix the \
+             tripod and run it again",
             100.0 * median
         );
     }
@@ -760,16 +772,31 @@ fn check_still(before: &[[f64; 3]], after: &[[f64; 3]], screen: &[usize]) -> Res
 /// more than 2 % of the largest value, or any fall at all above a quarter
 /// of the range, is an error).
 fn check_monotonic(levels: &[(f64, f64)], channel: usize) -> Result<()> {
+    check_rising(
+        levels,
+        channel,
+        "the CRT's",
+        "check that the face's output is not being processed (dynamic contrast, power saving) \
+         and that nothing changed the light during the calibration",
+    )
+}
+
+/// [`check_monotonic`] of `device`'s light, with `hint` saying what to
+/// check.
+pub(super) fn check_rising(
+    levels: &[(f64, f64)],
+    channel: usize,
+    device: &str,
+    hint: &str,
+) -> Result<()> {
     let top = levels.iter().map(|l| l.1).fold(0.0, f64::max);
     for pair in levels.windows(2) {
         let ((d0, s0), (d1, s1)) = (pair[0], pair[1]);
         let tolerance = if s0 > 0.25 * top { 0.0 } else { 0.02 * top };
         if s1 < s0 - tolerance {
             bail!(
-                "the CRT's measured light in channel {} falls from {s0:.4} at drive {d0:.3} to \
-                 {s1:.4} at drive {d1:.3}: check that the face's output is not being \
-                 processed (dynamic contrast, power saving) and that nothing changed the light \
-                 during the calibration",
+                "{device} measured light in channel {} falls from {s0:.4} at drive {d0:.3} to \
+                 {s1:.4} at drive {d1:.3}: {hint}",
                 CHANNELS[channel]
             );
         }
@@ -784,7 +811,7 @@ fn check_monotonic(levels: &[(f64, f64)], channel: usize) -> Result<()> {
 /// curve's shape): for each gamma, black and peak are a weighted linear
 /// fit (black at least 0); gamma minimises the residual (golden section
 /// over 0.5 to 5).
-fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
+pub(super) fn fit_power(levels: &[(f64, f64)]) -> Result<(f64, f64, f64)> {
     if levels.first().is_none_or(|(d, _)| *d != 0.0) {
         bail!("no level at drive 0");
     }

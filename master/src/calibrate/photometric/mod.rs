@@ -12,13 +12,18 @@
 //!   showcase behind it.
 //! - [`face`]: a face's CRT and splitter measured in the units of the real
 //!   surfaces behind the glass, as the profile its node encodes with.
+//! - [`projector`]: a projector's light per device value and channel,
+//!   with the camera the face's calibration recovered, as the profile its
+//!   node encodes with.
 
 pub mod face;
+pub mod projector;
 pub mod response;
 pub mod rig;
 
 pub use face::{FaceCalibration, PhotometricOptions, ProfileFile, calibrate_face};
+pub use projector::{ProjectorCalibration, ProjectorProfileFile, calibrate_projector};
 pub use response::{
     ExposureBracket, RecoveredResponse, ResponseError, ResponseOptions, recover_response,
 };
-pub use rig::{CrtPattern, MirrorCamera, SimMirrorCamera, Spot};
+pub use rig::{CrtPattern, Lamp, MirrorCamera, SimMirrorCamera, Spot};

@@ -73,6 +73,16 @@ impl Spot {
     }
 }
 
+/// What one projector shows for [`MirrorCamera::capture_projector`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lamp {
+    /// No light at all (lamp off or lens capped): not even its black
+    /// level.
+    Off,
+    /// This device value in every pixel and channel.
+    Uniform(f32),
+}
+
 /// A camera looking through a face's mirror, with the face and the
 /// projectors showing what it is asked to.
 pub trait MirrorCamera {
@@ -90,6 +100,18 @@ pub trait MirrorCamera {
         spot: Option<Spot>,
         exposures_s: &[f64],
     ) -> Result<Vec<Vec<[u16; 3]>>>;
+    /// Show `lamp` on projector `projector` (device values, not through
+    /// any profile), every other projector black and the CRT off, and
+    /// capture one frame per exposure time, row-major codes.
+    fn capture_projector(
+        &mut self,
+        projector: usize,
+        lamp: Lamp,
+        exposures_s: &[f64],
+    ) -> Result<Vec<Vec<[u16; 3]>>> {
+        let _ = (projector, lamp, exposures_s);
+        anyhow::bail!("this rig cannot switch a projector's lamp or show it uniform values")
+    }
 }
 
 /// The simulated rig: the true face, projectors and camera.
@@ -99,6 +121,9 @@ pub struct SimMirrorCamera<'a> {
     photometer: Photometer<'a>,
     /// The real part under each projector pattern met so far.
     real: Vec<(Option<Spot>, RgbImage)>,
+    /// Per projector met so far: the real part with its lamp off (the
+    /// others black), and its own light at 1 W/sr in every pixel.
+    lamps: Vec<(usize, RgbImage, RgbImage)>,
 }
 
 impl<'a> SimMirrorCamera<'a> {
@@ -116,6 +141,7 @@ impl<'a> SimMirrorCamera<'a> {
             face,
             photometer: Photometer::new(frame, face, camera, options)?,
             real: Vec::new(),
+            lamps: Vec::new(),
         })
     }
 
@@ -157,6 +183,79 @@ impl<'a> SimMirrorCamera<'a> {
     }
 }
 
+impl SimMirrorCamera<'_> {
+    /// The real part with projector `p` showing `lamp`: light is linear in
+    /// a projector's intensity, so the scene with its lamp off plus its
+    /// true intensity at `lamp` times its light at 1 W/sr.
+    fn lamp(&mut self, p: usize, lamp: Lamp) -> Result<RgbImage> {
+        let projectors = &self.frame.showcase.projectors;
+        let projector = projectors
+            .get(p)
+            .with_context(|| format!("no projector {p}: the scene has {}", projectors.len()))?;
+        if !self.lamps.iter().any(|(i, _, _)| *i == p) {
+            let black: Vec<RgbImage> = projectors
+                .iter()
+                .map(|q| Image::new(q.device.width, q.device.height, Vec3::ZERO))
+                .collect();
+            let others: Vec<ProjectedLight<'_>> = projectors
+                .iter()
+                .zip(&black)
+                .enumerate()
+                .filter(|(i, _)| *i != p)
+                .map(|(_, (projector, value))| ProjectedLight { projector, value })
+                .collect();
+            let off = self
+                .photometer
+                .real(&others)
+                .context("simulating the real objects with a projector's lamp off")?;
+            let unit_projector = showcase_proto::Projector {
+                response: showcase_proto::ProjectorResponse {
+                    gamma: 1.0,
+                    eta: 1.0,
+                    black_level: 0.0,
+                    wheel_segments: Vec::new(),
+                    photometry: None,
+                    ..projector.response.clone()
+                },
+                ..projector.clone()
+            };
+            let ones = Image::new(projector.device.width, projector.device.height, Vec3::ONE);
+            let unit = self
+                .photometer
+                .real(&[ProjectedLight {
+                    projector: &unit_projector,
+                    value: &ones,
+                }])
+                .context("simulating the real objects under one projector")?;
+            self.lamps.push((p, off, unit));
+        }
+        let (_, off, unit) = self
+            .lamps
+            .iter()
+            .find(|(i, _, _)| *i == p)
+            .context("just simulated")?;
+        Ok(match lamp {
+            Lamp::Off => off.clone(),
+            Lamp::Uniform(v) => {
+                let light = showcase_light::sim::devices::projector_intensity(
+                    &projector.response,
+                    Vec3::splat(v),
+                );
+                Image {
+                    width: off.width,
+                    height: off.height,
+                    data: off
+                        .data
+                        .iter()
+                        .zip(&unit.data)
+                        .map(|(o, u)| *o + light * *u)
+                        .collect(),
+                }
+            }
+        })
+    }
+}
+
 impl MirrorCamera for SimMirrorCamera<'_> {
     fn size(&self) -> (u32, u32) {
         let d = &self.photometer.camera().device;
@@ -181,6 +280,22 @@ impl MirrorCamera for SimMirrorCamera<'_> {
         let drive = crt.drive(self.face.width, self.face.height);
         let shows = drive.as_ref().map_or(CrtShows::Off, CrtShows::Drive);
         let radiance = self.photometer.radiance(&real, shows)?;
+        Ok(self
+            .photometer
+            .capture(&radiance, exposures_s)
+            .into_iter()
+            .map(|f| f.codes.data)
+            .collect())
+    }
+
+    fn capture_projector(
+        &mut self,
+        projector: usize,
+        lamp: Lamp,
+        exposures_s: &[f64],
+    ) -> Result<Vec<Vec<[u16; 3]>>> {
+        let real = self.lamp(projector, lamp)?;
+        let radiance = self.photometer.radiance(&real, CrtShows::Off)?;
         Ok(self
             .photometer
             .capture(&radiance, exposures_s)

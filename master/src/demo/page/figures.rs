@@ -716,6 +716,42 @@ const FIGURES: &[(&str, Figure)] = &[
         ),
     ),
     (
+        "photometric_projector_curve_error",
+        fig(
+            "Projector response error",
+            "ratio",
+            Some(Target::AtMost(0.01)),
+            "the projector profile's light against the true device's, device value 0.1 to 1, relative to the product's calibrated full white (worst projector and channel)",
+        ),
+    ),
+    (
+        "photometric_projector_curve_error_uncalibrated",
+        fig(
+            "Projector response error, uncalibrated",
+            "ratio",
+            None,
+            "the same of the product's model alone (one gamma, eta and black level for every channel)",
+        ),
+    ),
+    (
+        "photometric_projector_gamma_error",
+        fig(
+            "Projector gamma error",
+            "gamma",
+            None,
+            "the profile's gamma less the true device's (worst projector and channel, absolute)",
+        ),
+    ),
+    (
+        "photometric_projector_black_error",
+        fig(
+            "Projector black-level error",
+            "ratio",
+            None,
+            "the profile's black level over the true device's, less 1 (worst projector and channel, absolute)",
+        ),
+    ),
+    (
         "photometric_balance_error",
         fig(
             "T/R balance error",
@@ -748,7 +784,7 @@ const FIGURES: &[(&str, Figure)] = &[
             "Photometric calibration time",
             "s",
             Some(Target::AtMost(60.0)),
-            "every face, in the simulated showcase (path tracing the real light included)",
+            "every face and projector, in the simulated showcase (path tracing the real light included)",
         ),
     ),
     (

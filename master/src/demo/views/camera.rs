@@ -124,6 +124,7 @@ mod tests {
                 faces: Vec::new(),
                 reference_clipped: Vec::new(),
                 profiles: Vec::new(),
+                projector_profiles: Vec::new(),
             };
             for p in &truth.projectors {
                 let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();

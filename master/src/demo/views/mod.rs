@@ -26,7 +26,7 @@ use showcase_light::render::{
     FrameScene, IndirectField, Occluders, ProjectorOptions, irradiance_map_cpu,
 };
 use showcase_light::{Image, RgbImage, metrics};
-use showcase_proto::{CrtPhotometry, FrameState, PinholeDevice, Showcase};
+use showcase_proto::{CrtPhotometry, FrameState, PinholeDevice, ProjectorResponse, Showcase};
 use showcase_render::gpu::GpuContext;
 use showcase_render::node::Renderer;
 use showcase_render::render::face_gpu::FaceRenderer;
@@ -119,6 +119,24 @@ pub(super) struct Outputs {
     /// Per face (by index): the photometric profile its node encodes the
     /// radiance with at the device boundary (`crt_drive`).
     pub profiles: Vec<CrtPhotometry>,
+    /// Per projector (by index): the response its node encodes its values
+    /// with at the device boundary ([`ProjectorResponse::encode`]); values
+    /// go as they are where it has none.
+    pub projector_profiles: Vec<ProjectorResponse>,
+}
+
+impl Outputs {
+    /// Per projector, the device values its node sends for its values.
+    fn device_values(&self) -> Vec<RgbImage> {
+        self.projectors
+            .iter()
+            .enumerate()
+            .map(|(i, img)| match self.projector_profiles.get(i) {
+                Some(r) if r.photometry.is_some() => img.map(|v| r.encode(*v)),
+                _ => img.clone(),
+            })
+            .collect()
+    }
 }
 
 fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> RgbImage {
@@ -151,6 +169,22 @@ impl NodeRenderers {
     /// devices); each face serves the observer in front of its mirror.
     pub(super) fn new(backend: &Backend, scene: Arc<Showcase>) -> Result<Self> {
         const VERSION: u64 = 1;
+        // The renderers draw the model's values; each projector's profile
+        // is applied where its values leave for the device
+        // ([`Outputs::device_values`]), so a state can swap it.
+        let scene = if scene
+            .projectors
+            .iter()
+            .any(|p| p.response.photometry.is_some())
+        {
+            let mut s = (*scene).clone();
+            for p in &mut s.projectors {
+                p.response.photometry = None;
+            }
+            Arc::new(s)
+        } else {
+            scene
+        };
         let kind = match backend {
             Backend::Gpu(ctx) => {
                 let mut projectors = Vec::new();
@@ -218,6 +252,11 @@ impl NodeRenderers {
             faces: Vec::new(),
             reference_clipped: Vec::new(),
             profiles: scene.faces.iter().map(|f| f.photometry).collect(),
+            projector_profiles: scene
+                .projectors
+                .iter()
+                .map(|p| p.response.clone())
+                .collect(),
         };
         let mut frame = FrameScene::resolve(scene, &state)?;
         if let Some(field) = &self.indirect {
@@ -566,10 +605,21 @@ pub(in crate::demo) struct Targets {
     reals: std::sync::Mutex<std::collections::HashMap<(u64, String, u64), CompleteImage>>,
 }
 
-/// A digest of the projectors' images, bit for bit.
-fn projector_digest(outputs: &Outputs) -> u64 {
+/// A digest of the projectors' images, bit for bit, and of the true
+/// projectors' own light (the same values light a world of other
+/// projectors differently).
+fn projector_digest(truth: &Showcase, images: &[RgbImage]) -> u64 {
     let mut h = showcase_light::digest::Fnv64::default();
-    for img in &outputs.projectors {
+    for p in &truth.projectors {
+        if let Some(c) = &p.response.photometry {
+            for v in [c.gamma, c.peak, c.black_level] {
+                for x in v.to_array() {
+                    h.write(&x.to_bits().to_le_bytes());
+                }
+            }
+        }
+    }
+    for img in images {
         h.write(&img.width.to_le_bytes());
         for v in &img.data {
             for c in v.to_array() {
@@ -640,10 +690,13 @@ pub(in crate::demo) fn simulate(
 ) -> Result<Simulated> {
     let frame = FrameScene::resolve(truth, state)?;
     let occluders = Occluders::new(&frame)?;
+    // The projector nodes send device values (their own profiles); the
+    // true projectors turn them into light.
+    let shown = outputs.device_values();
     let projected: Vec<ProjectedLight<'_>> = truth
         .projectors
         .iter()
-        .zip(&outputs.projectors)
+        .zip(&shown)
         .map(|(projector, value)| ProjectedLight { projector, value })
         .collect();
     let mut view = observer_view(&frame, &occluders, eye, &projected, mirror)?;
@@ -657,7 +710,7 @@ pub(in crate::demo) fn simulate(
         Transport::Direct => None,
         Transport::Complete(options, targets) => {
             let key = (state.frame, format!("{eye:?}"));
-            let real_key = (key.0, key.1.clone(), projector_digest(outputs));
+            let real_key = (key.0, key.1.clone(), projector_digest(truth, &shown));
             let known = targets
                 .targets
                 .lock()
