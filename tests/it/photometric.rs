@@ -482,3 +482,60 @@ fn a_projector_fit_worse_than_the_profile_in_place_keeps_that_profile() -> Resul
     assert!(cal.held_out_error > cal.held_out_error_before);
     Ok(())
 }
+
+/// The projector node's device boundary: with a profile its output is the
+/// model's values encoded through it (`ProjectorResponse::encode`), pixel
+/// for pixel; without one, the values themselves.
+#[test]
+fn a_projector_node_sends_its_values_through_its_profile() -> Result<()> {
+    use anyhow::{Context, ensure};
+    use showcase_render::node::renderer::Renderer;
+    use showcase_render::render::projector_gpu::ProjectorRenderer;
+    let Some(ctx) =
+        crate::gpu::gpu_or_skip("a_projector_node_sends_its_values_through_its_profile")?
+    else {
+        return Ok(());
+    };
+    let profiled = cabinet();
+    let mut model = profiled.clone();
+    for p in &mut model.projectors {
+        p.response.photometry = None;
+    }
+    let frame = showcase_proto::FrameState {
+        frame: 0,
+        time_s: 0.0,
+        scene_version: 1,
+        heads: model.observers.iter().map(|o| o.head).collect(),
+        lights: model.lights.clone(),
+        object_transforms: vec![],
+        tracking_time_ns: None,
+        illumination_version: None,
+    };
+    let mut r = ProjectorRenderer::new(ctx, 0, 256);
+    let mut render = |scene: &Showcase| -> Result<Vec<[f32; 4]>> {
+        r.set_scene(1, std::sync::Arc::new(scene.clone()))?;
+        Ok(r.render(&frame, scene)?
+            .image
+            .context("the projector renderer kept no image")?
+            .rgba)
+    };
+    let values = render(&model)?;
+    let sent = render(&profiled)?;
+    let response = &profiled.projectors[0].response;
+    let mut changed = 0;
+    for (v, s) in values.iter().zip(&sent) {
+        let (v, s) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(s[0], s[1], s[2]));
+        let want = response.encode(v);
+        ensure!(
+            (want - s).abs().max_element() < 1e-6,
+            "value {v} sent as {s}, not {want}"
+        );
+        changed += usize::from((want - v).abs().max_element() > 1e-3);
+    }
+    ensure!(
+        changed * 10 > values.len(),
+        "only {changed} of {} pixels changed by the profile",
+        values.len()
+    );
+    Ok(())
+}
