@@ -46,19 +46,21 @@ fn real_cabinet() -> Showcase {
 fn view(scene: &Showcase, options: ProjectorOptions) -> ObserverView {
     let frame = FrameScene::from_parts(scene.clone(), &[]).unwrap();
     let occluders = Occluders::new(&frame).unwrap();
+    // Each node's values, sent to its device through its own light (the
+    // device boundary: the simulated devices are the scene's).
     let maps: Vec<_> = scene
         .projectors
         .iter()
-        .map(|p| irradiance_map_cpu(&frame, &occluders, p, options).unwrap())
+        .map(|p| {
+            let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();
+            map.value.map(|v| p.response.encode(*v))
+        })
         .collect();
     let projected: Vec<ProjectedLight<'_>> = scene
         .projectors
         .iter()
         .zip(&maps)
-        .map(|(projector, m)| ProjectedLight {
-            projector,
-            value: &m.value,
-        })
+        .map(|(projector, value)| ProjectedLight { projector, value })
         .collect();
     let eye = showcase_proto::PinholeDevice::look_at(
         DVec3::new(0.15, 0.55, 0.9),

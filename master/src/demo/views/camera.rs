@@ -124,7 +124,12 @@ mod tests {
                 faces: Vec::new(),
                 reference_clipped: Vec::new(),
                 profiles: Vec::new(),
-                projector_profiles: Vec::new(),
+                // The nodes encode through the devices themselves.
+                projector_profiles: truth
+                    .projectors
+                    .iter()
+                    .map(|p| p.response.clone())
+                    .collect(),
             };
             for p in &truth.projectors {
                 let map = irradiance_map_cpu(&frame, &occluders, p, options).unwrap();
