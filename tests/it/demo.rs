@@ -189,6 +189,10 @@ fn short_demo_from_a_copied_binary_writes_an_honest_report() {
         "photometric_observer_delta_e_p95",
         "photometric_camera_response_error",
         "photometric_crt_curve_error",
+        "photometric_projector_curve_error",
+        "photometric_projector_curve_error_uncalibrated",
+        "photometric_projector_gamma_error",
+        "photometric_projector_black_error",
         "photometric_calibration_s",
     ] {
         let v = figures[key]
@@ -205,6 +209,11 @@ fn short_demo_from_a_copied_binary_writes_an_honest_report() {
         "{figures}"
     );
     assert!(seam("photometric_crt_curve_error") < 0.05, "{figures}");
+    assert!(
+        seam("photometric_projector_curve_error")
+            < 0.1 * seam("photometric_projector_curve_error_uncalibrated"),
+        "{figures}"
+    );
     assert!(
         seam("photometric_camera_response_error") < 0.05,
         "{figures}"

@@ -149,6 +149,9 @@ fn split_rgba(width: u32, height: u32, rgba: &[[f32; 4]], x0: u32, w: u32) -> Rg
 /// The renderers of every output of a scene, as the nodes run them.
 pub(super) struct NodeRenderers {
     scene: Arc<Showcase>,
+    /// Per projector, the response its node encodes with (the renderers'
+    /// scene has none: [`Outputs::device_values`] applies it).
+    projector_profiles: Vec<ProjectorResponse>,
     kind: RenderersKind,
     /// The projectors' global-illumination correction, if any.
     indirect: Option<Arc<IndirectField>>,
@@ -172,6 +175,11 @@ impl NodeRenderers {
         // The renderers draw the model's values; each projector's profile
         // is applied where its values leave for the device
         // ([`Outputs::device_values`]), so a state can swap it.
+        let projector_profiles = scene
+            .projectors
+            .iter()
+            .map(|p| p.response.clone())
+            .collect();
         let scene = if scene
             .projectors
             .iter()
@@ -208,6 +216,7 @@ impl NodeRenderers {
         };
         Ok(Self {
             scene,
+            projector_profiles,
             kind,
             indirect: None,
             projector_options: ProjectorOptions::default(),
@@ -252,11 +261,7 @@ impl NodeRenderers {
             faces: Vec::new(),
             reference_clipped: Vec::new(),
             profiles: scene.faces.iter().map(|f| f.photometry).collect(),
-            projector_profiles: scene
-                .projectors
-                .iter()
-                .map(|p| p.response.clone())
-                .collect(),
+            projector_profiles: self.projector_profiles.clone(),
         };
         let mut frame = FrameScene::resolve(scene, &state)?;
         if let Some(field) = &self.indirect {
