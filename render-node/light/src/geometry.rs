@@ -171,6 +171,21 @@ impl Hit {
     }
 }
 
+/// What blocks light between two points: one scene's [`SceneGeometry`],
+/// or a static scene and the objects that move in it, each in a BVH of its
+/// own (so a move rebuilds only the moved object's).
+pub trait Occluders: Sync {
+    /// True when nothing blocks the segment from surface point `a` (normal
+    /// `normal_a`) to `b`, as [`SceneGeometry::visible`].
+    fn visible(&self, a: DVec3, normal_a: DVec3, b: DVec3, b_on_surface: bool) -> bool;
+}
+
+impl Occluders for SceneGeometry {
+    fn visible(&self, a: DVec3, normal_a: DVec3, b: DVec3, b_on_surface: bool) -> bool {
+        SceneGeometry::visible(self, a, normal_a, b, b_on_surface)
+    }
+}
+
 /// World-space triangles of the selected objects in a BVH.
 #[derive(Clone, Debug)]
 pub struct SceneGeometry {

@@ -48,7 +48,9 @@ pub mod sim;
 pub mod spot;
 
 pub use device::{DeviceError, DeviceRays};
-pub use geometry::{GeometryError, Hit, ObjectFilter, SceneGeometry, WorldTriangle, world_matrix};
+pub use geometry::{
+    GeometryError, Hit, ObjectFilter, Occluders, SceneGeometry, WorldTriangle, world_matrix,
+};
 pub use image::{Image, RgbImage};
 pub use intensity::{IntensityImage, IntensityLight, SurfaceSample, render_intensity};
 pub use lambert::{LambertError, form_factor_point_polygon, polygon_irradiance};

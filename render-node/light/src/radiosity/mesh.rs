@@ -9,7 +9,7 @@
 //! primitive. Vertices are shared between elements of one object with the
 //! same plane orientation, for per-vertex (Gouraud) interpolation.
 
-use glam::{DVec2, DVec3};
+use glam::{DAffine3, DVec2, DVec3};
 use std::collections::HashMap;
 
 mod build;
@@ -36,6 +36,20 @@ pub enum MeshError {
         count: usize,
         /// The limit.
         limit: usize,
+    },
+    /// A move of an object is not a rotation and translation (a scale or
+    /// shear would change the elements' areas, so the mesh must be built
+    /// again).
+    #[error("moving object {object}: the transform is not rigid (rotation and translation only)")]
+    NotRigid {
+        /// The object.
+        object: u32,
+    },
+    /// The object to move has no elements in the mesh.
+    #[error("moving object {object}: the mesh has no element of it")]
+    NoSuchObject {
+        /// The object.
+        object: u32,
     },
 }
 
@@ -267,6 +281,54 @@ impl RadiosityMesh {
     /// Total area of the elements (m^2).
     pub fn total_area(&self) -> f64 {
         self.elements.iter().map(|e| e.area).sum()
+    }
+
+    /// This mesh with `object` moved rigidly by `motion` (applied to its
+    /// current place): its primitives, patches, elements and vertices
+    /// moved, everything else and every index unchanged. The same mesh as
+    /// one built from the moved scene, without meshing it again (vertices
+    /// are shared within an object only, so no other object's corner
+    /// moves).
+    pub fn with_object_moved(&self, object: u32, motion: &DAffine3) -> Result<Self, MeshError> {
+        let m = motion.matrix3;
+        let rigid = (m.transpose() * m - glam::DMat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .all(|v| v.abs() < 1e-9)
+            && (m.determinant() - 1.0).abs() < 1e-9
+            && motion.translation.is_finite();
+        if !rigid {
+            return Err(MeshError::NotRigid { object });
+        }
+        if !self.elements.iter().any(|e| e.object == object) {
+            return Err(MeshError::NoSuchObject { object });
+        }
+        let point = |p: DVec3| motion.transform_point3(p);
+        let normal = |n: DVec3| m * n;
+        let mut out = self.clone();
+        for p in out.primitives.iter_mut().filter(|p| p.object == object) {
+            p.vertices = p.vertices.map(point);
+            p.normal = normal(p.normal);
+        }
+        for p in out.patches.iter_mut().filter(|p| p.object == object) {
+            p.vertices = p.vertices.map(point);
+            p.center = point(p.center);
+            p.normal = normal(p.normal);
+        }
+        let mut moved = vec![false; out.vertices.len()];
+        for e in out.elements.iter_mut().filter(|e| e.object == object) {
+            e.vertices = e.vertices.map(point);
+            e.center = point(e.center);
+            e.normal = normal(e.normal);
+            for &v in &e.vertex_ids {
+                moved[v as usize] = true;
+            }
+        }
+        for (v, _) in out.vertices.iter_mut().zip(&moved).filter(|(_, m)| **m) {
+            v.position = point(v.position);
+            v.normal = normal(v.normal);
+        }
+        Ok(out)
     }
 }
 

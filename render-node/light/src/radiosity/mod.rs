@@ -54,8 +54,9 @@ pub use gather::{
 };
 pub use hemicube::{HemiCube, HemiCubeError};
 pub use hierarchy::{
-    Hierarchy, HierarchyError, HierarchyOptions, HierarchyPoint, HierarchyProgress,
-    HierarchySolution, LINK_BYTES, MIN_LINKS_PER_ELEMENT, estimate_bytes, solve_hierarchical,
+    Hierarchy, HierarchyError, HierarchyMove, HierarchyOptions, HierarchyPoint, HierarchyProgress,
+    HierarchySolution, LINK_BYTES, MIN_LINKS_PER_ELEMENT, MoveError as HierarchyMoveError,
+    estimate_bytes, solve_hierarchical,
 };
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{

@@ -5,7 +5,7 @@
 use crate::finite::finite_or_zero;
 use crate::sampling::stratified;
 use crate::spot::{cone_cosines, spot_falloff};
-use crate::{SceneGeometry, form_factor_point_polygon};
+use crate::{Occluders, form_factor_point_polygon};
 use glam::DVec3;
 use showcase_proto::Light;
 use std::f64::consts::PI;
@@ -15,9 +15,9 @@ use std::f64::consts::PI;
 /// `geometry`. Area lights use the closed-form polygon form factor times the
 /// visible fraction of `samples` stratified points (seeded by `seed`).
 /// Returns zero for bad input.
-pub fn direct_irradiance(
+pub fn direct_irradiance<G: Occluders + ?Sized>(
     light: &Light,
-    geometry: &SceneGeometry,
+    geometry: &G,
     point: DVec3,
     normal: DVec3,
     samples: u32,
@@ -75,8 +75,8 @@ pub fn direct_irradiance(
 }
 
 /// `scale * cos(theta) / r^2` towards a point light at `light`, if visible.
-fn point_irradiance(
-    geometry: &SceneGeometry,
+fn point_irradiance<G: Occluders + ?Sized>(
+    geometry: &G,
     point: DVec3,
     normal: DVec3,
     light: DVec3,
@@ -94,7 +94,7 @@ fn point_irradiance(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ObjectFilter;
+    use crate::{ObjectFilter, SceneGeometry};
     use glam::Vec3;
     use showcase_proto::Showcase;
 

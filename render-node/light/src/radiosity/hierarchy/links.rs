@@ -4,9 +4,9 @@
 
 use super::{Hierarchy, HierarchyError, LINK_BYTES};
 use crate::finite::finite_or_zero;
-use crate::form_factor_point_polygon;
 use crate::radiosity::mesh::barycentric_point;
 use crate::sampling::{hash64, triangle_sample, unit};
+use crate::{Occluders, form_factor_point_polygon};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -135,12 +135,15 @@ impl Hierarchy<'_> {
 
     /// `None` when the pair must be refined ([`Self::must_refine`]), else
     /// the power it may carry in units of the refinement limit.
-    fn judge(&self, r: u32, s: u32, moments: &[Moments]) -> Option<f64> {
+    pub(super) fn judge(&self, r: u32, s: u32, moments: &[Moments]) -> Option<f64> {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
         let limit = self.options.epsilon * self.reference_power;
         let power = || self.transfer_estimate(r, s, &moments[s as usize]) / limit;
         if rn.is_leaf() && sn.is_leaf() {
             return Some(power());
+        }
+        if rn.mixed || sn.mixed {
+            return None;
         }
         let dist = (rn.center - sn.center).length();
         if dist <= SEPARATION * (rn.radius + sn.radius) {
@@ -161,7 +164,7 @@ impl Hierarchy<'_> {
     /// (at least one) below, in proportion. A link's visibility estimate
     /// is unbiased at any count; only its noise grows, and on links that
     /// carry little.
-    fn rays_for(&self, power: f64) -> u32 {
+    pub(super) fn rays_for(&self, power: f64) -> u32 {
         let full = self.options.visibility_rays;
         let share = (power / FULL_RAYS_POWER).clamp(0.0, 1.0);
         ((f64::from(full) * share).ceil() as u32).clamp(1, full)
@@ -210,7 +213,7 @@ impl Hierarchy<'_> {
 
     /// The four pairs a node splits into when it gathers from itself
     /// (`None` for a leaf or a flat node, which does not see itself).
-    fn self_pairs(&self, n: u32) -> Option<[(u32, u32); 4]> {
+    pub(super) fn self_pairs(&self, n: u32) -> Option<[(u32, u32); 4]> {
         let node = &self.tree.nodes[n as usize];
         let [a, b] = node.children;
         (!node.is_leaf() && !node.flat).then_some([(a, a), (a, b), (b, a), (b, b)])
@@ -218,10 +221,16 @@ impl Hierarchy<'_> {
 
     /// The two pairs `(r, s)` refines into: the larger node's children
     /// (by `radius^2 sqrt(area)`), a leaf never.
-    fn split(&self, r: u32, s: u32) -> [(u32, u32); 2] {
+    pub(super) fn split(&self, r: u32, s: u32) -> [(u32, u32); 2] {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
         let size = |n: &super::tree::Node| n.radius * n.radius * n.area.sqrt();
-        if !rn.is_leaf() && (sn.is_leaf() || size(rn) >= size(sn)) {
+        // A mixed node carries no link: it splits first.
+        let receiver_first = if rn.mixed || sn.mixed {
+            rn.mixed
+        } else {
+            !rn.is_leaf() && (sn.is_leaf() || size(rn) >= size(sn))
+        };
+        if receiver_first {
             rn.children.map(|c| (c, s))
         } else {
             sn.children.map(|c| (r, c))
@@ -280,7 +289,7 @@ impl Hierarchy<'_> {
         self.set_links(links)
     }
 
-    fn too_many_links(&self) -> HierarchyError {
+    pub(super) fn too_many_links(&self) -> HierarchyError {
         HierarchyError::TooManyLinks {
             limit: self.options.max_links,
             bytes: self.options.max_links * LINK_BYTES,
@@ -348,15 +357,16 @@ impl Hierarchy<'_> {
     /// gets through or nothing can arrive.
     pub(super) fn make_link(&self, r: u32, s: u32, rays: u32) -> Option<Link> {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
-        let visible = self.visibility(r, s, rays);
+        let (visible, movers_only) = self.visibility(r, s, rays);
         // A link no ray got through is kept (at zero) while its nodes can
         // still be split: dropped, it could never be refined, and a few
         // rays would then take the light of every partly hidden pair that
         // drew a blocked ray away for good, while the pairs that drew a
         // clear one are refined back to their true share (the Cornell box
-        // came out 12 % dark with one ray a link, 3 % with four).
+        // came out 12 % dark with one ray a link, 3 % with four). A pair of
+        // leaves only a mover hides is kept too: the mover may move away.
         let leaves = rn.is_leaf() && sn.is_leaf();
-        if !(visible > 0.0) && leaves {
+        if !(visible > 0.0) && leaves && !movers_only {
             return None;
         }
         let d = rn.center - sn.center;
@@ -377,7 +387,7 @@ impl Hierarchy<'_> {
                 .sum::<f64>()
                 / points.len() as f64;
             let coef = f * visible;
-            return (coef > 0.0).then_some(Link {
+            return (coef > 0.0 || (movers_only && f > 0.0)).then_some(Link {
                 source: s,
                 receiver: r,
                 coef,
@@ -414,7 +424,7 @@ impl Hierarchy<'_> {
         } else {
             DVec3::ZERO
         };
-        (coef > 0.0 || !leaves).then_some(Link {
+        (coef > 0.0 || !leaves || movers_only).then_some(Link {
             source: s,
             receiver: r,
             coef,
@@ -423,22 +433,39 @@ impl Hierarchy<'_> {
         })
     }
 
-    /// The visible fraction of rays between random points of two nodes.
-    pub(super) fn visibility(&self, r: u32, s: u32, rays: u32) -> f64 {
+    /// The visible fraction of rays between random points of two nodes,
+    /// and whether, with none visible, a ray would have got through
+    /// without the movers (only then: it costs those rays again).
+    pub(super) fn visibility(&self, r: u32, s: u32, rays: u32) -> (f64, bool) {
         let key = hash64(self.options.seed ^ (u64::from(r) << 32 | u64::from(s)));
-        let mut seen = 0;
         let (rc, sc) = (
             self.tree.nodes[r as usize].center,
             self.tree.nodes[s as usize].center,
         );
-        for k in 0..u64::from(rays) {
+        let ray = |k: u64| {
             let (a, na) = self.random_point(r, hash64(key ^ (2 * k + 1)), sc);
             let (b, _) = self.random_point(s, hash64(key ^ (2 * k + 2)), rc);
-            if self.geometry.visible(a, na, b, true) {
-                seen += 1;
-            }
-        }
-        f64::from(seen) / f64::from(rays)
+            (a, na, b)
+        };
+        let blockers = self.blockers();
+        let seen = (0..u64::from(rays))
+            .filter(|&k| {
+                let (a, na, b) = ray(k);
+                blockers.visible(a, na, b, true)
+            })
+            .count() as u32;
+        // A mover's own links are made again at each of its moves.
+        let fixed_pair = [r, s]
+            .iter()
+            .all(|&n| self.tree.nodes[n as usize].group == 0);
+        let movers_only = seen == 0
+            && !self.movers.is_empty()
+            && fixed_pair
+            && (0..u64::from(rays)).any(|k| {
+                let (a, na, b) = ray(k);
+                self.geometry.visible(a, na, b, true)
+            });
+        (f64::from(seen) / f64::from(rays), movers_only)
     }
 
     /// A point of a random member of node `n`, and its normal.

@@ -34,16 +34,18 @@
 //! maps take it unchanged.
 
 mod links;
+mod moving;
 mod sh;
 mod tree;
 
 use super::mesh::{RadiosityMesh, barycentric_point, sub_centroids};
 use super::sources::direct_irradiance;
-use crate::SceneGeometry;
 use crate::finite::finite_or_zero;
 use crate::sampling::hash64;
+use crate::{Occluders, SceneGeometry};
 use glam::{DVec2, DVec3};
 use links::{Link, Moments};
+pub use moving::{HierarchyMove, MoveError};
 use rayon::prelude::*;
 use sh::Sh;
 use showcase_proto::Light;
@@ -269,10 +271,38 @@ pub struct HierarchySolution {
     pub complete: bool,
 }
 
+/// An object that may move, with its own occluder BVH at its current
+/// place.
+struct Mover {
+    object: u32,
+    geometry: SceneGeometry,
+}
+
+/// The occluders of a hierarchy: the static scene and every mover.
+struct Blockers<'h> {
+    fixed: &'h SceneGeometry,
+    movers: &'h [Mover],
+}
+
+impl Occluders for Blockers<'_> {
+    fn visible(&self, a: DVec3, normal_a: DVec3, b: DVec3, b_on_surface: bool) -> bool {
+        self.fixed.visible(a, normal_a, b, b_on_surface)
+            && self
+                .movers
+                .iter()
+                .all(|m| m.geometry.visible(a, normal_a, b, b_on_surface))
+    }
+}
+
 /// A cluster tree with its links over one set of elements and occluders.
 pub struct Hierarchy<'a> {
     mesh: &'a RadiosityMesh,
+    /// The occluders that never move: every object's, or, with movers,
+    /// all but theirs.
     geometry: &'a SceneGeometry,
+    /// Objects that may move ([`Self::with_movers`]), each in a subtree of
+    /// its own and with its own occluders.
+    movers: Vec<Mover>,
     options: HierarchyOptions,
     tree: Tree,
     /// Links sorted by receiver; `offsets[n]..offsets[n + 1]` end at node n.
@@ -294,7 +324,29 @@ impl<'a> Hierarchy<'a> {
         active: Option<&[bool]>,
         options: &HierarchyOptions,
     ) -> Result<Self, HierarchyError> {
+        Self::with_movers(mesh, geometry, Vec::new(), active, options)
+    }
+
+    /// As [`Self::new`], with objects that may move
+    /// ([`Self::move_object`]): `movers` holds each one's object index and
+    /// its geometry alone (`ObjectFilter::Indices`), and `fixed` every
+    /// other object's. Each mover gets a subtree of its own, and a pair of
+    /// elements only a mover hides keeps its link (at zero), so that a
+    /// move finds it.
+    pub fn with_movers(
+        mesh: &'a RadiosityMesh,
+        fixed: &'a SceneGeometry,
+        movers: Vec<(u32, SceneGeometry)>,
+        active: Option<&[bool]>,
+        options: &HierarchyOptions,
+    ) -> Result<Self, HierarchyError> {
         options.check()?;
+        let geometry = fixed;
+        let movers: Vec<Mover> = movers
+            .into_iter()
+            .map(|(object, geometry)| Mover { object, geometry })
+            .collect();
+        let objects: Vec<u32> = movers.iter().map(|m| m.object).collect();
         let all;
         let active = match active {
             Some(a) if a.len() != mesh.elements.len() => {
@@ -312,8 +364,9 @@ impl<'a> Hierarchy<'a> {
         Ok(Self {
             mesh,
             geometry,
+            movers,
             options: options.clone(),
-            tree: Tree::build(mesh, active),
+            tree: Tree::build(mesh, active, &objects),
             links: Vec::new(),
             offsets: Vec::new(),
             reference_power: 0.0,
@@ -331,19 +384,36 @@ impl<'a> Hierarchy<'a> {
         self.tree.nodes.len()
     }
 
+    /// The occluders: the static scene and the movers.
+    fn blockers(&self) -> Blockers<'_> {
+        Blockers {
+            fixed: self.geometry,
+            movers: &self.movers,
+        }
+    }
+
     /// Direct irradiance from `lights` per element (zero on inactive ones):
     /// the mean over four points of each element.
     pub fn direct(&self, lights: &[Light]) -> Vec<DVec3> {
         let mut out = vec![DVec3::ZERO; self.mesh.elements.len()];
+        self.direct_at(lights, &self.tree.order, &mut out);
+        out
+    }
+
+    /// [`Self::direct`] at `elements` only, into `out` (per element of the
+    /// mesh); the same values a full evaluation gives them.
+    fn direct_at(&self, lights: &[Light], elements: &[u32], out: &mut [DVec3]) {
         if lights.is_empty() {
-            return out;
+            for &e in elements {
+                out[e as usize] = DVec3::ZERO;
+            }
+            return;
         }
         let points = &self.quadrature;
         let seed = self.options.seed;
         let samples = self.options.light_samples;
-        let values: Vec<(u32, DVec3)> = self
-            .tree
-            .order
+        let blockers = self.blockers();
+        let values: Vec<(u32, DVec3)> = elements
             .par_iter()
             .map(|&e| {
                 let el = &self.mesh.elements[e as usize];
@@ -352,7 +422,7 @@ impl<'a> Hierarchy<'a> {
                     let x = barycentric_point(&el.vertices, *b);
                     for (l, light) in lights.iter().enumerate() {
                         let s = hash64(seed ^ (u64::from(e) << 20) ^ ((k as u64) << 8) ^ l as u64);
-                        sum += direct_irradiance(light, self.geometry, x, el.normal, samples, s);
+                        sum += direct_irradiance(light, &blockers, x, el.normal, samples, s);
                     }
                 }
                 (e, sum / points.len() as f64)
@@ -361,7 +431,6 @@ impl<'a> Hierarchy<'a> {
         for (e, v) in values {
             out[e as usize] = v;
         }
-        out
     }
 
     /// Solve for B with the elements' own exitance `emission` (per

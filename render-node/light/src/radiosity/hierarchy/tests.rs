@@ -1,6 +1,7 @@
 //! The hierarchical solver against closed forms and against the
 //! progressive solver converged on the same mesh.
 
+use super::moving::MoveError as HierarchyMoveError;
 use super::*;
 use crate::radiosity::tests::{closed_box, furnace, lamp_over_floor, mesh_of, options};
 use crate::radiosity::{
@@ -226,5 +227,242 @@ fn an_update_after_a_light_moves_matches_a_fresh_solve() {
         gathers < fresh.iterations,
         "{gathers} gathers, fresh {}",
         fresh.iterations
+    );
+}
+
+/// The box with its floating block (object 2) at `shift`, lit also by a
+/// point light, meshed finely enough for shadows on the floor.
+fn moving_block(shift: glam::Vec3) -> (showcase_proto::Showcase, Vec<Light>) {
+    let s = crate::radiosity::moving_tests::box_with_block(shift);
+    let light = Light::Point {
+        position: glam::Vec3::new(0.6, 0.85, 0.55),
+        intensity: glam::Vec3::splat(0.3),
+    };
+    (s, vec![light])
+}
+
+/// The static scene's occluders and the block's alone.
+fn block_geometry(s: &showcase_proto::Showcase) -> (SceneGeometry, SceneGeometry) {
+    use crate::ObjectFilter;
+    let fixed = SceneGeometry::build(s, &ObjectFilter::Indices(vec![0, 1])).unwrap();
+    let block = SceneGeometry::build(s, &ObjectFilter::Indices(vec![2])).unwrap();
+    (fixed, block)
+}
+
+const SHIFT: glam::Vec3 = glam::Vec3::new(0.12, 0.05, -0.1);
+
+#[test]
+fn a_moved_mesh_is_the_mesh_of_the_moved_scene() {
+    let (m0, _) = mesh_of(&moving_block(glam::Vec3::ZERO).0, 0.02, 1);
+    let (m1, _) = mesh_of(&moving_block(SHIFT).0, 0.02, 1);
+    let motion = glam::DAffine3::from_translation(SHIFT.as_dvec3());
+    let moved = m0.with_object_moved(2, &motion).unwrap();
+    assert_eq!(moved.elements.len(), m1.elements.len());
+    let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-6;
+    for (a, b) in moved.elements.iter().zip(&m1.elements) {
+        assert_eq!(
+            (a.object, a.patch, a.vertex_ids),
+            (b.object, b.patch, b.vertex_ids)
+        );
+        assert!(close(a.center, b.center) && close(a.normal, b.normal));
+        assert!((0..3).all(|k| close(a.vertices[k], b.vertices[k])));
+    }
+    for (a, b) in moved.vertices.iter().zip(&m1.vertices) {
+        assert!(close(a.position, b.position), "{a:?} vs {b:?}");
+    }
+    // A rotation moves normals with the points.
+    let turn = glam::DAffine3::from_rotation_y(0.3);
+    let turned = m0.with_object_moved(2, &turn).unwrap();
+    let e = turned.elements.iter().position(|e| e.object == 2).unwrap();
+    let want = turn.matrix3 * m0.elements[e].normal;
+    assert!(close(turned.elements[e].normal, want));
+    assert!(close(turned.elements[0].center, m0.elements[0].center));
+    assert_eq!(
+        m0.with_object_moved(2, &glam::DAffine3::from_scale(DVec3::splat(1.1))),
+        Err(crate::radiosity::MeshError::NotRigid { object: 2 })
+    );
+    assert_eq!(
+        m0.with_object_moved(7, &motion),
+        Err(crate::radiosity::MeshError::NoSuchObject { object: 7 })
+    );
+}
+
+#[test]
+fn a_hierarchy_with_a_mover_solves_as_one_without() {
+    // The mover's own subtree changes the clusters, not the answer.
+    let (s, lights) = moving_block(glam::Vec3::ZERO);
+    let (m, g) = mesh_of(&s, 0.02, 1);
+    let (fixed, block) = block_geometry(&s);
+    let o = HierarchyOptions::default();
+    let plain = solve_hierarchical(&m, &g, &lights, &o).unwrap();
+    let mut h = Hierarchy::with_movers(&m, &fixed, vec![(2, block)], None, &o).unwrap();
+    let emission: Vec<DVec3> = m.elements.iter().map(|e| e.emission).collect();
+    let direct = h.direct(&lights);
+    assert_eq!(
+        direct,
+        Hierarchy::new(&m, &g, None, &o).unwrap().direct(&lights)
+    );
+    let moving = h.solve(&emission, &direct).unwrap();
+    let e = relative_error(&m, &moving.radiosity, &m, &plain.radiosity, 4).unwrap();
+    // Measured: 0.33 %.
+    assert!(e < 0.005, "relative error {e}");
+}
+
+#[test]
+fn an_update_after_an_object_moves_matches_a_fresh_solve() {
+    let (s0, lights) = moving_block(glam::Vec3::ZERO);
+    let (s1, _) = moving_block(SHIFT);
+    let (m0, _) = mesh_of(&s0, 0.02, 1);
+    let m1 = m0
+        .with_object_moved(2, &glam::DAffine3::from_translation(SHIFT.as_dvec3()))
+        .unwrap();
+    let ((fixed, block0), (_, block1)) = (block_geometry(&s0), block_geometry(&s1));
+    let o = HierarchyOptions::default();
+    let emission: Vec<DVec3> = m0.elements.iter().map(|e| e.emission).collect();
+
+    let mut h = Hierarchy::with_movers(&m0, &fixed, vec![(2, block0)], None, &o).unwrap();
+    let mut direct = h.direct(&lights);
+    let mut b = h.solve(&emission, &direct).unwrap().radiosity;
+    let stale = b.clone();
+    let links_before = h.links();
+    let (h, stats) = h
+        .move_object(&m1, 2, block1.clone(), &b, &lights, &mut direct)
+        .unwrap();
+    let gathers = h.update(&mut b, &emission, &direct);
+
+    let mut f = Hierarchy::with_movers(&m1, &fixed, vec![(2, block1)], None, &o).unwrap();
+    let fresh_direct = f.direct(&lights);
+    let fresh = f.solve(&emission, &fresh_direct).unwrap();
+    // The direct light is evaluated again wherever the move changed it,
+    // with a fresh evaluation's seeds: the same values.
+    assert_eq!(direct, fresh_direct);
+    assert!(stats.direct_updated < m1.elements.len());
+    let e = relative_error(&m1, &b, &m1, &fresh.radiosity, 4).unwrap();
+    let e_stale = relative_error(&m1, &stale, &m1, &fresh.radiosity, 4).unwrap();
+    // Measured: 0.19 % against 6.1 % for the unmoved solution, 4 gathers
+    // against 18; 0.1 M of 0.63 M other links rechecked.
+    assert!(e < 0.01 && e < 0.2 * e_stale, "update {e}, stale {e_stale}");
+    assert!(
+        gathers < fresh.iterations,
+        "{gathers} against {}",
+        fresh.iterations
+    );
+    // Only some links are looked at again.
+    assert!(stats.links_removed > 0 && stats.links_made > 0, "{stats:?}");
+    assert!(
+        stats.links_rechecked > 0 && stats.links_rechecked < stats.links_scanned / 2,
+        "{stats:?} of {links_before}"
+    );
+}
+
+#[test]
+fn a_move_the_hierarchy_cannot_take_is_an_error() {
+    let (s0, lights) = moving_block(glam::Vec3::ZERO);
+    let (m0, _) = mesh_of(&s0, 0.02, 1);
+    let (fixed, block) = block_geometry(&s0);
+    let o = HierarchyOptions::default();
+    let new = || Hierarchy::with_movers(&m0, &fixed, vec![(2, block.clone())], None, &o).unwrap();
+    let mut direct = new().direct(&lights);
+    let b = vec![DVec3::ZERO; m0.elements.len()];
+    let moved_walls = m0
+        .with_object_moved(0, &glam::DAffine3::from_translation(DVec3::X))
+        .unwrap();
+    let err = |r: Result<_, HierarchyMoveError>| r.err().unwrap();
+    assert_eq!(
+        err(new().move_object(&m0, 0, block.clone(), &b, &lights, &mut direct)),
+        HierarchyMoveError::NotAMover(0)
+    );
+    assert!(matches!(
+        err(new().move_object(&moved_walls, 2, block.clone(), &b, &lights, &mut direct)),
+        HierarchyMoveError::StaticElementChanged {
+            its_object: 0,
+            object: 2,
+            ..
+        }
+    ));
+    assert_eq!(
+        err(new().move_object(&m0, 2, block.clone(), &b, &lights, &mut [])),
+        HierarchyMoveError::DirectLength {
+            got: 0,
+            elements: m0.elements.len()
+        }
+    );
+    let (coarse, _) = mesh_of(&s0, 0.13, 0);
+    assert!(matches!(
+        err(new().move_object(&coarse, 2, block.clone(), &b, &lights, &mut direct)),
+        HierarchyMoveError::MeshMismatch { .. }
+    ));
+}
+
+#[test]
+fn light_a_mover_hid_comes_back_when_it_moves_away() {
+    // Two plates 10 cm apart, the upper one glowing, with a slab between
+    // them that hides every pair of their elements; then the slab slides
+    // out. Those pairs are close, so their links are leaves, which a
+    // static scene drops when no ray gets through: here they must be kept
+    // (at zero) for the move to uncover.
+    use crate::radiosity::tests::quads_object;
+    use glam::Vec3;
+    use showcase_proto::{Material, ObjectKind, Showcase};
+    let scene = |shift: f32| {
+        let mut s = Showcase::default();
+        let (x, y, z) = (Vec3::X * 0.2, Vec3::Y, Vec3::Z * 0.2);
+        let grey = Material::diffuse(Vec3::splat(0.5));
+        let mut glow = grey.clone();
+        glow.emission = Vec3::splat(1.0);
+        quads_object(&mut s, "low", &[(Vec3::ZERO, z, x)], grey, ObjectKind::Real);
+        quads_object(&mut s, "high", &[(0.1 * y, x, z)], glow, ObjectKind::Real);
+        let (ax, ay, az) = (Vec3::X * 0.3, Vec3::Y * 0.04, Vec3::Z * 0.3);
+        let c = Vec3::new(-0.05, 0.03, -0.05);
+        quads_object(
+            &mut s,
+            "slab",
+            &[
+                (c, ax, az),
+                (c + ay, az, ax),
+                (c, az, ay),
+                (c + ax, ay, az),
+                (c, ay, ax),
+                (c + az, ax, ay),
+            ],
+            Material::diffuse(Vec3::splat(0.3)),
+            ObjectKind::Virtual,
+        );
+        s.objects[2].transform.translation = Vec3::X * shift;
+        s
+    };
+    let (s0, s1) = (scene(0.0), scene(1.0));
+    let (m0, _) = mesh_of(&s0, 0.005, 1);
+    let m1 = m0
+        .with_object_moved(2, &glam::DAffine3::from_translation(DVec3::X))
+        .unwrap();
+    let ((fixed, slab0), (_, slab1)) = (block_geometry(&s0), block_geometry(&s1));
+    let o = HierarchyOptions::default();
+    let emission: Vec<DVec3> = m0.elements.iter().map(|e| e.emission).collect();
+    let mut h = Hierarchy::with_movers(&m0, &fixed, vec![(2, slab0)], None, &o).unwrap();
+    let mut b = h.solve(&emission, &[]).unwrap().radiosity;
+    let low = |b: &[DVec3]| -> f64 {
+        m1.elements
+            .iter()
+            .zip(b)
+            .filter(|(e, _)| e.object == 0)
+            .map(|(e, b)| b.x * e.area)
+            .sum()
+    };
+    let hidden = low(&b);
+    let (h, _) = h
+        .move_object(&m1, 2, slab1.clone(), &b, &[], &mut [])
+        .unwrap();
+    h.update(&mut b, &emission, &[]);
+    let mut f = Hierarchy::with_movers(&m1, &fixed, vec![(2, slab1)], None, &o).unwrap();
+    let fresh = f.solve(&emission, &[]).unwrap().radiosity;
+    let (updated, want) = (low(&b), low(&fresh));
+    assert!(
+        hidden < 0.01 * want,
+        "the slab let {hidden} of {want} through"
+    );
+    assert!(
+        (updated - want).abs() < 0.01 * want,
+        "the low plate gets {updated} after the move, {want} in a fresh solve"
     );
 }

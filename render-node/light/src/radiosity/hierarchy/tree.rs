@@ -3,6 +3,11 @@
 //! leaf. Interior nodes are clusters (Smits, Arvo and Greenberg 1994):
 //! a wall's elements merge into flat clusters that behave as one patch, a
 //! scanned mesh's triangles into volume clusters.
+//!
+//! Objects that may move (`movers`) each get a subtree of their own: a
+//! node whose members belong to more than one of them (or to one of them
+//! and the static scene) is split between those first, so a move changes
+//! the geometry of the mover's subtree and of its few ancestors only.
 
 use crate::radiosity::mesh::RadiosityMesh;
 use glam::DVec3;
@@ -30,6 +35,13 @@ pub(super) struct Node {
     pub flat: bool,
     /// Largest reflectance channel of any member.
     pub rho_max: f64,
+    /// Members of more than one mover, or of a mover and the static
+    /// scene: such a node changes when one of them moves, so it carries no
+    /// link (it is always split).
+    pub mixed: bool,
+    /// 0 when every member is static, `k + 1` when all belong to mover
+    /// `k`, [`NONE`] when mixed.
+    pub group: u32,
     /// Children, or `[NONE, NONE]` for a leaf.
     pub children: [u32; 2],
     /// The element of a leaf, or `NONE`.
@@ -54,11 +66,23 @@ pub(super) struct Tree {
     pub order: Vec<u32>,
     /// The leaf node of each element (`NONE` when inactive).
     pub leaf_of: Vec<u32>,
+    /// The root of each mover's subtree (`NONE` when it has no active
+    /// element), in the order the movers were given.
+    pub mover_roots: Vec<u32>,
 }
 
 impl Tree {
-    /// The tree over the elements of `mesh` whose `active` entry is set.
-    pub(super) fn build(mesh: &RadiosityMesh, active: &[bool]) -> Self {
+    /// The tree over the elements of `mesh` whose `active` entry is set,
+    /// each object of `movers` in a subtree of its own.
+    pub(super) fn build(mesh: &RadiosityMesh, active: &[bool], movers: &[u32]) -> Self {
+        // 0 for the static scene, k + 1 for mover k.
+        let group = |e: u32| {
+            let object = mesh.elements[e as usize].object;
+            movers
+                .iter()
+                .position(|&m| m == object)
+                .map_or(0, |k| k as u32 + 1)
+        };
         let mut order: Vec<u32> = (0..mesh.elements.len() as u32)
             .filter(|&e| active[e as usize] && mesh.elements[e as usize].area > 0.0)
             .collect();
@@ -66,6 +90,7 @@ impl Tree {
             nodes: Vec::with_capacity(2 * order.len()),
             order: Vec::new(),
             leaf_of: vec![NONE; mesh.elements.len()],
+            mover_roots: vec![NONE; movers.len()],
         };
         if order.is_empty() {
             return tree;
@@ -79,9 +104,33 @@ impl Tree {
                 (node.first as usize, node.count as usize)
             };
             let members = &mut order[first..first + count];
+            let first_group = group(members[0]);
+            let mixed = members.iter().any(|&e| group(e) != first_group);
+            tree.nodes[n as usize].group = if mixed { NONE } else { first_group };
+            if !mixed && first_group > 0 {
+                let root = &mut tree.mover_roots[first_group as usize - 1];
+                if *root == NONE {
+                    *root = n;
+                }
+            }
             if count == 1 {
                 tree.nodes[n as usize].element = members[0];
                 tree.leaf_of[members[0] as usize] = n;
+                continue;
+            }
+            if mixed {
+                // The lowest group apart from the others.
+                members.sort_unstable_by_key(|&e| (group(e), e));
+                let lowest = group(members[0]);
+                let half = members.iter().take_while(|&&e| group(e) == lowest).count();
+                let left = tree.nodes.len() as u32;
+                tree.nodes.push(placeholder(first as u32, half as u32));
+                tree.nodes
+                    .push(placeholder((first + half) as u32, (count - half) as u32));
+                tree.nodes[n as usize].children = [left, left + 1];
+                tree.nodes[n as usize].mixed = true;
+                stack.push(left + 1);
+                stack.push(left);
                 continue;
             }
             let (lo, hi) = members.iter().fold(
@@ -120,8 +169,9 @@ impl Tree {
         tree
     }
 
-    /// Bounds, areas, normals and flatness, bottom-up.
-    fn fill_geometry(&mut self, mesh: &RadiosityMesh) {
+    /// Bounds, areas, normals and flatness, bottom-up (again after a
+    /// move).
+    pub(super) fn fill_geometry(&mut self, mesh: &RadiosityMesh) {
         let mut bounds = vec![(DVec3::ZERO, DVec3::ZERO); self.nodes.len()];
         let mut weighted_normal = vec![DVec3::ZERO; self.nodes.len()];
         let mut weighted_center = vec![DVec3::ZERO; self.nodes.len()];
@@ -162,12 +212,28 @@ impl Tree {
         for n in 0..self.nodes.len() {
             let node = &self.nodes[n];
             let normal = node.normal;
-            let flat = normal != DVec3::ZERO
+            // A mixed node is never flat: a move would tilt it.
+            let flat = !node.mixed
+                && normal != DVec3::ZERO
                 && self.order[node.first as usize..(node.first + node.count) as usize]
                     .iter()
                     .all(|&e| mesh.elements[e as usize].normal.dot(normal) >= FLAT_COS);
             self.nodes[n].flat = flat;
         }
+    }
+
+    /// The nodes of the subtree under `n`, `n` first.
+    pub(super) fn subtree(&self, n: u32) -> Vec<u32> {
+        let mut out = Vec::new();
+        let mut stack = vec![n];
+        while let Some(k) = stack.pop() {
+            out.push(k);
+            let node = &self.nodes[k as usize];
+            if !node.is_leaf() {
+                stack.extend(node.children);
+            }
+        }
+        out
     }
 
     /// The members of node `n`.
@@ -185,6 +251,8 @@ fn placeholder(first: u32, count: u32) -> Node {
         normal: DVec3::ZERO,
         flat: false,
         rho_max: 0.0,
+        mixed: false,
+        group: 0,
         children: [NONE, NONE],
         element: NONE,
         first,

@@ -1,0 +1,406 @@
+//! The update after an object moves, on the hierarchy (after Drettakis
+//! and Sillion 1997, the paper's reference [8]): only the links the move
+//! can change are made again, and the gathers start from the old B.
+//!
+//! A mover has a subtree of its own, and the few nodes that hold it and
+//! something else (`mixed`) carry no link, so every link the move changes
+//! is one of:
+//! - **the mover's own links** (an end in its subtree): removed, and its
+//!   pairs refined again from the top against the current B, as a fresh
+//!   refinement would (its coefficients, visibility and level all depend
+//!   on where it is);
+//! - **a link whose shaft the mover crossed**, before or after the move:
+//!   its visibility rays run between points of its two nodes, so they lie
+//!   in the capsule around the segment between the nodes' centres, with
+//!   the larger node radius; a link whose capsule misses the bounding
+//!   spheres of the mover's old and new place cannot see a difference and
+//!   is kept as it is. The others are evaluated again (same seeds, so as
+//!   a fresh link). A pair of leaves only a mover hides kept its link at
+//!   zero ([`Hierarchy::with_movers`]), so a mover that moves away
+//!   uncovers it.
+//!
+//! The direct light changes on the mover's elements and on the elements
+//! whose capsule towards a light crosses the old or new place; only those
+//! are evaluated again, with the seeds of a full evaluation.
+
+use super::tree::NONE;
+use super::{Hierarchy, HierarchyError, Link};
+use crate::SceneGeometry;
+use crate::radiosity::mesh::RadiosityMesh;
+use glam::DVec3;
+use rayon::prelude::*;
+use showcase_proto::Light;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Why a move cannot be applied.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MoveError {
+    /// The object was not given to [`Hierarchy::with_movers`].
+    #[error(
+        "object {0} may not move: make the hierarchy with it among the movers \
+         (Hierarchy::with_movers)"
+    )]
+    NotAMover(u32),
+    /// The moved mesh is not this mesh with one object moved.
+    #[error(
+        "the moved mesh has {got} elements against the hierarchy's {expected}: move the \
+         object with RadiosityMesh::with_object_moved"
+    )]
+    MeshMismatch {
+        /// The hierarchy's elements.
+        expected: usize,
+        /// The moved mesh's.
+        got: usize,
+    },
+    /// An element of another object changed place.
+    #[error(
+        "element {element} (object {its_object}) changed, but only object {object} moved: \
+         move one object at a time with RadiosityMesh::with_object_moved"
+    )]
+    StaticElementChanged {
+        /// The element.
+        element: u32,
+        /// Its object.
+        its_object: u32,
+        /// The object that moved.
+        object: u32,
+    },
+    /// The direct light is not one value per element.
+    #[error(
+        "the direct light has {got} values for {elements} elements: pass Hierarchy::direct's \
+         result (or nothing, with no lights)"
+    )]
+    DirectLength {
+        /// Values given.
+        got: usize,
+        /// Elements of the mesh.
+        elements: usize,
+    },
+    /// Refining the mover's links failed (e.g. the link limit).
+    #[error(transparent)]
+    Hierarchy(#[from] HierarchyError),
+}
+
+/// What a move did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct HierarchyMove {
+    /// The mover's links removed.
+    pub links_removed: usize,
+    /// The mover's links made again.
+    pub links_made: usize,
+    /// Other links tested against the mover's places.
+    pub links_scanned: usize,
+    /// Of those, links whose shaft a place crossed, evaluated again.
+    pub links_rechecked: usize,
+    /// Of those, links that no longer carry anything and are dropped.
+    pub links_dropped: usize,
+    /// Elements whose direct light was evaluated again.
+    pub direct_updated: usize,
+}
+
+/// A bounding sphere.
+#[derive(Clone, Copy, Debug)]
+struct Ball {
+    center: DVec3,
+    radius: f64,
+}
+
+impl Ball {
+    fn of(geometry: &SceneGeometry) -> Option<Self> {
+        let b = geometry.bounds();
+        (b.min.is_finite() && b.max.is_finite()).then(|| Self {
+            center: 0.5 * (b.min + b.max),
+            radius: 0.5 * (b.max - b.min).length(),
+        })
+    }
+
+    /// Whether the capsule of radius `r` about the segment `a`-`b` meets
+    /// this ball (grown by `margin`).
+    fn meets_capsule(&self, a: DVec3, b: DVec3, r: f64, margin: f64) -> bool {
+        let ab = b - a;
+        let len2 = ab.length_squared();
+        let t = if len2 > 0.0 {
+            ((self.center - a).dot(ab) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let reach = self.radius + r + margin;
+        (a + t * ab - self.center).length_squared() <= reach * reach
+    }
+}
+
+/// The bounding sphere of a light's emitting points.
+fn light_ball(light: &Light) -> Ball {
+    match light {
+        Light::Point { position, .. } | Light::Spot { position, .. } => Ball {
+            center: position.as_dvec3(),
+            radius: 0.0,
+        },
+        Light::Area {
+            corner,
+            edge_u,
+            edge_v,
+            ..
+        } => {
+            let (u, v) = (edge_u.as_dvec3(), edge_v.as_dvec3());
+            Ball {
+                center: corner.as_dvec3() + 0.5 * (u + v),
+                radius: 0.5 * (u + v).length().max((u - v).length()),
+            }
+        }
+    }
+}
+
+impl<'a> Hierarchy<'a> {
+    /// Move mover `object` to its place in `mesh` (this hierarchy's mesh
+    /// with that object moved, [`RadiosityMesh::with_object_moved`]), with
+    /// `geometry` its occluders there: the links and the direct light
+    /// `direct` (per element, from [`Self::direct`] with `lights`) that the
+    /// move changes are made again (see the module docs); `b` is the
+    /// current solution, whose power the mover's links are refined
+    /// against. Then [`Self::update`] from the old B settles the new one.
+    pub fn move_object<'b>(
+        self,
+        mesh: &'b RadiosityMesh,
+        object: u32,
+        geometry: SceneGeometry,
+        b: &[DVec3],
+        lights: &[Light],
+        direct: &mut [DVec3],
+    ) -> Result<(Hierarchy<'b>, HierarchyMove), MoveError>
+    where
+        'a: 'b,
+    {
+        let mut h: Hierarchy<'b> = self;
+        let k = h
+            .movers
+            .iter()
+            .position(|m| m.object == object)
+            .ok_or(MoveError::NotAMover(object))?;
+        h.check_moved_mesh(mesh, object)?;
+        let no_direct = lights.is_empty() && direct.is_empty();
+        if !no_direct && direct.len() != mesh.elements.len() {
+            return Err(MoveError::DirectLength {
+                got: direct.len(),
+                elements: mesh.elements.len(),
+            });
+        }
+        let margin = 1e-6 * (1.0 + h.geometry.bounds().max.abs().max_element());
+        let places: Vec<Ball> = [Ball::of(&h.movers[k].geometry), Ball::of(&geometry)]
+            .into_iter()
+            .flatten()
+            .collect();
+        h.mesh = mesh;
+        h.movers[k].geometry = geometry;
+        h.tree.fill_geometry(mesh);
+        let mut stats = HierarchyMove::default();
+
+        let root = h.tree.mover_roots[k];
+        let mut in_mover = vec![false; h.tree.nodes.len()];
+        if root != NONE {
+            for n in h.tree.subtree(root) {
+                in_mover[n as usize] = true;
+            }
+        }
+        let moments = h.pull(b);
+        // The links that stay, the crossed ones evaluated again.
+        let old = std::mem::take(&mut h.links);
+        let removed = AtomicUsize::new(0);
+        let rechecked = AtomicUsize::new(0);
+        let dropped = AtomicUsize::new(0);
+        let kept: Vec<Link> = old
+            .par_iter()
+            .filter_map(|l| {
+                if in_mover[l.receiver as usize] || in_mover[l.source as usize] {
+                    removed.fetch_add(1, Ordering::Relaxed);
+                    return None;
+                }
+                let (rn, sn) = (
+                    &h.tree.nodes[l.receiver as usize],
+                    &h.tree.nodes[l.source as usize],
+                );
+                let r = rn.radius.max(sn.radius);
+                if !places
+                    .iter()
+                    .any(|p| p.meets_capsule(rn.center, sn.center, r, margin))
+                {
+                    return Some(*l);
+                }
+                rechecked.fetch_add(1, Ordering::Relaxed);
+                let rays = h.rays_for_pair(l.receiver, l.source, &moments);
+                let fresh = h.make_link(l.receiver, l.source, rays);
+                if fresh.is_none() {
+                    dropped.fetch_add(1, Ordering::Relaxed);
+                }
+                fresh
+            })
+            .collect();
+        stats.links_removed = removed.into_inner();
+        stats.links_scanned = old.len() - stats.links_removed;
+        stats.links_rechecked = rechecked.into_inner();
+        stats.links_dropped = dropped.into_inner();
+        drop(old);
+
+        // The mover's pairs, refined from the top.
+        let mut made = Vec::new();
+        if root != NONE {
+            let pairs = h.mover_pairs(root, &in_mover, &moments);
+            let count = AtomicUsize::new(kept.len());
+            let parts: Vec<Vec<Link>> = pairs
+                .par_iter()
+                .map(|&(r, s)| {
+                    let mut out = Vec::new();
+                    h.refine_pair(r, s, &moments, &mut out, &count);
+                    out
+                })
+                .collect();
+            if count.into_inner() > h.options.max_links {
+                return Err(h.too_many_links().into());
+            }
+            made = parts.concat();
+        }
+        stats.links_made = made.len();
+        let mut links = kept;
+        links.extend(made);
+        h.set_links(links)?;
+
+        if no_direct {
+            return Ok((h, stats));
+        }
+        // The direct light where the move changed it.
+        let lights_balls: Vec<Ball> = lights.iter().map(light_ball).collect();
+        let elements: Vec<u32> = h
+            .tree
+            .order
+            .par_iter()
+            .copied()
+            .filter(|&e| {
+                let el = &h.mesh.elements[e as usize];
+                if el.object == object {
+                    return true;
+                }
+                let leaf = &h.tree.nodes[h.tree.leaf_of[e as usize] as usize];
+                lights_balls.iter().any(|l| {
+                    places.iter().any(|p| {
+                        p.meets_capsule(leaf.center, l.center, leaf.radius.max(l.radius), margin)
+                    })
+                })
+            })
+            .collect();
+        stats.direct_updated = elements.len();
+        h.direct_at(lights, &elements, direct);
+        Ok((h, stats))
+    }
+
+    /// The moved mesh must be this one with only `object`'s elements
+    /// moved.
+    fn check_moved_mesh(&self, mesh: &RadiosityMesh, object: u32) -> Result<(), MoveError> {
+        if mesh.elements.len() != self.mesh.elements.len() {
+            return Err(MoveError::MeshMismatch {
+                expected: self.mesh.elements.len(),
+                got: mesh.elements.len(),
+            });
+        }
+        let changed = self
+            .mesh
+            .elements
+            .iter()
+            .zip(&mesh.elements)
+            .position(|(a, b)| {
+                a.object != b.object
+                    || a.area != b.area
+                    || (a.object != object && a.vertices != b.vertices)
+            });
+        match changed {
+            Some(e) => Err(MoveError::StaticElementChanged {
+                element: e as u32,
+                its_object: self.mesh.elements[e].object,
+                object,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// The rays a fresh link of this pair gets ([`Self::rays_for`]): all
+    /// of them where the pair would now be refined.
+    fn rays_for_pair(&self, r: u32, s: u32, moments: &[super::Moments]) -> u32 {
+        self.judge(r, s, moments)
+            .map_or(self.options.visibility_rays, |p| self.rays_for(p))
+    }
+
+    /// The pairs under which every link with an end in the mover's subtree
+    /// (`in_mover`) lies, and no other link: from the root pair down, the
+    /// mixed nodes split as a refinement splits them, and split further
+    /// while they must be refined, so that there are enough to share
+    /// among the threads.
+    fn mover_pairs(
+        &self,
+        root: u32,
+        in_mover: &[bool],
+        moments: &[super::Moments],
+    ) -> Vec<(u32, u32)> {
+        // The mixed nodes above the mover.
+        let mut above = vec![false; self.tree.nodes.len()];
+        let mut parent = vec![NONE; self.tree.nodes.len()];
+        for (n, node) in self.tree.nodes.iter().enumerate() {
+            if !node.is_leaf() {
+                for c in node.children {
+                    parent[c as usize] = n as u32;
+                }
+            }
+        }
+        let mut n = parent[root as usize];
+        while n != NONE {
+            above[n as usize] = true;
+            n = parent[n as usize];
+        }
+        let mut stack = vec![(0u32, 0u32)];
+        let mut pairs = Vec::new();
+        while let Some((r, s)) = stack.pop() {
+            let (ir, is) = (in_mover[r as usize], in_mover[s as usize]);
+            if !(ir || is || above[r as usize] || above[s as usize]) {
+                continue;
+            }
+            let mixed = self.tree.nodes[r as usize].mixed || self.tree.nodes[s as usize].mixed;
+            if (ir || is) && !mixed {
+                pairs.push((r, s));
+                continue;
+            }
+            if r == s {
+                stack.extend(self.self_pairs(r).into_iter().flatten());
+            } else if !self.culled(r, s) {
+                stack.extend(self.split(r, s));
+            }
+        }
+        // Enough independent pairs for the threads: split those that a
+        // refinement would split anyway (refine_pair does the same).
+        while pairs.len() < 64 {
+            let mut next = Vec::with_capacity(2 * pairs.len());
+            let mut split_any = false;
+            for (r, s) in pairs {
+                if r == s {
+                    if let Some(p) = self.self_pairs(r) {
+                        next.extend(p);
+                        split_any = true;
+                    }
+                } else if self.culled(r, s) {
+                    split_any = true;
+                } else if self.must_refine(r, s, moments) && !self.is_leaf_pair(r, s) {
+                    next.extend(self.split(r, s));
+                    split_any = true;
+                } else {
+                    next.push((r, s));
+                }
+            }
+            pairs = next;
+            if !split_any {
+                break;
+            }
+        }
+        pairs
+    }
+
+    fn is_leaf_pair(&self, r: u32, s: u32) -> bool {
+        self.tree.nodes[r as usize].is_leaf() && self.tree.nodes[s as usize].is_leaf()
+    }
+}
