@@ -40,7 +40,7 @@ mod incremental;
 mod object;
 mod probes;
 pub use augmented::{CONSISTENCY_SAMPLES, augmented_record, augmented_record_with, figure3_scene};
-pub use hierarchical::{hierarchical_records, split_object};
+pub use hierarchical::{hierarchical_move_records, hierarchical_records, split_object};
 pub use incremental::incremental_record;
 pub use object::{
     MOVED_OBJECTS, ObjectRecords, cornell_with_small_cube, incremental_object_record,
@@ -397,7 +397,7 @@ pub fn bench_radiosity_at(cornell: &Path) -> anyhow::Result<Vec<BenchRecord>> {
 
 /// The `"kind"`s of the records of `bench radiosity`, in the order they
 /// are made.
-pub const RECORD_KINDS: [&str; 9] = [
+pub const RECORD_KINDS: [&str; 10] = [
     "reference",
     "gathered",
     "sweep",
@@ -407,6 +407,7 @@ pub const RECORD_KINDS: [&str; 9] = [
     "incremental_object",
     "augmented",
     "hierarchical",
+    "hierarchical_moves",
 ];
 
 /// [`bench_radiosity_at`], making only the records whose `"kind"` is in
@@ -472,6 +473,9 @@ pub fn bench_radiosity_kinds(
     }
     if wanted("hierarchical") {
         records.extend(hierarchical_records(making)?);
+    }
+    if wanted("hierarchical_moves") {
+        records.extend(hierarchical_move_records(making)?);
     }
     Ok(records)
 }

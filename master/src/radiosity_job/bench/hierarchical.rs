@@ -7,12 +7,21 @@
 //! - `hierarchical_cornell`: B0 on the Cornell box, median of 5 solves
 //!   (mesh and vertex values included), against the path-traced probes
 //!   ([`super::probes`]), at a few patch sizes and refinement thresholds.
-//! - `hierarchical_light_move`: B0 of the demo cabinet updated after its
-//!   lamp moves 5 cm, 20 times ([`radiosity::Hierarchy::update`]: the
-//!   moved light's direct irradiance, then gathers from the old B on the
-//!   same links), per-move times, the error against a fresh solve of the
-//!   last position, and the floor: one gather and the light's direct term
-//!   alone.
+//! - `hierarchical_light_move` (kind `hierarchical_moves`): B0 of the
+//!   demo cabinet updated after its lamp moves 5 cm, 21 times
+//!   ([`radiosity::Hierarchy::update`]: the moved light's direct
+//!   irradiance, then gathers from the old B on the same links), per-move
+//!   times, the error against a fresh solve of the last position, and the
+//!   floor: one gather and the light's direct term alone.
+//! - `hierarchical_object_move` (kind `hierarchical_moves`): B0 of the
+//!   demo cabinet updated after its virtual bunny moves 5 cm, 21 times
+//!   ([`radiosity::Hierarchy::move_object`], then
+//!   [`radiosity::Hierarchy::update`]). Each move's time holds all of it:
+//!   the moved mesh, the bunny's own BVH, the links and direct light
+//!   remade, the gathers. The errors are against a fresh solve of the
+//!   last place (with the bunny a mover too); beside them the unmoved
+//!   solution's, and a fresh solve with another seed's (the solver's own
+//!   noise between two equally good answers).
 //! - `hierarchical_scaling`: the demo cabinet with its real bunny split
 //!   0..=3 times (each split turns a triangle into four), one element per
 //!   triangle (0.02 m^2 patches elsewhere): time, memory and links against
@@ -125,9 +134,6 @@ pub fn hierarchical_records(making: &dyn Fn(&str)) -> anyhow::Result<Vec<BenchRe
         }));
     }
 
-    making("hierarchical_light_move");
-    records.push(light_move_record(&demo)?);
-
     for splits in 0..=3 {
         making(&format!(
             "hierarchical_scaling (bunny split {splits} times)"
@@ -159,6 +165,17 @@ pub fn hierarchical_records(making: &dyn Fn(&str)) -> anyhow::Result<Vec<BenchRe
         }));
     }
     Ok(records)
+}
+
+/// The `hierarchical_moves` records: the demo cabinet's lamp moved, then
+/// its virtual bunny (see the module docs).
+pub fn hierarchical_move_records(making: &dyn Fn(&str)) -> anyhow::Result<Vec<BenchRecord>> {
+    let demo = load_any(Path::new("builtin:showcase"))?;
+    making("hierarchical_light_move");
+    let light = light_move_record(&demo)?;
+    making("hierarchical_object_move");
+    let object = object_move_record(&demo, "virtual-bunny")?;
+    Ok(vec![light, object])
 }
 
 /// `scene` with object `name`'s mesh split `times` times (each triangle
@@ -224,15 +241,17 @@ fn light_move_record(demo: &Showcase) -> anyhow::Result<BenchRecord> {
         anyhow::bail!("the demo's light is not a point light");
     };
     let at = |k: usize| showcase_proto::Light::Point {
-        position: position + glam::Vec3::new(0.05 * (k % 2) as f32, 0.0, 0.05 * (k / 2 % 2) as f32),
+        position: position + square_step(k),
         intensity,
     };
     let options = demo_options().hierarchy();
     let emission: Vec<glam::DVec3> = mesh.elements.iter().map(|e| e.emission).collect();
     let mut h = Hierarchy::new(&mesh, &all, None, &options)?;
     let mut b = h.solve(&emission, &h.direct_of(&at(0)))?.radiosity;
+    let stale = b.clone();
     let (mut times, mut gathers) = (Vec::new(), Vec::new());
-    let moves = 20;
+    // An odd count, so that the last place is not the first.
+    let moves = 21;
     for k in 1..=moves {
         let t = Instant::now();
         let direct = h.direct_of(&at(k));
@@ -241,6 +260,7 @@ fn light_move_record(demo: &Showcase) -> anyhow::Result<BenchRecord> {
     }
     let fresh = radiosity::solve_hierarchical(&mesh, &all, &[at(moves)], &options)?;
     let error = radiosity::relative_error(&mesh, &b, &mesh, &fresh.radiosity, 4);
+    let stale_error = radiosity::relative_error(&mesh, &stale, &mesh, &fresh.radiosity, 4);
     // The floor: what any update that keeps B exact must at least do once.
     let t = Instant::now();
     let direct = h.direct_of(&at(0));
@@ -261,8 +281,116 @@ fn light_move_record(demo: &Showcase) -> anyhow::Result<BenchRecord> {
         "ms": times,
         "gathers": gathers,
         "rel_error_vs_fresh": error,
+        "stale_rel_error_vs_fresh": stale_error,
         "fresh_gathers": fresh.iterations,
         "floor_direct_ms": direct_ms,
         "floor_one_gather_ms": gather_ms,
+    }))
+}
+
+/// Where the moved object or light is after move `k`: the corners of a
+/// 5 cm square, in turn (after 4, 8, ... moves back at the start).
+fn square_step(k: usize) -> glam::Vec3 {
+    glam::Vec3::new(0.05 * (k % 2) as f32, 0.0, 0.05 * (k / 2 % 2) as f32)
+}
+
+/// The `hierarchical_object_move` record (see the module docs).
+fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord> {
+    use showcase_light::radiosity::{self, Hierarchy, RadiosityMesh};
+    use showcase_light::{ObjectFilter, SceneGeometry};
+    use std::cell::OnceCell;
+    let object = demo
+        .objects
+        .iter()
+        .position(|o| o.name == name)
+        .with_context(|| format!("the demo scene has no object {name}"))?;
+    let others: Vec<usize> = (0..demo.objects.len()).filter(|&i| i != object).collect();
+    let placed = |k: usize| {
+        let mut s = demo.clone();
+        s.objects[object].transform.translation += square_step(k);
+        s
+    };
+    let mover_at =
+        |k: usize| SceneGeometry::build(&placed(k), &ObjectFilter::Indices(vec![object]));
+    let all = SceneGeometry::build(demo, &ObjectFilter::All)?;
+    let fixed = SceneGeometry::build(demo, &ObjectFilter::Indices(others))?;
+    // An odd count, so that the last place is not the first.
+    let moves = 21;
+    // The meshes outlive the hierarchy that borrows each in turn.
+    let meshes: Vec<OnceCell<RadiosityMesh>> = (0..=moves).map(|_| OnceCell::new()).collect();
+    let first = RadiosityMesh::build(demo, &all, &demo_options().hierarchical_mesh())?;
+    let mesh0 = meshes[0].get_or_init(|| first);
+    let lights: Vec<showcase_proto::Light> = demo.lights.iter().map(|l| l.light.clone()).collect();
+    let options = demo_options().hierarchy();
+    let emission: Vec<glam::DVec3> = mesh0.elements.iter().map(|e| e.emission).collect();
+    let movers = |k: usize| -> anyhow::Result<Vec<(u32, SceneGeometry)>> {
+        Ok(vec![(object as u32, mover_at(k)?)])
+    };
+    let mut h = Hierarchy::with_movers(mesh0, &fixed, movers(0)?, None, &options)?;
+    let mut direct = h.direct(&lights);
+    let mut b = h.solve(&emission, &direct)?.radiosity;
+    let stale = b.clone();
+    let (mut times, mut link_ms, mut gather_ms, mut gathers, mut stats) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for k in 1..=moves {
+        let t = Instant::now();
+        let step = (square_step(k) - square_step(k - 1)).as_dvec3();
+        let moved = meshes[k - 1]
+            .get()
+            .context("no mesh before the move")?
+            .with_object_moved(object as u32, &glam::DAffine3::from_translation(step))?;
+        let mesh = meshes[k].get_or_init(|| moved);
+        let (next, s) =
+            h.move_object(mesh, object as u32, mover_at(k)?, &b, &lights, &mut direct)?;
+        h = next;
+        let linked = t.elapsed().as_secs_f64() * 1e3;
+        gathers.push(h.update(&mut b, &emission, &direct));
+        let total = t.elapsed().as_secs_f64() * 1e3;
+        times.push(total);
+        link_ms.push(linked);
+        gather_ms.push(total - linked);
+        stats.push(s);
+    }
+    let last = meshes[moves].get().context("no mesh after the moves")?;
+    let fresh_of = |seed: u64| -> anyhow::Result<radiosity::HierarchySolution> {
+        let o = radiosity::HierarchyOptions {
+            seed,
+            ..options.clone()
+        };
+        let mut f = Hierarchy::with_movers(last, &fixed, movers(moves)?, None, &o)?;
+        let d = f.direct(&lights);
+        Ok(f.solve(&emission, &d)?)
+    };
+    let t = Instant::now();
+    let fresh = fresh_of(options.seed)?;
+    let fresh_ms = t.elapsed().as_secs_f64() * 1e3;
+    let reseeded = fresh_of(options.seed + 1)?;
+    let err = |x: &[glam::DVec3]| radiosity::relative_error(last, x, last, &fresh.radiosity, 4);
+    let t = Instant::now();
+    let _ = h.reflect(&b);
+    let one_gather_ms = t.elapsed().as_secs_f64() * 1e3;
+    let p99 = |v: &[f64]| showcase_light::metrics::percentile(v, 99.0);
+    let first = stats.first().copied().unwrap_or_default();
+    Ok(json!({
+        "kind": "hierarchical_object_move",
+        "object": name,
+        "object_elements": last.elements.iter().filter(|e| e.object == object as u32).count(),
+        "elements": last.elements.len(),
+        "links": h.links(),
+        "moves": moves,
+        "move_m": 0.05,
+        "ms_median": median(times.clone()),
+        "ms_p99": p99(&times),
+        "ms": times,
+        "links_ms_median": median(link_ms.clone()),
+        "gathers_ms_median": median(gather_ms.clone()),
+        "gathers": gathers,
+        "first_move": first,
+        "rel_error_vs_fresh": err(&b),
+        "stale_rel_error_vs_fresh": err(&stale),
+        "reseeded_fresh_rel_error_vs_fresh": err(&reseeded.radiosity),
+        "fresh_gathers": fresh.iterations,
+        "fresh_ms": fresh_ms,
+        "floor_one_gather_ms": one_gather_ms,
     }))
 }

@@ -86,6 +86,8 @@ pub enum MoveError {
 pub struct HierarchyMove {
     /// The mover's links removed.
     pub links_removed: usize,
+    /// Of those, links within the mover (both ends in it).
+    pub links_within: usize,
     /// The mover's links made again.
     pub links_made: usize,
     /// Other links tested against the mover's places.
@@ -206,13 +208,18 @@ impl<'a> Hierarchy<'a> {
         // The links that stay, the crossed ones evaluated again.
         let old = std::mem::take(&mut h.links);
         let removed = AtomicUsize::new(0);
+        let within = AtomicUsize::new(0);
         let rechecked = AtomicUsize::new(0);
         let dropped = AtomicUsize::new(0);
         let kept: Vec<Link> = old
             .par_iter()
             .filter_map(|l| {
-                if in_mover[l.receiver as usize] || in_mover[l.source as usize] {
+                let ends = (in_mover[l.receiver as usize], in_mover[l.source as usize]);
+                if ends.0 || ends.1 {
                     removed.fetch_add(1, Ordering::Relaxed);
+                    if ends.0 && ends.1 {
+                        within.fetch_add(1, Ordering::Relaxed);
+                    }
                     return None;
                 }
                 let (rn, sn) = (
@@ -236,6 +243,7 @@ impl<'a> Hierarchy<'a> {
             })
             .collect();
         stats.links_removed = removed.into_inner();
+        stats.links_within = within.into_inner();
         stats.links_scanned = old.len() - stats.links_removed;
         stats.links_rechecked = rechecked.into_inner();
         stats.links_dropped = dropped.into_inner();
