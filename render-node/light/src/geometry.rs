@@ -15,7 +15,7 @@
 use super::bvh::Bvh;
 use super::ray::{Aabb, Ray};
 use crate::finite::finite_or_zero;
-use glam::{DMat3, DMat4, DVec2, DVec3, Vec2};
+use glam::{DAffine3, DMat3, DMat4, DVec2, DVec3, Vec2};
 use showcase_proto::{ObjectKind, Showcase, Transform};
 
 /// Relative size of the surface offset, see the module docs.
@@ -171,6 +171,18 @@ impl Hit {
     }
 }
 
+/// The surface offset of the epsilon policy (module docs) for the
+/// triangles of `bvh`.
+fn epsilon_of(bvh: &Bvh) -> f64 {
+    let b = bvh.bounds();
+    let scale = if b.is_empty() {
+        0.0
+    } else {
+        b.min.abs().max(b.max.abs()).max_element()
+    };
+    (EPSILON_RELATIVE * scale).max(EPSILON_MIN)
+}
+
 /// What blocks light between two points: one scene's [`SceneGeometry`],
 /// or a static scene and the objects that move in it, each in a BVH of its
 /// own (so a move rebuilds only the moved object's).
@@ -258,18 +270,43 @@ impl SceneGeometry {
             }
         }
         let bvh = Bvh::build(triangles);
-        let b = bvh.bounds();
-        let scale = if b.is_empty() {
-            0.0
-        } else {
-            b.min.abs().max(b.max.abs()).max_element()
-        };
         Ok(Self {
+            epsilon: epsilon_of(&bvh),
             bvh,
             info,
             kinds: showcase.objects.iter().map(|o| o.kind).collect(),
-            epsilon: (EPSILON_RELATIVE * scale).max(EPSILON_MIN),
         })
+    }
+
+    /// This geometry moved rigidly by `motion` (a rotation and a
+    /// translation): every triangle and normal moved, the BVH built again.
+    /// Moved by the same motion as a mesh made from it, it stays on that
+    /// mesh to the last bit (a move's own BVH, see the radiosity
+    /// hierarchy's movers).
+    pub fn moved(&self, motion: &DAffine3) -> Self {
+        let turn = motion.matrix3;
+        let triangles = self
+            .bvh
+            .triangles()
+            .iter()
+            .map(|t| t.map(|v| motion.transform_point3(v)))
+            .collect();
+        let info = self
+            .info
+            .iter()
+            .map(|i| TriangleInfo {
+                normal: turn * i.normal,
+                vertex_normals: i.vertex_normals.map(|n| n.map(|v| turn * v)),
+                ..*i
+            })
+            .collect();
+        let bvh = Bvh::build(triangles);
+        Self {
+            epsilon: epsilon_of(&bvh),
+            bvh,
+            info,
+            kinds: self.kinds.clone(),
+        }
     }
 
     /// Kind of object `index` of the showcase this was built from.

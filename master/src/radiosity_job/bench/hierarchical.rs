@@ -305,13 +305,13 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
         .position(|o| o.name == name)
         .with_context(|| format!("the demo scene has no object {name}"))?;
     let others: Vec<usize> = (0..demo.objects.len()).filter(|&i| i != object).collect();
-    let placed = |k: usize| {
-        let mut s = demo.clone();
-        s.objects[object].transform.translation += square_step(k);
-        s
+    // The bunny's own occluders, and where a move takes them (as the
+    // hierarchy moves them: by the mesh's motion).
+    let mover = SceneGeometry::build(demo, &ObjectFilter::Indices(vec![object]))?;
+    let mover_at = |k: usize| {
+        let to = glam::DAffine3::from_translation(square_step(k).as_dvec3());
+        vec![(object as u32, mover.moved(&to))]
     };
-    let mover_at =
-        |k: usize| SceneGeometry::build(&placed(k), &ObjectFilter::Indices(vec![object]));
     let all = SceneGeometry::build(demo, &ObjectFilter::All)?;
     let fixed = SceneGeometry::build(demo, &ObjectFilter::Indices(others))?;
     // An odd count, so that the last place is not the first.
@@ -323,10 +323,7 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
     let lights: Vec<showcase_proto::Light> = demo.lights.iter().map(|l| l.light.clone()).collect();
     let options = demo_options().hierarchy();
     let emission: Vec<glam::DVec3> = mesh0.elements.iter().map(|e| e.emission).collect();
-    let movers = |k: usize| -> anyhow::Result<Vec<(u32, SceneGeometry)>> {
-        Ok(vec![(object as u32, mover_at(k)?)])
-    };
-    let mut h = Hierarchy::with_movers(mesh0, &fixed, movers(0)?, None, &options)?;
+    let mut h = Hierarchy::with_movers(mesh0, &fixed, mover_at(0), None, &options)?;
     let mut direct = h.direct(&lights);
     let mut b = h.solve(&emission, &direct)?.radiosity;
     let stale = b.clone();
@@ -334,14 +331,19 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for k in 1..=moves {
         let t = Instant::now();
-        let step = (square_step(k) - square_step(k - 1)).as_dvec3();
+        let motion =
+            glam::DAffine3::from_translation((square_step(k) - square_step(k - 1)).as_dvec3());
         let moved = meshes[k - 1]
             .get()
             .context("no mesh before the move")?
-            .with_object_moved(object as u32, &glam::DAffine3::from_translation(step))?;
+            .with_object_moved(object as u32, &motion)?;
         let mesh = meshes[k].get_or_init(|| moved);
-        let (next, s) =
-            h.move_object(mesh, object as u32, mover_at(k)?, &b, &lights, &mut direct)?;
+        let step = radiosity::ObjectMove {
+            object: object as u32,
+            motion,
+            mesh,
+        };
+        let (next, s) = h.move_object(step, &b, &lights, &mut direct)?;
         h = next;
         let linked = t.elapsed().as_secs_f64() * 1e3;
         gathers.push(h.update(&mut b, &emission, &direct));
@@ -357,7 +359,7 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
             seed,
             ..options.clone()
         };
-        let mut f = Hierarchy::with_movers(last, &fixed, movers(moves)?, None, &o)?;
+        let mut f = Hierarchy::with_movers(last, &fixed, mover_at(moves), None, &o)?;
         let d = f.direct(&lights);
         Ok(f.solve(&emission, &d)?)
     };

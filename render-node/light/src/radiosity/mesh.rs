@@ -291,11 +291,12 @@ impl RadiosityMesh {
     /// moves).
     pub fn with_object_moved(&self, object: u32, motion: &DAffine3) -> Result<Self, MeshError> {
         let m = motion.matrix3;
+        // Within single precision: scene rotations are f32 quaternions.
         let rigid = (m.transpose() * m - glam::DMat3::IDENTITY)
             .to_cols_array()
             .iter()
-            .all(|v| v.abs() < 1e-9)
-            && (m.determinant() - 1.0).abs() < 1e-9
+            .all(|v| v.abs() < 1e-6)
+            && (m.determinant() - 1.0).abs() < 1e-6
             && motion.translation.is_finite();
         if !rigid {
             return Err(MeshError::NotRigid { object });

@@ -56,7 +56,7 @@ pub use hemicube::{HemiCube, HemiCubeError};
 pub use hierarchy::{
     Hierarchy, HierarchyError, HierarchyMove, HierarchyOptions, HierarchyPoint, HierarchyProgress,
     HierarchySolution, LINK_BYTES, MIN_LINKS_PER_ELEMENT, MoveError as HierarchyMoveError,
-    estimate_bytes, solve_hierarchical,
+    ObjectMove, estimate_bytes, solve_hierarchical,
 };
 pub use mesh::{Element, MeshError, MeshOptions, Patch, RadiosityMesh};
 pub use shooting::{

@@ -6,7 +6,7 @@ use super::{Hierarchy, HierarchyError, LINK_BYTES};
 use crate::finite::finite_or_zero;
 use crate::radiosity::mesh::barycentric_point;
 use crate::sampling::{hash64, triangle_sample, unit};
-use crate::{Occluders, form_factor_point_polygon};
+use crate::{Occluders, SceneGeometry, form_factor_point_polygon};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -357,7 +357,7 @@ impl Hierarchy<'_> {
     /// gets through or nothing can arrive.
     pub(super) fn make_link(&self, r: u32, s: u32, rays: u32) -> Option<Link> {
         let (rn, sn) = (&self.tree.nodes[r as usize], &self.tree.nodes[s as usize]);
-        let (visible, movers_only) = self.visibility(r, s, rays);
+        let (visible, may_uncover) = self.visibility(r, s, rays);
         // A link no ray got through is kept (at zero) while its nodes can
         // still be split: dropped, it could never be refined, and a few
         // rays would then take the light of every partly hidden pair that
@@ -366,7 +366,7 @@ impl Hierarchy<'_> {
         // came out 12 % dark with one ray a link, 3 % with four). A pair of
         // leaves only a mover hides is kept too: the mover may move away.
         let leaves = rn.is_leaf() && sn.is_leaf();
-        if !(visible > 0.0) && leaves && !movers_only {
+        if !(visible > 0.0) && leaves && !may_uncover {
             return None;
         }
         let d = rn.center - sn.center;
@@ -387,7 +387,7 @@ impl Hierarchy<'_> {
                 .sum::<f64>()
                 / points.len() as f64;
             let coef = f * visible;
-            return (coef > 0.0 || (movers_only && f > 0.0)).then_some(Link {
+            return (coef > 0.0 || (may_uncover && f > 0.0)).then_some(Link {
                 source: s,
                 receiver: r,
                 coef,
@@ -424,7 +424,7 @@ impl Hierarchy<'_> {
         } else {
             DVec3::ZERO
         };
-        (coef > 0.0 || !leaves || movers_only).then_some(Link {
+        (coef > 0.0 || !leaves || may_uncover).then_some(Link {
             source: s,
             receiver: r,
             coef,
@@ -435,7 +435,9 @@ impl Hierarchy<'_> {
 
     /// The visible fraction of rays between random points of two nodes,
     /// and whether, with none visible, a ray would have got through
-    /// without the movers (only then: it costs those rays again).
+    /// without what can move relative to the pair (only then: it costs
+    /// those rays again): the movers, for a static pair; everything but
+    /// itself, for a pair within one mover.
     pub(super) fn visibility(&self, r: u32, s: u32, rays: u32) -> (f64, bool) {
         let key = hash64(self.options.seed ^ (u64::from(r) << 32 | u64::from(s)));
         let (rc, sc) = (
@@ -454,18 +456,26 @@ impl Hierarchy<'_> {
                 blockers.visible(a, na, b, true)
             })
             .count() as u32;
-        // A mover's own links are made again at each of its moves.
-        let fixed_pair = [r, s]
-            .iter()
-            .all(|&n| self.tree.nodes[n as usize].group == 0);
-        let movers_only = seen == 0
-            && !self.movers.is_empty()
-            && fixed_pair
-            && (0..u64::from(rays)).any(|k| {
-                let (a, na, b) = ray(k);
-                self.geometry.visible(a, na, b, true)
+        // Links between a mover and the rest are made again at each of
+        // its moves.
+        let (gr, gs) = (
+            self.tree.nodes[r as usize].group,
+            self.tree.nodes[s as usize].group,
+        );
+        let own: Option<&SceneGeometry> = match gr {
+            _ if gr != gs || self.movers.is_empty() => None,
+            0 => Some(self.geometry),
+            super::tree::NONE => None,
+            k => self.movers.get(k as usize - 1).map(|m| &m.geometry),
+        };
+        let may_uncover = seen == 0
+            && own.is_some_and(|g| {
+                (0..u64::from(rays)).any(|k| {
+                    let (a, na, b) = ray(k);
+                    g.visible(a, na, b, true)
+                })
             });
-        (f64::from(seen) / f64::from(rays), movers_only)
+        (f64::from(seen) / f64::from(rays), may_uncover)
     }
 
     /// A point of a random member of node `n`, and its normal.

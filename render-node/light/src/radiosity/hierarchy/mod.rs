@@ -45,7 +45,7 @@ use crate::sampling::hash64;
 use crate::{Occluders, SceneGeometry};
 use glam::{DVec2, DVec3};
 use links::{Link, Moments};
-pub use moving::{HierarchyMove, MoveError};
+pub use moving::{HierarchyMove, MoveError, ObjectMove};
 use rayon::prelude::*;
 use sh::Sh;
 use showcase_proto::Light;

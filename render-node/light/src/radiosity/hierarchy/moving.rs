@@ -5,19 +5,24 @@
 //! A mover has a subtree of its own, and the few nodes that hold it and
 //! something else (`mixed`) carry no link, so every link the move changes
 //! is one of:
-//! - **the mover's own links** (an end in its subtree): removed, and its
-//!   pairs refined again from the top against the current B, as a fresh
-//!   refinement would (its coefficients, visibility and level all depend
-//!   on where it is);
+//! - **the links between the mover and the rest** (one end in its
+//!   subtree): removed, and those pairs refined again from the top against
+//!   the current B, as a fresh refinement would (their coefficients,
+//!   visibility and level all depend on where it is);
+//! - **the links within the mover**: a rigid move leaves their
+//!   coefficients as they were and turns their directions with it; only
+//!   their visibility may change, where something else comes into or
+//!   leaves their shaft, so those whose capsule meets a static triangle
+//!   or another mover near the old or new place are evaluated again;
 //! - **a link whose shaft the mover crossed**, before or after the move:
 //!   its visibility rays run between points of its two nodes, so they lie
 //!   in the capsule around the segment between the nodes' centres, with
 //!   the larger node radius; a link whose capsule misses the bounding
 //!   spheres of the mover's old and new place cannot see a difference and
 //!   is kept as it is. The others are evaluated again (same seeds, so as
-//!   a fresh link). A pair of leaves only a mover hides kept its link at
-//!   zero ([`Hierarchy::with_movers`]), so a mover that moves away
-//!   uncovers it.
+//!   a fresh link). A pair of leaves that something able to move relative
+//!   to them hides kept its link at zero ([`Hierarchy::with_movers`]), so
+//!   a move that uncovers it finds it.
 //!
 //! The direct light changes on the mover's elements and on the elements
 //! whose capsule towards a light crosses the old or new place; only those
@@ -27,7 +32,7 @@ use super::tree::NONE;
 use super::{Hierarchy, HierarchyError, Link};
 use crate::SceneGeometry;
 use crate::radiosity::mesh::RadiosityMesh;
-use glam::DVec3;
+use glam::{DAffine3, DVec3};
 use rayon::prelude::*;
 use showcase_proto::Light;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -65,6 +70,17 @@ pub enum MoveError {
         /// The object that moved.
         object: u32,
     },
+    /// The moved mesh does not hold the object where the motion takes it.
+    #[error(
+        "element {element} of object {object} is not where the motion takes it: build the \
+         moved mesh with RadiosityMesh::with_object_moved and the same motion"
+    )]
+    MotionMismatch {
+        /// The element.
+        element: u32,
+        /// The object.
+        object: u32,
+    },
     /// The direct light is not one value per element.
     #[error(
         "the direct light has {got} values for {elements} elements: pass Hierarchy::direct's \
@@ -81,13 +97,32 @@ pub enum MoveError {
     Hierarchy(#[from] HierarchyError),
 }
 
+/// One rigid move of a mover, as [`Hierarchy::move_object`] takes it.
+pub struct ObjectMove<'m> {
+    /// The object (a mover of the hierarchy).
+    pub object: u32,
+    /// Its rigid motion from where the hierarchy has it.
+    pub motion: DAffine3,
+    /// The hierarchy's mesh with the object moved
+    /// ([`RadiosityMesh::with_object_moved`] by `motion`). The object's
+    /// occluders are moved by the same motion ([`SceneGeometry::moved`]),
+    /// so they stay on its elements to the last bit: a BVH built from the
+    /// scene's single-precision transform can sit 1e-8 m off them, more
+    /// than the rays' surface offset, and a turned object then shadowed
+    /// itself.
+    pub mesh: &'m RadiosityMesh,
+}
+
 /// What a move did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct HierarchyMove {
     /// The mover's links removed.
     pub links_removed: usize,
-    /// Of those, links within the mover (both ends in it).
+    /// Links within the mover, kept (turned with it).
     pub links_within: usize,
+    /// Of those, links whose shaft something else may enter or leave,
+    /// evaluated again.
+    pub links_within_rechecked: usize,
     /// The mover's links made again.
     pub links_made: usize,
     /// Other links tested against the mover's places.
@@ -131,6 +166,26 @@ impl Ball {
     }
 }
 
+/// Something that may come into a shaft: a ball about it, and for a
+/// triangle its plane (`n . x = d`), which a capsule wholly on one side
+/// cannot meet.
+#[derive(Clone, Copy, Debug)]
+struct Obstacle {
+    ball: Ball,
+    plane: Option<(DVec3, f64)>,
+}
+
+impl Obstacle {
+    fn meets_capsule(&self, a: DVec3, b: DVec3, r: f64, margin: f64) -> bool {
+        let off_plane = self.plane.is_some_and(|(n, d)| {
+            let (da, db) = (n.dot(a) - d, n.dot(b) - d);
+            let reach = r + margin;
+            (da > reach && db > reach) || (da < -reach && db < -reach)
+        });
+        !off_plane && self.ball.meets_capsule(a, b, r, margin)
+    }
+}
+
 /// The bounding sphere of a light's emitting points.
 fn light_ball(light: &Light) -> Ball {
     match light {
@@ -154,18 +209,14 @@ fn light_ball(light: &Light) -> Ball {
 }
 
 impl<'a> Hierarchy<'a> {
-    /// Move mover `object` to its place in `mesh` (this hierarchy's mesh
-    /// with that object moved, [`RadiosityMesh::with_object_moved`]), with
-    /// `geometry` its occluders there: the links and the direct light
-    /// `direct` (per element, from [`Self::direct`] with `lights`) that the
-    /// move changes are made again (see the module docs); `b` is the
-    /// current solution, whose power the mover's links are refined
+    /// Apply `step` (a rigid move of one mover): the links and the direct
+    /// light `direct` (per element, from [`Self::direct`] with `lights`)
+    /// that the move changes are made again (see the module docs); `b` is
+    /// the current solution, whose power the mover's links are refined
     /// against. Then [`Self::update`] from the old B settles the new one.
     pub fn move_object<'b>(
         self,
-        mesh: &'b RadiosityMesh,
-        object: u32,
-        geometry: SceneGeometry,
+        step: ObjectMove<'b>,
         b: &[DVec3],
         lights: &[Light],
         direct: &mut [DVec3],
@@ -173,13 +224,18 @@ impl<'a> Hierarchy<'a> {
     where
         'a: 'b,
     {
+        let ObjectMove {
+            object,
+            motion,
+            mesh,
+        } = step;
         let mut h: Hierarchy<'b> = self;
         let k = h
             .movers
             .iter()
             .position(|m| m.object == object)
             .ok_or(MoveError::NotAMover(object))?;
-        h.check_moved_mesh(mesh, object)?;
+        h.check_moved_mesh(mesh, object, &motion)?;
         let no_direct = lights.is_empty() && direct.is_empty();
         if !no_direct && direct.len() != mesh.elements.len() {
             return Err(MoveError::DirectLength {
@@ -188,10 +244,45 @@ impl<'a> Hierarchy<'a> {
             });
         }
         let margin = 1e-6 * (1.0 + h.geometry.bounds().max.abs().max_element());
+        let geometry = h.movers[k].geometry.moved(&motion);
         let places: Vec<Ball> = [Ball::of(&h.movers[k].geometry), Ball::of(&geometry)]
             .into_iter()
             .flatten()
             .collect();
+        // What may come into a shaft within the mover, or leave it: the
+        // static triangles and the other movers near its two places.
+        let obstacles: Vec<Obstacle> = h
+            .geometry
+            .triangles()
+            .map(|t| {
+                let center = (t.vertices[0] + t.vertices[1] + t.vertices[2]) / 3.0;
+                let radius = t
+                    .vertices
+                    .iter()
+                    .map(|v| (*v - center).length())
+                    .fold(0.0, f64::max);
+                let plane = (t.normal != DVec3::ZERO).then(|| (t.normal, t.normal.dot(center)));
+                Obstacle {
+                    ball: Ball { center, radius },
+                    plane,
+                }
+            })
+            .chain(
+                h.movers
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != k)
+                    .filter_map(|(_, m)| Ball::of(&m.geometry))
+                    .map(|ball| Obstacle { ball, plane: None }),
+            )
+            .filter(|o| {
+                places.iter().any(|p| {
+                    (o.ball.center - p.center).length() <= o.ball.radius + p.radius + margin
+                })
+            })
+            .collect();
+        let back = motion.inverse();
+        let turn = motion.matrix3;
         h.mesh = mesh;
         h.movers[k].geometry = geometry;
         h.tree.fill_geometry(mesh);
@@ -204,29 +295,85 @@ impl<'a> Hierarchy<'a> {
                 in_mover[n as usize] = true;
             }
         }
-        let moments = h.pull(b);
+        if !no_direct {
+            // The direct light where the move changed it.
+            let lights_balls: Vec<Ball> = lights.iter().map(light_ball).collect();
+            let elements: Vec<u32> = h
+                .tree
+                .order
+                .par_iter()
+                .copied()
+                .filter(|&e| {
+                    let el = &h.mesh.elements[e as usize];
+                    if el.object == object {
+                        return true;
+                    }
+                    let leaf = &h.tree.nodes[h.tree.leaf_of[e as usize] as usize];
+                    lights_balls.iter().any(|l| {
+                        places.iter().any(|p| {
+                            p.meets_capsule(
+                                leaf.center,
+                                l.center,
+                                leaf.radius.max(l.radius),
+                                margin,
+                            )
+                        })
+                    })
+                })
+                .collect();
+            stats.direct_updated = elements.len();
+            h.direct_at(lights, &elements, direct);
+        }
+        // The mover's links are refined against its power after the move:
+        // a face turned towards a light is brighter than the old B says.
+        let mut estimate = b.to_vec();
+        if !no_direct {
+            for &e in &h.tree.order {
+                let el = &h.mesh.elements[e as usize];
+                if el.object == object {
+                    let lit = el.reflectance * direct[e as usize];
+                    estimate[e as usize] = estimate[e as usize].max(lit);
+                }
+            }
+        }
+        let moments = h.pull(&estimate);
         // The links that stay, the crossed ones evaluated again.
         let old = std::mem::take(&mut h.links);
         let removed = AtomicUsize::new(0);
         let within = AtomicUsize::new(0);
+        let within_rechecked = AtomicUsize::new(0);
         let rechecked = AtomicUsize::new(0);
         let dropped = AtomicUsize::new(0);
         let kept: Vec<Link> = old
             .par_iter()
             .filter_map(|l| {
                 let ends = (in_mover[l.receiver as usize], in_mover[l.source as usize]);
-                if ends.0 || ends.1 {
-                    removed.fetch_add(1, Ordering::Relaxed);
-                    if ends.0 && ends.1 {
-                        within.fetch_add(1, Ordering::Relaxed);
-                    }
-                    return None;
-                }
                 let (rn, sn) = (
                     &h.tree.nodes[l.receiver as usize],
                     &h.tree.nodes[l.source as usize],
                 );
                 let r = rn.radius.max(sn.radius);
+                if ends.0 && ends.1 {
+                    within.fetch_add(1, Ordering::Relaxed);
+                    let (a, c) = (rn.center, sn.center);
+                    let (a0, c0) = (back.transform_point3(a), back.transform_point3(c));
+                    let crossed = obstacles.iter().any(|o| {
+                        o.meets_capsule(a, c, r, margin) || o.meets_capsule(a0, c0, r, margin)
+                    });
+                    if !crossed {
+                        let mut turned = *l;
+                        turned.dir = turn * l.dir;
+                        turned.slope = turn * l.slope;
+                        return Some(turned);
+                    }
+                    within_rechecked.fetch_add(1, Ordering::Relaxed);
+                    let rays = h.rays_for_pair(l.receiver, l.source, &moments);
+                    return h.make_link(l.receiver, l.source, rays);
+                }
+                if ends.0 || ends.1 {
+                    removed.fetch_add(1, Ordering::Relaxed);
+                    return None;
+                }
                 if !places
                     .iter()
                     .any(|p| p.meets_capsule(rn.center, sn.center, r, margin))
@@ -244,7 +391,8 @@ impl<'a> Hierarchy<'a> {
             .collect();
         stats.links_removed = removed.into_inner();
         stats.links_within = within.into_inner();
-        stats.links_scanned = old.len() - stats.links_removed;
+        stats.links_within_rechecked = within_rechecked.into_inner();
+        stats.links_scanned = old.len() - stats.links_removed - stats.links_within;
         stats.links_rechecked = rechecked.into_inner();
         stats.links_dropped = dropped.into_inner();
         drop(old);
@@ -272,37 +420,17 @@ impl<'a> Hierarchy<'a> {
         links.extend(made);
         h.set_links(links)?;
 
-        if no_direct {
-            return Ok((h, stats));
-        }
-        // The direct light where the move changed it.
-        let lights_balls: Vec<Ball> = lights.iter().map(light_ball).collect();
-        let elements: Vec<u32> = h
-            .tree
-            .order
-            .par_iter()
-            .copied()
-            .filter(|&e| {
-                let el = &h.mesh.elements[e as usize];
-                if el.object == object {
-                    return true;
-                }
-                let leaf = &h.tree.nodes[h.tree.leaf_of[e as usize] as usize];
-                lights_balls.iter().any(|l| {
-                    places.iter().any(|p| {
-                        p.meets_capsule(leaf.center, l.center, leaf.radius.max(l.radius), margin)
-                    })
-                })
-            })
-            .collect();
-        stats.direct_updated = elements.len();
-        h.direct_at(lights, &elements, direct);
         Ok((h, stats))
     }
 
     /// The moved mesh must be this one with only `object`'s elements
-    /// moved.
-    fn check_moved_mesh(&self, mesh: &RadiosityMesh, object: u32) -> Result<(), MoveError> {
+    /// moved, by `motion`.
+    fn check_moved_mesh(
+        &self,
+        mesh: &RadiosityMesh,
+        object: u32,
+        motion: &DAffine3,
+    ) -> Result<(), MoveError> {
         if mesh.elements.len() != self.mesh.elements.len() {
             return Err(MoveError::MeshMismatch {
                 expected: self.mesh.elements.len(),
@@ -319,10 +447,26 @@ impl<'a> Hierarchy<'a> {
                     || a.area != b.area
                     || (a.object != object && a.vertices != b.vertices)
             });
-        match changed {
-            Some(e) => Err(MoveError::StaticElementChanged {
+        if let Some(e) = changed {
+            return Err(MoveError::StaticElementChanged {
                 element: e as u32,
                 its_object: self.mesh.elements[e].object,
+                object,
+            });
+        }
+        let scale = 1.0 + self.geometry.bounds().max.abs().max_element();
+        let astray = self
+            .mesh
+            .elements
+            .iter()
+            .zip(&mesh.elements)
+            .position(|(a, b)| {
+                a.object == object
+                    && !((motion.transform_point3(a.center) - b.center).length() <= 1e-9 * scale)
+            });
+        match astray {
+            Some(e) => Err(MoveError::MotionMismatch {
+                element: e as u32,
                 object,
             }),
             None => Ok(()),
@@ -336,11 +480,11 @@ impl<'a> Hierarchy<'a> {
             .map_or(self.options.visibility_rays, |p| self.rays_for(p))
     }
 
-    /// The pairs under which every link with an end in the mover's subtree
-    /// (`in_mover`) lies, and no other link: from the root pair down, the
-    /// mixed nodes split as a refinement splits them, and split further
-    /// while they must be refined, so that there are enough to share
-    /// among the threads.
+    /// The pairs under which every link between the mover's subtree
+    /// (`in_mover`) and the rest lies, and no other link: from the root
+    /// pair down, the mixed nodes split as a refinement splits them, and
+    /// split further while they must be refined, so that there are enough
+    /// to share among the threads.
     fn mover_pairs(
         &self,
         root: u32,
@@ -367,6 +511,10 @@ impl<'a> Hierarchy<'a> {
         while let Some((r, s)) = stack.pop() {
             let (ir, is) = (in_mover[r as usize], in_mover[s as usize]);
             if !(ir || is || above[r as usize] || above[s as usize]) {
+                continue;
+            }
+            if ir && is {
+                // Within the mover: kept, turned with it.
                 continue;
             }
             let mixed = self.tree.nodes[r as usize].mixed || self.tree.nodes[s as usize].mixed;
