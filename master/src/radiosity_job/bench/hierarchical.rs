@@ -298,7 +298,6 @@ fn square_step(k: usize) -> glam::Vec3 {
 fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord> {
     use showcase_light::radiosity::{self, Hierarchy, RadiosityMesh};
     use showcase_light::{ObjectFilter, SceneGeometry};
-    use std::cell::OnceCell;
     let object = demo
         .objects
         .iter()
@@ -316,14 +315,11 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
     let fixed = SceneGeometry::build(demo, &ObjectFilter::Indices(others))?;
     // An odd count, so that the last place is not the first.
     let moves = 21;
-    // The meshes outlive the hierarchy that borrows each in turn.
-    let meshes: Vec<OnceCell<RadiosityMesh>> = (0..=moves).map(|_| OnceCell::new()).collect();
-    let first = RadiosityMesh::build(demo, &all, &demo_options().hierarchical_mesh())?;
-    let mesh0 = meshes[0].get_or_init(|| first);
+    let mesh0 = RadiosityMesh::build(demo, &all, &demo_options().hierarchical_mesh())?;
     let lights: Vec<showcase_proto::Light> = demo.lights.iter().map(|l| l.light.clone()).collect();
     let options = demo_options().hierarchy();
     let emission: Vec<glam::DVec3> = mesh0.elements.iter().map(|e| e.emission).collect();
-    let mut h = Hierarchy::with_movers(mesh0, &fixed, mover_at(0), None, &options)?;
+    let mut h = Hierarchy::with_movers(&mesh0, &fixed, mover_at(0), None, &options)?;
     let mut direct = h.direct(&lights);
     let mut b = h.solve(&emission, &direct)?.radiosity;
     let stale = b.clone();
@@ -333,15 +329,9 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
         let t = Instant::now();
         let motion =
             glam::DAffine3::from_translation((square_step(k) - square_step(k - 1)).as_dvec3());
-        let moved = meshes[k - 1]
-            .get()
-            .context("no mesh before the move")?
-            .with_object_moved(object as u32, &motion)?;
-        let mesh = meshes[k].get_or_init(|| moved);
         let step = radiosity::ObjectMove {
             object: object as u32,
             motion,
-            mesh,
         };
         let (next, s) = h.move_object(step, &b, &lights, &mut direct)?;
         h = next;
@@ -353,7 +343,8 @@ fn object_move_record(demo: &Showcase, name: &str) -> anyhow::Result<BenchRecord
         gather_ms.push(total - linked);
         stats.push(s);
     }
-    let last = meshes[moves].get().context("no mesh after the moves")?;
+    let last = h.mesh().clone();
+    let last = &last;
     let fresh_of = |seed: u64| -> anyhow::Result<radiosity::HierarchySolution> {
         let o = radiosity::HierarchyOptions {
             seed,

@@ -290,6 +290,13 @@ impl RadiosityMesh {
     /// are shared within an object only, so no other object's corner
     /// moves).
     pub fn with_object_moved(&self, object: u32, motion: &DAffine3) -> Result<Self, MeshError> {
+        let mut out = self.clone();
+        out.move_object(object, motion)?;
+        Ok(out)
+    }
+
+    /// [`Self::with_object_moved`] in place; on an error nothing moved.
+    pub fn move_object(&mut self, object: u32, motion: &DAffine3) -> Result<(), MeshError> {
         let m = motion.matrix3;
         // Within single precision: scene rotations are f32 quaternions.
         let rigid = (m.transpose() * m - glam::DMat3::IDENTITY)
@@ -306,7 +313,7 @@ impl RadiosityMesh {
         }
         let point = |p: DVec3| motion.transform_point3(p);
         let normal = |n: DVec3| m * n;
-        let mut out = self.clone();
+        let out = self;
         for p in out.primitives.iter_mut().filter(|p| p.object == object) {
             p.vertices = p.vertices.map(point);
             p.normal = normal(p.normal);
@@ -329,7 +336,7 @@ impl RadiosityMesh {
             v.position = point(v.position);
             v.normal = normal(v.normal);
         }
-        Ok(out)
+        Ok(())
     }
 }
 

@@ -49,6 +49,7 @@ pub use moving::{HierarchyMove, MoveError, ObjectMove};
 use rayon::prelude::*;
 use sh::Sh;
 use showcase_proto::Light;
+use std::borrow::Cow;
 use std::sync::Arc;
 use tree::Tree;
 
@@ -296,7 +297,8 @@ impl Occluders for Blockers<'_> {
 
 /// A cluster tree with its links over one set of elements and occluders.
 pub struct Hierarchy<'a> {
-    mesh: &'a RadiosityMesh,
+    /// The mesh; its own copy once a mover moved ([`Self::move_object`]).
+    mesh: Cow<'a, RadiosityMesh>,
     /// The occluders that never move: every object's, or, with movers,
     /// all but theirs.
     geometry: &'a SceneGeometry,
@@ -362,7 +364,7 @@ impl<'a> Hierarchy<'a> {
             }
         };
         Ok(Self {
-            mesh,
+            mesh: Cow::Borrowed(mesh),
             geometry,
             movers,
             options: options.clone(),
@@ -372,6 +374,11 @@ impl<'a> Hierarchy<'a> {
             reference_power: 0.0,
             quadrature: sub_centroids(2),
         })
+    }
+
+    /// The mesh, with the movers where they are now.
+    pub fn mesh(&self) -> &RadiosityMesh {
+        &self.mesh
     }
 
     /// Links in use.
@@ -490,7 +497,7 @@ impl<'a> Hierarchy<'a> {
         let (mut it, mut residual) = (0, 1.0);
         while it < self.options.max_iterations {
             let next = self.gather_step(init, b);
-            residual = relative_change(self.mesh, &self.tree.order, b, &next);
+            residual = relative_change(&self.mesh, &self.tree.order, b, &next);
             *b = next;
             it += 1;
             if let Some(round) = round {

@@ -31,7 +31,7 @@
 use super::tree::NONE;
 use super::{Hierarchy, HierarchyError, Link};
 use crate::SceneGeometry;
-use crate::radiosity::mesh::RadiosityMesh;
+use crate::radiosity::mesh::MeshError;
 use glam::{DAffine3, DVec3};
 use rayon::prelude::*;
 use showcase_proto::Light;
@@ -46,41 +46,9 @@ pub enum MoveError {
          (Hierarchy::with_movers)"
     )]
     NotAMover(u32),
-    /// The moved mesh is not this mesh with one object moved.
-    #[error(
-        "the moved mesh has {got} elements against the hierarchy's {expected}: move the \
-         object with RadiosityMesh::with_object_moved"
-    )]
-    MeshMismatch {
-        /// The hierarchy's elements.
-        expected: usize,
-        /// The moved mesh's.
-        got: usize,
-    },
-    /// An element of another object changed place.
-    #[error(
-        "element {element} (object {its_object}) changed, but only object {object} moved: \
-         move one object at a time with RadiosityMesh::with_object_moved"
-    )]
-    StaticElementChanged {
-        /// The element.
-        element: u32,
-        /// Its object.
-        its_object: u32,
-        /// The object that moved.
-        object: u32,
-    },
-    /// The moved mesh does not hold the object where the motion takes it.
-    #[error(
-        "element {element} of object {object} is not where the motion takes it: build the \
-         moved mesh with RadiosityMesh::with_object_moved and the same motion"
-    )]
-    MotionMismatch {
-        /// The element.
-        element: u32,
-        /// The object.
-        object: u32,
-    },
+    /// The motion is not rigid, or the object has no element.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
     /// The direct light is not one value per element.
     #[error(
         "the direct light has {got} values for {elements} elements: pass Hierarchy::direct's \
@@ -98,19 +66,18 @@ pub enum MoveError {
 }
 
 /// One rigid move of a mover, as [`Hierarchy::move_object`] takes it.
-pub struct ObjectMove<'m> {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectMove {
     /// The object (a mover of the hierarchy).
     pub object: u32,
-    /// Its rigid motion from where the hierarchy has it.
-    pub motion: DAffine3,
-    /// The hierarchy's mesh with the object moved
-    /// ([`RadiosityMesh::with_object_moved`] by `motion`). The object's
-    /// occluders are moved by the same motion ([`SceneGeometry::moved`]),
-    /// so they stay on its elements to the last bit: a BVH built from the
-    /// scene's single-precision transform can sit 1e-8 m off them, more
-    /// than the rays' surface offset, and a turned object then shadowed
+    /// Its rigid motion from where the hierarchy has it. The hierarchy
+    /// moves its mesh ([`crate::radiosity::RadiosityMesh::move_object`])
+    /// and the object's BVH ([`SceneGeometry::moved`]) by it alike, so
+    /// they stay on each other to the last bit: a BVH built from the
+    /// scene's single-precision transform sat 1e-8 m off the elements,
+    /// more than the rays' surface offset, and a turned object shadowed
     /// itself.
-    pub mesh: &'m RadiosityMesh,
+    pub motion: DAffine3,
 }
 
 /// What a move did.
@@ -233,40 +200,36 @@ fn light_ball(light: &Light) -> Ball {
 }
 
 impl<'a> Hierarchy<'a> {
-    /// Apply `step` (a rigid move of one mover): the links and the direct
+    /// Apply `step` (a rigid move of one mover, of its elements in the
+    /// mesh and of its occluders): the links and the direct
     /// light `direct` (per element, from [`Self::direct`] with `lights`)
     /// that the move changes are made again (see the module docs); `b` is
     /// the current solution, whose power the mover's links are refined
     /// against. Then [`Self::update`] from the old B settles the new one.
-    pub fn move_object<'b>(
+    /// On an error the hierarchy is gone (one found before anything moved
+    /// too, for one rule): solve afresh.
+    pub fn move_object(
         self,
-        step: ObjectMove<'b>,
+        step: ObjectMove,
         b: &[DVec3],
         lights: &[Light],
         direct: &mut [DVec3],
-    ) -> Result<(Hierarchy<'b>, HierarchyMove), MoveError>
-    where
-        'a: 'b,
-    {
-        let ObjectMove {
-            object,
-            motion,
-            mesh,
-        } = step;
-        let mut h: Hierarchy<'b> = self;
+    ) -> Result<(Self, HierarchyMove), MoveError> {
+        let ObjectMove { object, motion } = step;
+        let mut h = self;
         let k = h
             .movers
             .iter()
             .position(|m| m.object == object)
             .ok_or(MoveError::NotAMover(object))?;
-        h.check_moved_mesh(mesh, object, &motion)?;
         let no_direct = lights.is_empty() && direct.is_empty();
-        if !no_direct && direct.len() != mesh.elements.len() {
+        if !no_direct && direct.len() != h.mesh.elements.len() {
             return Err(MoveError::DirectLength {
                 got: direct.len(),
-                elements: mesh.elements.len(),
+                elements: h.mesh.elements.len(),
             });
         }
+        h.mesh.to_mut().move_object(object, &motion)?;
         let margin = 1e-6 * (1.0 + h.geometry.bounds().max.abs().max_element());
         let geometry = h.movers[k].geometry.moved(&motion);
         let places: Vec<Ball> = [Ball::of(&h.movers[k].geometry), Ball::of(&geometry)]
@@ -307,9 +270,8 @@ impl<'a> Hierarchy<'a> {
             .collect();
         let back = motion.inverse();
         let turn = motion.matrix3;
-        h.mesh = mesh;
         h.movers[k].geometry = geometry;
-        h.tree.fill_geometry(mesh);
+        h.tree.fill_geometry(&h.mesh);
         let mut stats = HierarchyMove::default();
 
         let root = h.tree.mover_roots[k];
@@ -440,56 +402,6 @@ impl<'a> Hierarchy<'a> {
         h.set_links(links)?;
 
         Ok((h, stats))
-    }
-
-    /// The moved mesh must be this one with only `object`'s elements
-    /// moved, by `motion`.
-    fn check_moved_mesh(
-        &self,
-        mesh: &RadiosityMesh,
-        object: u32,
-        motion: &DAffine3,
-    ) -> Result<(), MoveError> {
-        if mesh.elements.len() != self.mesh.elements.len() {
-            return Err(MoveError::MeshMismatch {
-                expected: self.mesh.elements.len(),
-                got: mesh.elements.len(),
-            });
-        }
-        let changed = self
-            .mesh
-            .elements
-            .iter()
-            .zip(&mesh.elements)
-            .position(|(a, b)| {
-                a.object != b.object
-                    || a.area != b.area
-                    || (a.object != object && a.vertices != b.vertices)
-            });
-        if let Some(e) = changed {
-            return Err(MoveError::StaticElementChanged {
-                element: e as u32,
-                its_object: self.mesh.elements[e].object,
-                object,
-            });
-        }
-        let scale = 1.0 + self.geometry.bounds().max.abs().max_element();
-        let astray = self
-            .mesh
-            .elements
-            .iter()
-            .zip(&mesh.elements)
-            .position(|(a, b)| {
-                a.object == object
-                    && !((motion.transform_point3(a.center) - b.center).length() <= 1e-9 * scale)
-            });
-        match astray {
-            Some(e) => Err(MoveError::MotionMismatch {
-                element: e as u32,
-                object,
-            }),
-            None => Ok(()),
-        }
     }
 
     /// The rays a fresh link of this pair gets ([`Self::rays_for`]): all
