@@ -310,13 +310,32 @@ pub fn indirect_correction(
     let bounce_all = h0.reflect(&b0);
     drop(h0);
     let mask: Vec<bool> = mesh.elements.iter().map(|e| e.real).collect();
-    let real_b0: Vec<DVec3> = b0
-        .iter()
-        .zip(&mask)
-        .map(|(b, r)| if *r { *b } else { DVec3::ZERO })
-        .collect();
+    let real_b0 = real_part(mesh, &b0);
     let mut h = Hierarchy::new(mesh, real, Some(&mask), options)?;
     h.link(&real_b0)?;
+    Ok(correction(mesh, &h, &real_b0, &bounce_all, lit))
+}
+
+/// `b` on the real elements, zero on the virtual ones.
+pub(super) fn real_part(mesh: &RadiosityMesh, b: &[DVec3]) -> Vec<DVec3> {
+    mesh.elements
+        .iter()
+        .zip(b)
+        .map(|(e, b)| if e.real { *b } else { DVec3::ZERO })
+        .collect()
+}
+
+/// [`indirect_correction`] from B0's real part `real_b0`, one bounce of
+/// all of B0 over every object (`bounce_all`) and `h`, the real elements'
+/// links: the light the real surfaces bring each other (the dark ones
+/// only reflecting), and what the displays add beyond it.
+pub(super) fn correction(
+    mesh: &RadiosityMesh,
+    h: &Hierarchy<'_>,
+    real_b0: &[DVec3],
+    bounce_all: &[DVec3],
+    lit: Option<&[bool]>,
+) -> Vec<IndirectLight> {
     let reached: Vec<bool> = (0..mesh.elements.len())
         .map(|e| lit.is_none_or(|l| l.get(e).copied().unwrap_or(false)))
         .collect();
@@ -334,8 +353,7 @@ pub fn indirect_correction(
         }
     }
     let bounce_real = h.reflect(&cabinet);
-    Ok(mesh
-        .elements
+    mesh.elements
         .iter()
         .zip(bounce_all.iter().zip(&bounce_real))
         .map(|(e, (all, real))| {
@@ -358,7 +376,7 @@ pub fn indirect_correction(
                 cabinet: irradiance(*real),
             }
         })
-        .collect())
+        .collect()
 }
 
 /// Per element of `mesh`: whether some projector of `projectors` reaches

@@ -40,6 +40,7 @@ mod augmented_tests;
 pub mod gather;
 pub mod hemicube;
 pub mod hierarchy;
+pub mod live;
 pub mod mesh;
 pub mod shooting;
 pub mod sources;
