@@ -1,7 +1,11 @@
 //! Global illumination in the live cluster (a scene with
 //! `illumination = "global"`): the master solves the global-illumination
 //! field ([`crate::radiosity_job::indirect_values`]) on its own
-//! thread, off the frame loop, for the newest state the loop asked for;
+//! thread, off the frame loop, for the newest state the loop asked for,
+//! and keeps the solution ([`LiveScene`]): a later state of the same scene
+//! updates it (a virtual light or object moved, a head moved) instead of
+//! solving afresh, which only another scene or a real object's move asks
+//! for;
 //! the loop publishes each solution ([`MasterCore::set_illumination`]) as
 //! it lands, and frames name the version they are drawn with. The frame
 //! clock never waits for the solver, except once at start: frame 0 is
@@ -9,8 +13,10 @@
 //!
 //! [`MasterCore::set_illumination`]: showcase_proto::session::MasterCore::set_illumination
 
+use crate::radiosity_job::live::LiveScene;
 use crate::radiosity_job::{RadiosityOptions, indirect_values};
-use showcase_light::render::FrameScene;
+use showcase_light::radiosity::live::LiveUpdate;
+use showcase_light::render::{FrameScene, IndirectLight};
 use showcase_proto::message::{ElementLight, IlluminationMesh};
 use showcase_proto::{FrameState, Showcase};
 use std::sync::{Arc, Condvar, Mutex};
@@ -54,15 +60,29 @@ pub struct Solved {
     pub values: Vec<ElementLight>,
     /// The solve's own time (s).
     pub solve_s: f64,
+    /// What the update of the kept solution did; `None` for a solve from
+    /// scratch.
+    pub update: Option<LiveUpdate>,
 }
 
-/// Solve `request` (the scene meshed by `options`' hierarchical mesh).
+/// Solve `request` (the scene meshed by `options`' hierarchical mesh)
+/// from scratch.
 pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Solved> {
     let t = Instant::now();
     let resolved = FrameScene::resolve(&request.scene, &request.state)?;
     let (_, values) = indirect_values(&resolved.showcase, &resolved.eyes, options)?;
+    Ok(solved(&request, options, &values, t))
+}
+
+/// The message of a solution of `request`'s state, begun at `begun`.
+fn solved(
+    request: &Request,
+    options: &RadiosityOptions,
+    values: &[IndirectLight],
+    begun: Instant,
+) -> Solved {
     let m = options.hierarchical_mesh();
-    Ok(Solved {
+    Solved {
         frame: request.state.frame,
         asked_at: request.asked_at,
         mesh: IlluminationMesh {
@@ -77,8 +97,91 @@ pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Sol
                 cabinet: v.cabinet.as_vec3().to_array(),
             })
             .collect(),
-        solve_s: t.elapsed().as_secs_f64(),
-    })
+        solve_s: begun.elapsed().as_secs_f64(),
+        update: None,
+    }
+}
+
+/// Serve requests of one scene from one live solution, starting with
+/// `first`: each later state of the same scene is an update of it
+/// (virtual objects moved, lights changed, heads moved), not a solve.
+/// Returns the request it cannot serve so (another scene, or a change
+/// the live solution cannot follow: a real object moved), or `None` when
+/// the thread must stop.
+fn serve_scene(
+    first: Request,
+    next: &dyn Fn() -> Option<Request>,
+    send: &dyn Fn(Result<Solved, String>) -> bool,
+    pool: &rayon::ThreadPool,
+    options: &RadiosityOptions,
+) -> Option<Request> {
+    let begun = Instant::now();
+    let start = pool.install(|| -> anyhow::Result<_> {
+        let resolved = FrameScene::resolve(&first.scene, &first.state)?;
+        let scene = LiveScene::new(&resolved.showcase, options)?;
+        Ok((resolved, scene))
+    });
+    let (resolved, scene) = match start {
+        Ok(s) => s,
+        Err(e) => return send(Err(format!("{e:#}"))).then(next).flatten(),
+    };
+    let live = pool.install(|| -> anyhow::Result<_> {
+        let live = scene.start(&resolved.showcase)?;
+        let values = scene.field(&live, &resolved.showcase, &resolved.eyes)?;
+        Ok((live, values))
+    });
+    let mut live = match live {
+        Ok((live, values)) => {
+            if !send(Ok(solved(&first, options, &values, begun))) {
+                return None;
+            }
+            live
+        }
+        Err(e) => return send(Err(format!("{e:#}"))).then(next).flatten(),
+    };
+    loop {
+        let request = next()?;
+        if !Arc::ptr_eq(&request.scene, &first.scene) {
+            return Some(request);
+        }
+        let begun = Instant::now();
+        let resolved = match FrameScene::resolve(&request.scene, &request.state) {
+            Ok(r) => r,
+            Err(e) => {
+                if !send(Err(format!("{e:#}"))) {
+                    return None;
+                }
+                continue;
+            }
+        };
+        let Ok(places) = scene.places(&resolved.showcase) else {
+            return Some(request);
+        };
+        let lights: Vec<_> = resolved
+            .showcase
+            .lights
+            .iter()
+            .map(|l| l.light.clone())
+            .collect();
+        let updated = pool.install(|| -> anyhow::Result<_> {
+            let done = live.update(&lights, &places)?;
+            Ok((
+                done,
+                scene.field(&live, &resolved.showcase, &resolved.eyes)?,
+            ))
+        });
+        match updated {
+            Ok((done, values)) => {
+                let mut solution = solved(&request, options, &values, begun);
+                solution.update = Some(done);
+                if !send(Ok(solution)) {
+                    return None;
+                }
+            }
+            // The live solution is gone: solve this state afresh.
+            Err(_) => return Some(request),
+        }
+    }
 }
 
 #[derive(Debug, Default)]
@@ -97,12 +200,13 @@ pub struct Solver {
 }
 
 impl Solver {
-    /// Start the thread; results (or why a solve failed) arrive on the
-    /// returned receiver. The solves run on their own pool of one thread
-    /// fewer than the machine has (at least one), so the frame loop and
-    /// the connections keep a core.
+    /// Start the thread, solving `first` at once when given; results (or
+    /// why a solve failed) arrive on the returned receiver. The solves run
+    /// on their own pool of one thread fewer than the machine has (at
+    /// least one), so the frame loop and the connections keep a core.
     pub fn start(
         options: RadiosityOptions,
+        first: Option<Request>,
     ) -> std::io::Result<(Self, mpsc::UnboundedReceiver<Result<Solved, String>>)> {
         let slot = Arc::new((Mutex::new(Slot::default()), Condvar::new()));
         let (tx, rx) = mpsc::unbounded_channel();
@@ -116,27 +220,24 @@ impl Solver {
         let thread = std::thread::Builder::new()
             .name("illumination".into())
             .spawn(move || {
-                loop {
-                    let request = {
-                        let (lock, ready) = &*shared;
-                        let Ok(mut s) = lock.lock() else { return };
-                        loop {
-                            if s.stop {
-                                return;
-                            }
-                            if let Some(r) = s.request.take() {
-                                break r;
-                            }
-                            let Ok(next) = ready.wait(s) else { return };
-                            s = next;
+                // The newest request, waiting for one; None to stop.
+                let next = || {
+                    let (lock, ready) = &*shared;
+                    let mut s = lock.lock().ok()?;
+                    loop {
+                        if s.stop {
+                            return None;
                         }
-                    };
-                    let result = pool
-                        .install(|| solve(request, &options))
-                        .map_err(|e| format!("{e:#}"));
-                    if tx.send(result).is_err() {
-                        return;
+                        if let Some(r) = s.request.take() {
+                            return Some(r);
+                        }
+                        s = ready.wait(s).ok()?;
                     }
+                };
+                let send = |result| tx.send(result).is_ok();
+                let mut pending = first.or_else(next);
+                while let Some(request) = pending {
+                    pending = serve_scene(request, &next, &send, &pool, &options);
                 }
             })?;
         Ok((
@@ -278,6 +379,60 @@ mod tests {
         let none = UpdateSummary::of(&[]);
         assert_eq!(none.frames_stale_max, None);
         assert!(none.line().contains("no update"));
+    }
+
+    #[test]
+    fn a_moved_virtual_object_updates_the_kept_solution_as_a_fresh_solve_would() {
+        // Figure 3's virtual blocks move 3 cm: the thread's second
+        // solution is an update of its first, and must be what solving
+        // that state from scratch gives, up to the refinement the update
+        // keeps; the first (what the nodes would keep without it) is far.
+        let scene = crate::scene_file::load_any(std::path::Path::new("builtin:figure3")).unwrap();
+        let blocks = scene
+            .objects
+            .iter()
+            .position(|o| o.kind == showcase_proto::ObjectKind::Virtual)
+            .unwrap();
+        let scene = Arc::new(scene);
+        let options = RadiosityOptions::default();
+        let s0 = initial_state(&scene, 1);
+        let mut s1 = s0.clone();
+        s1.frame = 1;
+        let mut moved = scene.objects[blocks].transform;
+        moved.translation.x += 0.03;
+        s1.object_transforms.push(showcase_proto::ObjectTransform {
+            object: blocks as u32,
+            transform: moved,
+        });
+        let (solver, mut results) =
+            Solver::start(options.clone(), Some(Request::of(&scene, &s0))).unwrap();
+        let first = results.blocking_recv().unwrap().unwrap();
+        solver.ask(Request::of(&scene, &s1));
+        let second = results.blocking_recv().unwrap().unwrap();
+        assert_eq!((first.frame, second.frame), (0, 1));
+        assert!(first.update.is_none());
+        assert_eq!(
+            second.update.map(|u| u.moved),
+            Some(1),
+            "an update, not a solve"
+        );
+        let fresh = solve(Request::of(&scene, &s1), &options).unwrap();
+        let off = |a: &Solved| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (x, y) in a.values.iter().zip(&fresh.values) {
+                for c in 0..3 {
+                    num += f64::from((x.add[c] - y.add[c]).abs());
+                    den += f64::from(y.add[c].abs());
+                }
+            }
+            num / den
+        };
+        let (updated, stale) = (off(&second), off(&first));
+        // Measured: 0.49 % against 4.3 % for the first solution.
+        assert!(
+            updated < 0.02 && updated < 0.2 * stale,
+            "update {updated}, first solution {stale}"
+        );
     }
 
     #[test]

@@ -547,7 +547,7 @@ impl GlobalIllumination {
         lag: Option<u64>,
         patch_area: Option<f64>,
     ) -> Result<Option<Self>, ServerError> {
-        use super::illumination::{Request, Solver, initial_state, solve};
+        use super::illumination::{Request, Solver, initial_state};
         if core.scene().illumination != showcase_proto::IlluminationMode::Global {
             return Ok(None);
         }
@@ -557,22 +557,25 @@ impl GlobalIllumination {
         };
         let scene = core.scene().clone();
         let state = initial_state(&scene, core.scene_version());
-        let first = {
-            let options = options.clone();
-            tokio::task::spawn_blocking(move || solve(Request::of(&scene, &state), &options))
-                .await
-                .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?
-                .map_err(|e| ServerError::Illumination(format!("the first solution: {e:#}")))?
-        };
+        // The solver thread solves the first state itself, so that the
+        // live solution it keeps starts there.
+        let (solver, mut results) = Solver::start(options, Some(Request::of(&scene, &state)))
+            .map_err(|e| {
+                ServerError::Illumination(format!("cannot start the solver thread: {e}"))
+            })?;
+        let first = results
+            .recv()
+            .await
+            .ok_or_else(|| {
+                ServerError::Illumination("the first solution: the solver stopped".into())
+            })?
+            .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?;
         info!(
             elements = first.values.len(),
             solve_s = first.solve_s,
             "global illumination: first solution"
         );
         core.set_illumination(now, first.mesh, first.values)?;
-        let (solver, results) = Solver::start(options).map_err(|e| {
-            ServerError::Illumination(format!("cannot start the solver thread: {e}"))
-        })?;
         Ok(Some(Self {
             solver,
             results,

@@ -7,6 +7,7 @@ pub mod bench;
 pub mod consistency;
 pub mod export;
 pub mod gpu_hemicube;
+pub mod live;
 pub mod report;
 
 pub use bench::{BenchRecord, bench_radiosity, bench_radiosity_at};
@@ -265,7 +266,9 @@ pub struct Solved {
 
 /// The global-illumination field for `showcase` as it stands (what the
 /// projectors and the faces add, and the real surfaces' own
-/// interreflection), seen by the eyes `eyes` ([`radiosity::augmented::indirect_correction`]
+/// interreflection), seen by the eyes `eyes` ([`live::LiveScene`]: the
+/// correction of [`radiosity::augmented::indirect_correction`] with the
+/// virtual objects as movers,
 /// on the hierarchical mesh and settings of `options`, with the real
 /// elements the projectors leave dark: those none reaches and those in an
 /// eye's occlusion shadow), and the elements it has.
@@ -287,46 +290,11 @@ pub fn indirect_values(
     eyes: &[glam::DVec3],
     options: &RadiosityOptions,
 ) -> anyhow::Result<(RadiosityMesh, Vec<showcase_light::render::IndirectLight>)> {
-    use rayon::prelude::*;
-    let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
-    let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
-    let virtual_only =
-        SceneGeometry::build(showcase, &ObjectFilter::Virtual).context("building geometry")?;
-    let mesh =
-        RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh()).context("meshing")?;
-    let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
-    check_solvable(&mesh, &lights)?;
-    let mut options = options.clone();
-    options.max_links = memory_check(mesh.elements.len(), &options)?;
-    let projectors: Vec<showcase_light::DeviceRays> = showcase
-        .projectors
-        .iter()
-        .map(|p| showcase_light::DeviceRays::new(&p.device))
-        .collect::<Result<_, _>>()?;
-    let reach = radiosity::augmented::projector_reach(&mesh, &real, &projectors);
-    let lit: Vec<bool> = mesh
-        .elements
-        .par_iter()
-        .zip(&reach)
-        .map(|(e, r)| {
-            *r && !showcase_light::render::projector::in_occlusion_shadow(
-                &virtual_only,
-                eyes,
-                e.center,
-                e.normal,
-            )
-        })
-        .collect();
-    let delta = radiosity::augmented::indirect_correction(
-        &mesh,
-        &all,
-        &real,
-        &lights,
-        Some(&lit),
-        &options.hierarchy(),
-    )
-    .context("solving the global-illumination correction")?;
-    Ok((mesh, delta))
+    let scene = live::LiveScene::new(showcase, options)?;
+    let solution = scene.start(showcase)?;
+    let values = scene.field(&solution, showcase, eyes)?;
+    let mesh = solution.mesh().context("no solution")?.clone();
+    Ok((mesh, values))
 }
 
 /// Mesh, solve with one round of adaptive refinement, and run the augmented
