@@ -35,9 +35,6 @@ pub enum LiveError {
     /// An earlier failed move left nothing to update.
     #[error("an earlier move failed and left no solution: solve the scene afresh")]
     Gone,
-    /// The first solve failed.
-    #[error(transparent)]
-    Hierarchy(#[from] HierarchyError),
 }
 
 /// What one [`LiveCorrection::update`] did.

@@ -2,7 +2,7 @@
 //! factors equal those of a fresh solve of the moved scene, and shooting
 //! the difference reaches a fresh solve's solution with fewer shots.
 
-use super::tests::quads_object;
+use super::tests::{cuboid, quads_object};
 use super::*;
 use crate::ObjectFilter;
 use glam::Vec3;
@@ -25,20 +25,11 @@ pub(super) fn box_with_block(shift: Vec3) -> Showcase {
         ObjectKind::Real,
     );
     quads_object(&mut s, "top", &[(y, x, z)], top, ObjectKind::Real);
-    let a = 0.25;
-    let (ax, ay, az) = (a * x, a * y, a * z);
     let c = Vec3::new(0.3, 0.2, 0.35);
     quads_object(
         &mut s,
         "block",
-        &[
-            (c, ax, az),
-            (c + ay, az, ax),
-            (c, az, ay),
-            (c + ax, ay, az),
-            (c, ay, ax),
-            (c + az, ax, ay),
-        ],
+        &cuboid(c, Vec3::splat(0.25)),
         Material::diffuse(Vec3::new(0.2, 0.5, 0.8)),
         ObjectKind::Virtual,
     );

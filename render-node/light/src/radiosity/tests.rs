@@ -25,6 +25,20 @@ pub(super) fn add_quad(
     quads_object(s, name, &[(c, u, v)], m, kind);
 }
 
+/// The six outward faces, as [`quads_object`] quads, of the box with
+/// corner `c` and edges `a.x`, `a.y`, `a.z` along the axes.
+pub(super) fn cuboid(c: Vec3, a: Vec3) -> [(Vec3, Vec3, Vec3); 6] {
+    let (ax, ay, az) = (Vec3::X * a.x, Vec3::Y * a.y, Vec3::Z * a.z);
+    [
+        (c, ax, az),
+        (c + ay, az, ax),
+        (c, az, ay),
+        (c + ax, ay, az),
+        (c, ay, ax),
+        (c + az, ax, ay),
+    ]
+}
+
 /// Add one object made of quads `(corner, u, v)` facing `u x v`.
 pub(super) fn quads_object(
     s: &mut Showcase,

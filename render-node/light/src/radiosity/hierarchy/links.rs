@@ -252,7 +252,6 @@ impl Hierarchy<'_> {
         // Split the root pair breadth-first into enough independent pairs
         // to share among the threads.
         let mut frontier = vec![(0u32, 0u32)];
-        let mut links = Vec::new();
         while frontier.len() < 256 {
             let mut next = Vec::new();
             let mut split_any = false;
@@ -271,22 +270,32 @@ impl Hierarchy<'_> {
                 break;
             }
         }
-        let made = AtomicUsize::new(0);
-        let parts: Vec<Vec<Link>> = frontier
+        let links = self.refine_pairs(&frontier, &moments, 0)?;
+        self.set_links(links)
+    }
+
+    /// The links of each pair of `pairs` and below ([`Self::refine_pair`]),
+    /// the pairs shared among the threads; an error when they and
+    /// `already` links would pass the link limit.
+    pub(super) fn refine_pairs(
+        &self,
+        pairs: &[(u32, u32)],
+        moments: &[Moments],
+        already: usize,
+    ) -> Result<Vec<Link>, HierarchyError> {
+        let made = AtomicUsize::new(already);
+        let parts: Vec<Vec<Link>> = pairs
             .par_iter()
             .map(|&(r, s)| {
                 let mut out = Vec::new();
-                self.refine_pair(r, s, &moments, &mut out, &made);
+                self.refine_pair(r, s, moments, &mut out, &made);
                 out
             })
             .collect();
         if made.into_inner() > self.options.max_links {
             return Err(self.too_many_links());
         }
-        for p in parts {
-            links.extend(p);
-        }
-        self.set_links(links)
+        Ok(parts.concat())
     }
 
     pub(super) fn too_many_links(&self) -> HierarchyError {

@@ -382,19 +382,7 @@ impl<'a> Hierarchy<'a> {
         let mut made = Vec::new();
         if root != NONE {
             let pairs = h.mover_pairs(root, &in_mover, &moments);
-            let count = AtomicUsize::new(kept.len());
-            let parts: Vec<Vec<Link>> = pairs
-                .par_iter()
-                .map(|&(r, s)| {
-                    let mut out = Vec::new();
-                    h.refine_pair(r, s, &moments, &mut out, &count);
-                    out
-                })
-                .collect();
-            if count.into_inner() > h.options.max_links {
-                return Err(h.too_many_links().into());
-            }
-            made = parts.concat();
+            made = h.refine_pairs(&pairs, &moments, kept.len())?;
         }
         stats.links_made = made.len();
         let mut links = kept;

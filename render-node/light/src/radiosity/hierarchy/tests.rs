@@ -474,7 +474,7 @@ fn light_a_mover_hid_comes_back_when_it_moves_away() {
     // out. Those pairs are close, so their links are leaves, which a
     // static scene drops when no ray gets through: here they must be kept
     // (at zero) for the move to uncover.
-    use crate::radiosity::tests::quads_object;
+    use crate::radiosity::tests::{cuboid, quads_object};
     use glam::Vec3;
     use showcase_proto::{Material, ObjectKind, Showcase};
     let scene = |shift: f32| {
@@ -485,19 +485,11 @@ fn light_a_mover_hid_comes_back_when_it_moves_away() {
         glow.emission = Vec3::splat(1.0);
         quads_object(&mut s, "low", &[(Vec3::ZERO, z, x)], grey, ObjectKind::Real);
         quads_object(&mut s, "high", &[(0.1 * y, x, z)], glow, ObjectKind::Real);
-        let (ax, ay, az) = (Vec3::X * 0.3, Vec3::Y * 0.04, Vec3::Z * 0.3);
         let c = Vec3::new(-0.05, 0.03, -0.05);
         quads_object(
             &mut s,
             "slab",
-            &[
-                (c, ax, az),
-                (c + ay, az, ax),
-                (c, az, ay),
-                (c + ax, ay, az),
-                (c, ay, ax),
-                (c + az, ax, ay),
-            ],
+            &cuboid(c, Vec3::new(0.3, 0.04, 0.3)),
             Material::diffuse(Vec3::splat(0.3)),
             ObjectKind::Virtual,
         );
