@@ -139,20 +139,12 @@ fn capture_with(
         let names: Vec<String> = nodes.iter().map(|(n, _)| n.clone()).collect();
         let c = certs::generate(&names).unwrap();
         let (link, commands) = CaptureLink::new(Duration::from_secs(120));
-        let server = Server::bind(ServerSettings {
-            listen: "127.0.0.1:0".parse().unwrap(),
-            identity: identity(&c, MASTER_FILE),
-            roster: Roster::new(nodes.iter().cloned()),
-            core: showcase_master::cluster::cluster_core_defaults(),
-            frames: Some(0),
-            wait_for_nodes: 2,
-            start_timeout: Duration::from_secs(1),
-            tracking: None,
-            metrics: None,
-            keep_frames: false,
-            illumination_lag: None,
-            illumination_patch_area: None,
-        })
+        let server = Server::bind(ServerSettings::capture(
+            "127.0.0.1:0".parse().unwrap(),
+            identity(&c, MASTER_FILE),
+            Roster::new(nodes.iter().cloned()),
+            2,
+        ))
         .unwrap()
         .capture_from(commands);
         let addr = server.local_addr();

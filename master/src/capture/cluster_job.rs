@@ -101,21 +101,13 @@ pub fn with_config_master<T>(
     let (link, commands) = CaptureLink::new(Duration::from_secs(600));
     let (master, stop) = {
         let _inside = runtime.enter();
-        let server = Server::bind(ServerSettings {
+        let server = Server::bind(ServerSettings::capture(
             listen,
             identity,
-            roster: crate::cluster::Roster::from_config(cfg),
-            core: crate::cluster::cluster_core_defaults(),
+            crate::cluster::Roster::from_config(cfg),
             // The frame clock is held while the nodes capture.
-            frames: Some(0),
-            wait_for_nodes: cfg.nodes.len(),
-            start_timeout: Duration::from_secs(1),
-            tracking: None,
-            metrics: None,
-            keep_frames: false,
-            illumination_lag: None,
-            illumination_patch_area: None,
-        })?
+            cfg.nodes.len(),
+        ))?
         .capture_from(commands);
         stage(&format!("master listening on {}", server.local_addr()));
         let stop = CancellationToken::new();

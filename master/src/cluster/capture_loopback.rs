@@ -124,21 +124,13 @@ impl LoopbackCluster {
         let names: Vec<String> = nodes.iter().map(|(n, _)| n.clone()).collect();
         let certs = certs::generate(&names)?;
         let (link, commands) = CaptureLink::new(request_timeout);
-        let server = Server::bind(ServerSettings {
-            listen: "127.0.0.1:0".parse().expect("valid address"),
-            identity: identity(&certs, MASTER_FILE)?,
-            roster: super::Roster::new(nodes.iter().cloned()),
-            core: super::cluster_core_defaults(),
-            frames: Some(0),
+        let server = Server::bind(ServerSettings::capture(
+            "127.0.0.1:0".parse().expect("valid address"),
+            identity(&certs, MASTER_FILE)?,
+            super::Roster::new(nodes.iter().cloned()),
             // Every node but a late joiner.
-            wait_for_nodes: nodes.iter().filter(|(n, _)| n != LATE_JOINER).count(),
-            start_timeout: Duration::from_secs(1),
-            tracking: None,
-            metrics: None,
-            keep_frames: false,
-            illumination_lag: None,
-            illumination_patch_area: None,
-        })?
+            nodes.iter().filter(|(n, _)| n != LATE_JOINER).count(),
+        ))?
         .capture_from(commands);
         let addr = server.local_addr();
         let stop = CancellationToken::new();

@@ -65,6 +65,34 @@ pub struct ServerSettings {
     pub illumination_patch_area: Option<f64>,
 }
 
+impl ServerSettings {
+    /// A master that serves a capture job ([`Server::capture_from`]): the
+    /// frame clock held (`frames` 0), the cluster defaults, starting once
+    /// `wait_for_nodes` nodes joined or after a second; no tracking,
+    /// metrics or global illumination.
+    pub fn capture(
+        listen: SocketAddr,
+        identity: ClusterIdentity,
+        roster: Roster,
+        wait_for_nodes: usize,
+    ) -> Self {
+        Self {
+            listen,
+            identity,
+            roster,
+            core: super::cluster_core_defaults(),
+            frames: Some(0),
+            wait_for_nodes,
+            start_timeout: Duration::from_secs(1),
+            tracking: None,
+            metrics: None,
+            keep_frames: false,
+            illumination_lag: None,
+            illumination_patch_area: None,
+        }
+    }
+}
+
 /// Why the master could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum ServerError {

@@ -541,10 +541,11 @@ pub fn run_calibrate_photometric(
     let mut summary = Vec::new();
     for j in &judged.faces {
         let c = &j.calibration;
-        let file = out.join(format!("{}-photometric.json", c.face));
-        let profile = crate::calibrate::photometric::ProfileFile::from(c);
-        std::fs::write(&file, serde_json::to_string_pretty(&profile)? + "\n")
-            .with_context(|| format!("cannot write {}", file.display()))?;
+        let file = write_profile(
+            out,
+            &c.face,
+            &crate::calibrate::photometric::ProfileFile::from(c),
+        )?;
         eprintln!(
             "{}: {} frames in {:.1} s, held-out error {:.2} % (nominal profile {:.1} %){}; wrote {}",
             c.face,
@@ -552,11 +553,7 @@ pub fn run_calibrate_photometric(
             j.seconds,
             100.0 * c.held_out_error,
             100.0 * c.held_out_error_before,
-            if c.kept_previous {
-                ", worse than the profile in place, which is kept"
-            } else {
-                ""
-            },
+            kept_note(c.kept_previous),
             file.display()
         );
         summary.push(json!({
@@ -581,10 +578,11 @@ pub fn run_calibrate_photometric(
     }
     for j in &judged.projectors {
         let c = &j.calibration;
-        let file = out.join(format!("{}-photometric.json", c.projector));
-        let profile = crate::calibrate::photometric::ProjectorProfileFile::from(c);
-        std::fs::write(&file, serde_json::to_string_pretty(&profile)? + "\n")
-            .with_context(|| format!("cannot write {}", file.display()))?;
+        let file = write_profile(
+            out,
+            &c.projector,
+            &crate::calibrate::photometric::ProjectorProfileFile::from(c),
+        )?;
         eprintln!(
             "{}: {} frames in {:.1} s, held-out error {:.2} % (its model {:.1} %){}; wrote {}",
             c.projector,
@@ -592,11 +590,7 @@ pub fn run_calibrate_photometric(
             j.seconds,
             100.0 * c.held_out_error,
             100.0 * c.held_out_error_before,
-            if c.kept_previous {
-                ", worse than the profile in place, which is kept"
-            } else {
-                ""
-            },
+            kept_note(c.kept_previous),
             file.display()
         );
         summary.push(json!({
@@ -622,4 +616,26 @@ pub fn run_calibrate_photometric(
         .with_context(|| format!("cannot write {}", path.display()))?;
     eprintln!("wrote {}", path.display());
     Ok(())
+}
+
+/// Write `profile` to `out/<name>-photometric.json`; the file's path.
+fn write_profile(
+    out: &std::path::Path,
+    name: &str,
+    profile: &impl serde::Serialize,
+) -> Result<std::path::PathBuf> {
+    let file = out.join(format!("{name}-photometric.json"));
+    std::fs::write(&file, serde_json::to_string_pretty(profile)? + "\n")
+        .with_context(|| format!("cannot write {}", file.display()))?;
+    Ok(file)
+}
+
+/// What a progress line adds when the new profile was worse than the
+/// one in place.
+fn kept_note(kept_previous: bool) -> &'static str {
+    if kept_previous {
+        ", worse than the profile in place, which is kept"
+    } else {
+        ""
+    }
 }
