@@ -111,6 +111,9 @@ impl Renderer for Counting {
     ) -> Result<(), RenderError> {
         self.inner.set_illumination(illumination)
     }
+    fn prepare_illumination(&mut self, solution: &Arc<showcase_proto::session::Solution>) {
+        self.inner.prepare_illumination(solution)
+    }
 }
 
 type NodeTask = (

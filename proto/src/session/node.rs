@@ -122,6 +122,11 @@ pub enum NodeEvent {
     /// The master asks for a capture (`ShowPattern` or `CaptureFrames`):
     /// answer with [`NodeCore::answer_capture`].
     Capture(Box<Message>),
+    /// A solution arrived (whole, or built from a delta), before any
+    /// [`NodeEvent::Render`] that names it: do now what drawing with it
+    /// needs (a field to build, a digest), so the first frame that names it
+    /// does not carry that work on the frame clock's path.
+    Illumination(Arc<Solution>),
     /// Render this frame, then call [`NodeCore::rendered`].
     Render {
         /// The frame state.
@@ -662,7 +667,9 @@ impl NodeCore {
         if self.resync.is_some_and(|r| solution.version >= r) {
             self.resync = None;
         }
-        self.solutions.insert(solution.version, Arc::new(solution));
+        let solution = Arc::new(solution);
+        self.solutions.insert(solution.version, solution.clone());
+        self.event(NodeEvent::Illumination(solution));
         self.announce();
         self.prune_solutions();
     }

@@ -367,6 +367,7 @@ fn handle_event<R: Renderer + ?Sized>(
             renderer.set_scene(version, scene)?
         }
         NodeEvent::Capture(_) => {}
+        NodeEvent::Illumination(solution) => renderer.prepare_illumination(&solution),
         NodeEvent::Render {
             frame,
             scene,

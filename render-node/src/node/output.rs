@@ -148,6 +148,14 @@ impl Renderer for OutputRenderer {
         }
     }
 
+    fn prepare_illumination(&mut self, solution: &Arc<showcase_proto::session::Solution>) {
+        match &mut self.inner {
+            Inner::Projector(r) => r.prepare_illumination(solution),
+            Inner::Face(r) => r.prepare_illumination(solution),
+            Inner::None => {}
+        }
+    }
+
     fn render(
         &mut self,
         frame: &FrameState,

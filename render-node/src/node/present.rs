@@ -61,6 +61,10 @@ impl<R: Renderer, S: FrameSink> Renderer for Presenting<R, S> {
         self.inner.set_illumination(illumination)
     }
 
+    fn prepare_illumination(&mut self, solution: &Arc<showcase_proto::session::Solution>) {
+        self.inner.prepare_illumination(solution)
+    }
+
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         self.inner.present(frame)?;
         match self.pending.take() {

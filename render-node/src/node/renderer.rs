@@ -22,8 +22,19 @@ pub struct StateHashRenderer {
     output: String,
     role: Role,
     scene_version: Option<u64>,
-    /// The solution's version and a digest of its values.
-    illumination: Option<(u64, u64)>,
+    /// The solution drawn, with a digest of its values.
+    illumination: Option<(Arc<Solution>, u64)>,
+    /// The solution that arrived last, digested on arrival.
+    prepared: Option<(Arc<Solution>, u64)>,
+}
+
+/// A digest of a solution's values, bit for bit.
+fn values_digest(s: &Solution) -> u64 {
+    let mut h = Fnv64::default();
+    for c in s.values.iter().flat_map(|v| v.channels()) {
+        h.write(&c.to_bits().to_le_bytes());
+    }
+    h.finish()
 }
 
 impl StateHashRenderer {
@@ -34,6 +45,7 @@ impl StateHashRenderer {
             role,
             scene_version: None,
             illumination: None,
+            prepared: None,
         }
     }
 }
@@ -44,23 +56,31 @@ impl Renderer for StateHashRenderer {
         Ok(())
     }
 
+    fn prepare_illumination(&mut self, solution: &Arc<Solution>) {
+        self.prepared = Some((solution.clone(), values_digest(solution)));
+    }
+
     fn set_illumination(
         &mut self,
         illumination: Option<&Arc<Solution>>,
     ) -> Result<(), RenderError> {
-        // Called before every frame: digest a version's values once.
-        if let (Some((held, _)), Some(s)) = (self.illumination, illumination)
-            && held == s.version
-        {
+        // Called before every frame: digest a solution once, on arrival
+        // where it was announced.
+        let Some(s) = illumination else {
+            self.illumination = None;
+            return Ok(());
+        };
+        let same = |held: &Option<(Arc<Solution>, u64)>| {
+            held.as_ref().is_some_and(|(h, _)| Arc::ptr_eq(h, s))
+        };
+        if same(&self.illumination) {
             return Ok(());
         }
-        self.illumination = illumination.map(|s| {
-            let mut h = Fnv64::default();
-            for c in s.values.iter().flat_map(|v| v.channels()) {
-                h.write(&c.to_bits().to_le_bytes());
-            }
-            (s.version, h.finish())
-        });
+        self.illumination = if same(&self.prepared) {
+            self.prepared.take()
+        } else {
+            Some((s.clone(), values_digest(s)))
+        };
         Ok(())
     }
 
@@ -99,8 +119,8 @@ impl Renderer for StateHashRenderer {
                 h.write(&c.to_bits().to_le_bytes());
             }
         }
-        if let Some((version, values)) = self.illumination {
-            h.write(&version.to_le_bytes());
+        if let Some((solution, values)) = &self.illumination {
+            h.write(&solution.version.to_le_bytes());
             h.write(&values.to_le_bytes());
         }
         Ok(RenderOutput {
@@ -148,5 +168,61 @@ mod tests {
             other.render(&f, &scene).unwrap().hash,
             r.render(&f, &scene).unwrap().hash
         );
+    }
+
+    /// A solution digested on arrival draws exactly as one digested at its
+    /// first frame, and a prepared one is used only for that very
+    /// solution: not for another, even of the same version (a restarted
+    /// master numbers its solutions from 1 again).
+    #[test]
+    fn a_prepared_solution_draws_as_one_digested_at_its_frame() {
+        use showcase_proto::message::{ElementLight, IlluminationMesh};
+        let solution = |version, add| {
+            Arc::new(Solution {
+                version,
+                scene_version: 1,
+                mesh: IlluminationMesh {
+                    max_patch_area: 0.01,
+                    element_depth: 1,
+                    min_element_area: 1e-4,
+                },
+                values: vec![
+                    ElementLight {
+                        add: [add, 0.5, 0.25],
+                        cabinet: [0.0; 3],
+                    };
+                    3
+                ],
+            })
+        };
+        let (a, b, a_again) = (solution(1, 1.0), solution(2, 2.0), solution(1, 3.0));
+        let scene = Arc::new(Showcase::default());
+        let f = FrameState {
+            frame: 3,
+            time_s: 0.05,
+            scene_version: 1,
+            heads: vec![],
+            lights: vec![],
+            object_transforms: vec![],
+            tracking_time_ns: None,
+            illumination_version: Some(1),
+        };
+        let drawn = |prepare: &[&Arc<Solution>], with: &Arc<Solution>| {
+            let mut r = StateHashRenderer::new("projector-0", Role::Projector);
+            r.set_scene(1, scene.clone()).unwrap();
+            for s in prepare {
+                r.prepare_illumination(s);
+            }
+            r.set_illumination(Some(with)).unwrap();
+            r.render(&f, &scene).unwrap().hash
+        };
+        for with in [&a, &b, &a_again] {
+            let unprepared = drawn(&[], with);
+            assert_eq!(drawn(&[with], with), unprepared);
+            for other in [&a, &b, &a_again] {
+                assert_eq!(drawn(&[other], with), unprepared);
+            }
+        }
+        assert_ne!(drawn(&[], &a), drawn(&[], &a_again));
     }
 }

@@ -93,6 +93,8 @@ pub struct LiveIllumination {
     field: Option<Arc<IndirectField>>,
     /// The version of the master's solution `field` was made from.
     version: Option<u64>,
+    /// The field of the solution that arrived last, made on arrival.
+    prepared: Option<(Arc<Solution>, Arc<IndirectField>)>,
     fields: FieldCache,
 }
 
@@ -123,6 +125,17 @@ impl LiveIllumination {
         self.version = None;
     }
 
+    /// A solution arrived: make its field now, on `scene` (the renderer's
+    /// scene and its version), for the first frame that names it. Best
+    /// effort: a field that cannot be made now is made, or refused with
+    /// its error, by [`Self::update`] at that frame.
+    pub fn prepare(&mut self, scene: Option<(&Arc<Showcase>, u64)>, solution: &Arc<Solution>) {
+        self.prepared = scene.and_then(|(scene, version)| {
+            let field = self.fields.field(scene, version, solution).ok()?;
+            Some((solution.clone(), field))
+        });
+    }
+
     /// Follow the master: `solution` (`None`: direct light) on `scene`,
     /// the renderer's scene and its version. Returns whether the field
     /// changed, so the renderer draws its next frame afresh.
@@ -141,6 +154,14 @@ impl LiveIllumination {
         if self.version == Some(solution.version) {
             return Ok(false);
         }
+        let prepared = self.prepared.take().filter(|(s, _)| {
+            Arc::ptr_eq(s, solution) && scene.is_some_and(|(_, v)| v == solution.scene_version)
+        });
+        if let Some((_, field)) = prepared {
+            self.field = Some(field);
+            self.version = Some(solution.version);
+            return Ok(true);
+        }
         let Some((scene, version)) = scene else {
             return Err(RenderError::Illumination {
                 version: solution.version,
@@ -150,5 +171,56 @@ impl LiveIllumination {
         self.field = Some(self.fields.field(scene, version, solution)?);
         self.version = Some(solution.version);
         Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn solution(version: u64, scene_version: u64) -> Arc<Solution> {
+        Arc::new(Solution {
+            version,
+            scene_version,
+            mesh: IlluminationMesh {
+                max_patch_area: 0.01,
+                element_depth: 1,
+                min_element_area: 1e-4,
+            },
+            values: Vec::new(),
+        })
+    }
+
+    /// The field made when a solution arrives is the one drawn from the
+    /// first frame that names that very solution; any other (another
+    /// solution of the same version, a solution of another scene version)
+    /// is made at its frame, or refused there.
+    #[test]
+    fn a_field_made_on_arrival_is_drawn_from_its_first_frame() {
+        let scene = Arc::new(Showcase::default());
+        let held = Some((&scene, 1));
+        let mut live = LiveIllumination::default();
+        let a = solution(1, 1);
+        live.prepare(held, &a);
+        let made = live.prepared.as_ref().expect("a field made").1.clone();
+        assert!(live.update(held, Some(&a)).unwrap());
+        assert!(Arc::ptr_eq(live.field().unwrap(), &made));
+        assert!(live.prepared.is_none(), "used once");
+
+        let b = solution(2, 1);
+        live.prepare(held, &b);
+        let made = live.prepared.as_ref().unwrap().1.clone();
+        assert!(live.update(held, Some(&solution(2, 1))).unwrap());
+        assert!(!Arc::ptr_eq(live.field().unwrap(), &made));
+
+        let c = solution(3, 1);
+        live.prepare(held, &c);
+        assert!(live.update(Some((&scene, 2)), Some(&c)).is_err());
+
+        // Nothing is made without a scene, or for another scene version;
+        // the frame reports why.
+        live.prepare(None, &solution(4, 1));
+        live.prepare(Some((&scene, 2)), &solution(5, 1));
+        assert!(live.prepared.is_none());
     }
 }

@@ -154,10 +154,19 @@ pub trait Renderer: Send {
     -> Result<RenderOutput, RenderError>;
     /// Show the last rendered frame (the swap).
     fn present(&mut self, frame: u64) -> Result<(), RenderError>;
+    /// A solution arrived, before any frame that names it: do now the
+    /// work drawing with it needs (build its field, digest it), so
+    /// [`Self::set_illumination`] at the first frame that names it finds
+    /// it done. Best effort: what cannot be prepared now (its scene is not
+    /// the one held) is done, or refused with its error, at that frame. A
+    /// wrapper must pass it on.
+    fn prepare_illumination(&mut self, solution: &Arc<Solution>) {
+        let _ = solution;
+    }
     /// The global-illumination solution the next frames are drawn with
     /// (`None`: direct light), given before each frame that names one. A
-    /// renderer that draws no global illumination (the face role, for
-    /// now) ignores it; a wrapper must pass it on.
+    /// renderer that draws no global illumination ignores it; a wrapper
+    /// must pass it on.
     fn set_illumination(
         &mut self,
         illumination: Option<&Arc<Solution>>,
@@ -202,6 +211,9 @@ impl<R: Renderer + ?Sized> Renderer for Box<R> {
         illumination: Option<&Arc<Solution>>,
     ) -> Result<(), RenderError> {
         (**self).set_illumination(illumination)
+    }
+    fn prepare_illumination(&mut self, solution: &Arc<Solution>) {
+        (**self).prepare_illumination(solution)
     }
     fn present(&mut self, frame: u64) -> Result<(), RenderError> {
         (**self).present(frame)

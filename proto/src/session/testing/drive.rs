@@ -253,12 +253,16 @@ impl Cluster {
                 NodeEvent::Connected { .. } => n.log.connected.push(now),
                 NodeEvent::SceneChanged { version, .. } => n.log.scenes.push(version),
                 NodeEvent::Capture(_) => {}
+                NodeEvent::Illumination(s) => n.log.arrived.push(s.version),
                 NodeEvent::Render {
                     frame,
                     illumination,
                     ..
                 } => {
                     if let Some(s) = illumination {
+                        if !n.log.arrived.contains(&s.version) {
+                            n.log.unprepared.push(frame.frame);
+                        }
                         let digest = values_digest(&s.values);
                         n.log.illuminated.push((frame.frame, s.version, digest));
                     }

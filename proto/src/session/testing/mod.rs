@@ -79,6 +79,12 @@ pub struct NodeLog {
     /// Per rendered frame that named a global-illumination solution: the
     /// frame, the solution's version and a digest of its values.
     pub illuminated: Vec<(u64, u64, u64)>,
+    /// The versions of the solutions that arrived
+    /// ([`crate::session::NodeEvent::Illumination`]), in order.
+    pub arrived: Vec<u64>,
+    /// Frames told to render with a solution whose arrival was not
+    /// announced first.
+    pub unprepared: Vec<u64>,
     /// The versions of each illumination resync the node asked for.
     pub resyncs: Vec<u64>,
 }

@@ -41,10 +41,19 @@ fn solution(k: u32) -> Vec<ElementLight> {
 
 /// Every frame a node rendered names the version the master submitted it
 /// with, and was drawn with that version's values (`published`: version to
-/// the values' digest), so every node drew it with the same light.
+/// the values' digest), so every node drew it with the same light; and
+/// each version's arrival was announced before any frame that names it,
+/// so the renderer prepared it off that frame's path.
 #[track_caller]
 fn check_versions(c: &Cluster, published: &BTreeMap<u64, u64>) {
     for n in &c.nodes {
+        assert!(
+            n.log.unprepared.is_empty(),
+            "{} drew frames {:?} with a solution whose arrival it was not told of",
+            n.spec.config.name,
+            n.log.unprepared
+        );
+
         for f in &n.log.rendered {
             let submitted = &c.log.submitted[&f.frame];
             assert_eq!(

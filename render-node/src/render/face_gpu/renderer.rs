@@ -140,6 +140,11 @@ impl Renderer for FaceRenderer {
         Ok(())
     }
 
+    fn prepare_illumination(&mut self, solution: &Arc<Solution>) {
+        let scene = self.scene.as_ref().zip(self.scene_version);
+        self.illumination.prepare(scene, solution);
+    }
+
     fn set_illumination(
         &mut self,
         illumination: Option<&Arc<Solution>>,
