@@ -225,6 +225,16 @@ pub struct IlluminationResync {
     pub version: u64,
 }
 
+/// Node to master: the node holds solution `version` and has prepared it
+/// (made what drawing with it needs). The master names a new version in
+/// frames once every live node holds it, so no frame waits for a
+/// solution to cross the network or be prepared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IlluminationReady {
+    /// The version.
+    pub version: u64,
+}
+
 /// Every message of the cluster protocol.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Message {
@@ -262,6 +272,8 @@ pub enum Message {
     CaptureFailed(crate::capture::CaptureFailed),
     /// Either way: leaving.
     Bye(Bye),
+    /// Node to master: a solution is held and prepared.
+    IlluminationReady(IlluminationReady),
 }
 
 impl Message {
@@ -285,6 +297,7 @@ impl Message {
             Message::FrameChunk(_) => "FrameChunk",
             Message::CaptureFailed(_) => "CaptureFailed",
             Message::Bye(_) => "Bye",
+            Message::IlluminationReady(_) => "IlluminationReady",
         }
     }
 }

@@ -397,6 +397,9 @@ pub fn message() -> impl Strategy<Value = Message> {
         any::<u64>().prop_map(|version| Message::IlluminationResync(
             crate::message::IlluminationResync { version }
         )),
+        any::<u64>().prop_map(|version| Message::IlluminationReady(
+            crate::message::IlluminationReady { version }
+        )),
         capture_message(),
     ]
 }

@@ -728,7 +728,8 @@ impl Validate for Message {
                 | Message::Swap(_)
                 | Message::ClockProbe(_)
                 | Message::ClockReply(_)
-                | Message::IlluminationResync(_) => Ok(()),
+                | Message::IlluminationResync(_)
+                | Message::IlluminationReady(_) => Ok(()),
             }
         };
         within(|| kind.to_string(), check())

@@ -561,6 +561,9 @@ struct GlobalIllumination {
     lag: Option<u64>,
     outstanding: Option<u64>,
     early: Option<Result<super::illumination::Solved, String>>,
+    /// Lockstep: a version published for its frame that the nodes do not
+    /// all hold yet; that frame waits for it.
+    naming: Option<u64>,
     /// A published update not yet named by a frame: the frame it solved,
     /// its version, request-to-publish and solve times (ms).
     published: Option<(u64, u64, f64, f64)>,
@@ -611,15 +614,23 @@ impl GlobalIllumination {
             lag,
             outstanding: None,
             early: None,
+            naming: None,
             published: None,
         }))
     }
 
     /// Lockstep only: before frame `frame` is built, publish the solve due
-    /// at it. False while that solve has not landed: the frame must wait
-    /// (the loop skips the tick and stays responsive, so no node misses a
-    /// deadline while the solver is late).
+    /// at it. False while that solve has not landed, or the nodes do not
+    /// all hold it yet: the frame must wait (the loop skips the tick and
+    /// stays responsive, so no node misses a deadline while the solver is
+    /// late), so a replay draws each frame with the same version.
     fn due(&mut self, core: &mut MasterCore, frame: u64, now: u64, run: &mut ClusterRun) -> bool {
+        if let Some(v) = self.naming {
+            if core.illumination_version() != Some(v) {
+                return false;
+            }
+            self.naming = None;
+        }
         let (Some(lag), Some(asked)) = (self.lag, self.outstanding) else {
             return true;
         };
@@ -630,7 +641,11 @@ impl GlobalIllumination {
             return false;
         };
         self.outstanding = None;
-        self.publish_now(core, now, solved, run);
+        let published = self.publish_now(core, now, solved, run);
+        if published.is_some() && core.illumination_version() != published {
+            self.naming = published;
+            return false;
+        }
         true
     }
 
@@ -674,18 +689,18 @@ impl GlobalIllumination {
         if self.lag.is_some() {
             self.early = Some(solved);
         } else {
-            self.publish_now(core, now, solved, run);
+            let _ = self.publish_now(core, now, solved, run);
         }
     }
 
-    /// Publish a finished solve (or record why it failed).
+    /// Publish a finished solve (or record why it failed); its version.
     fn publish_now(
         &mut self,
         core: &mut MasterCore,
         now: u64,
         solved: Result<super::illumination::Solved, String>,
         run: &mut ClusterRun,
-    ) {
+    ) -> Option<u64> {
         let s = match solved {
             Ok(s) => s,
             Err(e) => {
@@ -693,13 +708,19 @@ impl GlobalIllumination {
                 if run.illumination_failures.len() < MAX_KEPT_UPDATES {
                     run.illumination_failures.push(e);
                 }
-                return;
+                return None;
             }
         };
         let latency_ms = s.asked_at.elapsed().as_secs_f64() * 1e3;
         match core.set_illumination(now, s.mesh, s.values) {
-            Ok(version) => self.published = Some((s.frame, version, latency_ms, s.solve_s * 1e3)),
-            Err(e) => warn!(error = %e, "illumination solution refused"),
+            Ok(version) => {
+                self.published = Some((s.frame, version, latency_ms, s.solve_s * 1e3));
+                Some(version)
+            }
+            Err(e) => {
+                warn!(error = %e, "illumination solution refused");
+                None
+            }
         }
     }
 }

@@ -18,8 +18,8 @@ use super::{NS_PER_MS, ms};
 use crate::PROTOCOL_VERSION;
 use crate::message::{
     Bye, Capabilities, ClockProbe, ClockReply, ElementLight, Hello, Illumination, IlluminationBody,
-    IlluminationMesh, IlluminationResync, Message, NodeStats, Ready, Role, SceneSnapshot, Swap,
-    Welcome,
+    IlluminationMesh, IlluminationReady, IlluminationResync, Message, NodeStats, Ready, Role,
+    SceneSnapshot, Swap, Welcome,
 };
 use crate::scene::{FrameState, Showcase};
 use std::collections::{BTreeMap, VecDeque};
@@ -230,6 +230,10 @@ pub struct NodeCore {
     /// The version asked for in an unanswered [`IlluminationResync`].
     resync: Option<u64>,
     last_frame: Option<u64>,
+    /// The newest solution version a frame named. Later frames name it or
+    /// any newer version the master sent (a new one is named once every
+    /// node holds it), so those are kept.
+    last_named: Option<u64>,
     pending: VecDeque<PendingFrame>,
     presenting: VecDeque<Presenting>,
     last_presented: Option<u64>,
@@ -247,6 +251,7 @@ impl NodeCore {
             solutions: BTreeMap::new(),
             resync: None,
             last_frame: None,
+            last_named: None,
             pending: VecDeque::new(),
             presenting: VecDeque::new(),
             last_presented: None,
@@ -433,6 +438,7 @@ impl NodeCore {
         self.solutions.clear();
         self.resync = None;
         self.last_frame = None;
+        self.last_named = None;
         self.pending.clear();
         self.presenting.clear();
     }
@@ -552,6 +558,7 @@ impl NodeCore {
             return;
         }
         self.last_frame = Some(f.frame);
+        self.last_named = self.last_named.max(f.illumination_version);
         self.pending.push_back(PendingFrame {
             frame: f.frame,
             scene_version: f.scene_version,
@@ -669,7 +676,11 @@ impl NodeCore {
         }
         let solution = Arc::new(solution);
         self.solutions.insert(solution.version, solution.clone());
+        let version = solution.version;
         self.event(NodeEvent::Illumination(solution));
+        // After the event: a driver prepares the solution before it sends
+        // this, so the master names it only once it is ready here.
+        self.transmit(Message::IlluminationReady(IlluminationReady { version }));
         self.announce();
         self.prune_solutions();
     }
@@ -712,12 +723,13 @@ impl NodeCore {
         self.prune_solutions();
     }
 
-    /// Keep the newest solution and those pending frames name.
+    /// Keep the solutions frames may still name: those pending frames
+    /// name, the newest one a frame named and every newer one.
     fn prune_solutions(&mut self) {
-        let newest = self.solutions.last_key_value().map(|(v, _)| *v);
-        let pending = &self.pending;
+        let (pending, named) = (&self.pending, self.last_named);
         self.solutions.retain(|v, _| {
-            Some(*v) == newest || pending.iter().any(|p| p.illumination_version == Some(*v))
+            named.is_none_or(|n| *v >= n)
+                || pending.iter().any(|p| p.illumination_version == Some(*v))
         });
     }
 

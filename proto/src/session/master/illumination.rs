@@ -2,12 +2,16 @@
 //! newest, and every one a frame in flight or the newest frame names), how
 //! a new version travels (a delta against the previous one when few
 //! elements changed, else whole), what a joiner gets, and the full copies
-//! a node that lost a delta asks for.
+//! a node that lost a delta asks for, and when frames start to name a new
+//! version: once every live node said it holds and has prepared it
+//! ([`IlluminationReady`]), or a swap deadline after it was published,
+//! whichever comes first. Naming it at once put its transfer and the
+//! nodes' preparation on the path of the first frame that names it.
 
 use super::*;
 use crate::message::{
     ElementChange, ElementLight, Illumination, IlluminationBody, IlluminationMesh,
-    IlluminationResync,
+    IlluminationReady, IlluminationResync,
 };
 
 /// A delta is sent only when at most this fraction of the elements
@@ -44,6 +48,12 @@ pub(super) struct IlluminationState {
     /// The version each unswapped frame (and the newest frame) names.
     frames: BTreeMap<u64, u64>,
     next_version: u64,
+    /// The version frames name now.
+    named: Option<u64>,
+    /// The newest version while some live node has not said it holds it,
+    /// and when frames name it regardless (published plus one swap
+    /// deadline).
+    pending: Option<(u64, u64)>,
 }
 
 impl MasterCore {
@@ -52,11 +62,13 @@ impl MasterCore {
     /// light ([`ElementLight`]). Every live node gets it before any frame
     /// that names it: as a delta against the previous version when at most
     /// a quarter of the elements changed (same scene, mesh and size), else
-    /// whole. Frames submitted from now on must name the returned version
-    /// ([`Self::illumination_version`]).
+    /// whole. Frames name the returned version
+    /// ([`Self::illumination_version`]) once every live node said it holds
+    /// it, at once when no node is live, and at the latest one swap
+    /// deadline from `now`.
     pub fn set_illumination(
         &mut self,
-        _now: u64,
+        now: u64,
         mesh: IlluminationMesh,
         values: Vec<ElementLight>,
     ) -> Result<u64, MasterError> {
@@ -107,19 +119,77 @@ impl MasterCore {
         for conn in live {
             self.transmit(conn, message.clone());
         }
+        let until = now.saturating_add(self.config.deadline_ns);
+        self.illumination.pending = Some((version, until));
+        self.advance_illumination(None);
         self.prune_illumination();
         Ok(version)
     }
 
     /// The version frames of the current scene must name: the newest
-    /// solution, if it belongs to the current scene version.
+    /// solution every live node holds (or that waited a swap deadline), if
+    /// it belongs to the current scene version.
     pub fn illumination_version(&self) -> Option<u64> {
         self.illumination
-            .held
-            .values()
-            .next_back()
+            .named
+            .and_then(|v| self.illumination.held.get(&v))
             .filter(|s| s.scene_version == self.scene_version)
             .map(|s| s.version)
+    }
+
+    /// When a published version is named regardless of the nodes that
+    /// have not said they hold it.
+    pub(super) fn illumination_due(&self) -> Option<u64> {
+        self.illumination.pending.map(|(_, until)| until)
+    }
+
+    /// Name the pending version if every live node holds it, or (given
+    /// `now`) if its swap deadline has passed.
+    pub(super) fn advance_illumination(&mut self, now: Option<u64>) {
+        let Some((version, until)) = self.illumination.pending else {
+            return;
+        };
+        let lacking: Vec<&str> = self
+            .peers
+            .values()
+            .filter_map(|p| match p {
+                Peer::Live(n) if n.illumination_ready.is_none_or(|r| r < version) => {
+                    Some(n.name.as_str())
+                }
+                _ => None,
+            })
+            .collect();
+        let overdue = now.is_some_and(|t| t >= until);
+        if !lacking.is_empty() && !overdue {
+            return;
+        }
+        if !lacking.is_empty() {
+            tracing::warn!(
+                version,
+                nodes = ?lacking,
+                "not every node said within a swap deadline that it holds the illumination solution; frames name it now"
+            );
+        }
+        self.illumination.named = Some(version);
+        self.illumination.pending = None;
+    }
+
+    /// A node holds (and has prepared) `r.version`.
+    pub(super) fn illumination_ready(&mut self, conn: ConnId, r: IlluminationReady) {
+        let newest = self.illumination.held.keys().next_back().copied();
+        if newest.is_none_or(|n| r.version > n) {
+            let detail = format!(
+                "IlluminationReady for version {}, the newest is {}",
+                r.version,
+                opt_text(newest)
+            );
+            self.violation(conn, detail);
+            return;
+        }
+        if let Some(Peer::Live(n)) = self.peers.get_mut(&conn) {
+            n.illumination_ready = n.illumination_ready.max(Some(r.version));
+        }
+        self.advance_illumination(None);
     }
 
     /// Record the version `frame` names (after it was sent).
@@ -131,13 +201,22 @@ impl MasterCore {
     }
 
     /// Full copies, oldest first, of the version `frame` (a joiner's
-    /// current frame) names and of the newest version of the current
-    /// scene: what a node must hold before it draws anything.
+    /// current frame) names, the version frames name now and the newest
+    /// version of the current scene: what a node must hold before it
+    /// draws anything.
     pub(super) fn illumination_for_joiner(&self, frame: Option<&FrameState>) -> Vec<Message> {
+        let newest = self
+            .illumination
+            .held
+            .values()
+            .next_back()
+            .filter(|s| s.scene_version == self.scene_version)
+            .map(|s| s.version);
         let mut versions: Vec<u64> = frame
             .and_then(|f| f.illumination_version)
             .into_iter()
             .chain(self.illumination_version())
+            .chain(newest)
             .collect();
         versions.dedup();
         versions
@@ -185,9 +264,10 @@ impl MasterCore {
             .retain(|f, _| keep_from.is_some_and(|k| *f >= k));
         let oldest = state.frames.values().min().copied();
         let newest = state.held.keys().next_back().copied();
-        state
-            .held
-            .retain(|v, _| Some(*v) == newest || oldest.is_some_and(|o| *v >= o));
+        let named = state.named;
+        state.held.retain(|v, _| {
+            Some(*v) == newest || Some(*v) == named || oldest.is_some_and(|o| *v >= o)
+        });
     }
 
     /// Versions held (for tests and reports).

@@ -63,6 +63,8 @@ struct LiveNode {
     next_probe_id: u64,
     next_probe_at_ns: u64,
     outstanding_probes: VecDeque<(u64, u64)>,
+    /// The newest global-illumination version it said it holds.
+    illumination_ready: Option<u64>,
 }
 
 #[derive(Debug)]
@@ -231,6 +233,7 @@ impl MasterCore {
             (Peer::Live(_), Message::NodeStats(s)) => self.stats(conn, s),
             (Peer::Live(_), Message::ClockReply(r)) => self.clock_reply(now, conn, r),
             (Peer::Live(_), Message::IlluminationResync(r)) => self.illumination_resync(conn, r),
+            (Peer::Live(_), Message::IlluminationReady(r)) => self.illumination_ready(conn, r),
             (
                 Peer::Live(n),
                 m @ (Message::PatternShown(_) | Message::FrameChunk(_) | Message::CaptureFailed(_)),
@@ -413,7 +416,10 @@ impl MasterCore {
             }
             Peer::Live(n) => n.next_probe_at_ns,
         });
-        peers.chain(self.barrier.next_deadline()).min()
+        peers
+            .chain(self.barrier.next_deadline())
+            .chain(self.illumination_due())
+            .min()
     }
 
     /// Time has reached `now`: deadlines, handshake timeouts, clock probes.
@@ -449,6 +455,7 @@ impl MasterCore {
         for conn in due {
             self.probe(now, conn);
         }
+        self.advance_illumination(Some(now));
         self.advance(now);
     }
 

@@ -29,6 +29,9 @@ impl MasterCore {
         for p in &mut self.presents {
             p.awaiting.remove(&conn);
         }
+        // The version the cluster waited on this node for may now be held
+        // by every node left.
+        self.advance_illumination(None);
         if close {
             let bye = Bye {
                 reason: truncate(reason.to_string(), 4096),
@@ -86,6 +89,7 @@ impl MasterCore {
             next_probe_id: 0,
             next_probe_at_ns: now,
             outstanding_probes: VecDeque::new(),
+            illumination_ready: None,
         };
         self.peers.insert(conn, Peer::Live(Box::new(node)));
         self.names.insert(hello.node.clone(), conn);

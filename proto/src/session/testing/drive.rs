@@ -238,6 +238,9 @@ impl Cluster {
                 if let Message::IlluminationResync(r) = &message {
                     n.log.resyncs.push(r.version);
                 }
+                if self.muted.contains(&(i, message.kind())) {
+                    return;
+                }
                 if let Ok(bytes) = encode_frame(&message, MAX_FRAME_LEN) {
                     let at = now + n.spec.up_ns;
                     self.schedule(at, Delivery::ToMaster { conn, bytes });

@@ -193,6 +193,8 @@ pub struct Cluster {
     /// Per node: drop the next master-to-node message of this kind (a
     /// lost message).
     drops: Vec<(usize, &'static str)>,
+    /// Per node: node-to-master messages of this kind that never arrive.
+    muted: Vec<(usize, &'static str)>,
 }
 
 /// A scene with one observer, so frames carry a head pose.
@@ -282,6 +284,7 @@ impl Cluster {
             next_conn: 1,
             conn_owner: BTreeMap::new(),
             drops: Vec::new(),
+            muted: Vec::new(),
         }
     }
 
@@ -304,6 +307,12 @@ impl Cluster {
     /// ([`Message::kind`]) on its way to node `i`.
     pub fn drop_next_to_node(&mut self, i: usize, kind: &'static str) {
         self.drops.push((i, kind));
+    }
+
+    /// Lose every node-to-master message of kind `kind` from node `i`
+    /// from now on.
+    pub fn mute_to_master(&mut self, i: usize, kind: &'static str) {
+        self.muted.push((i, kind));
     }
 
     /// Send `bytes` on node `i`'s connection from the master, bypassing the

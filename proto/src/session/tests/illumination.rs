@@ -144,10 +144,11 @@ fn a_lost_delta_is_recovered_with_full_copies() {
     let mut p = BTreeMap::new();
     publish(&mut c, &mut p, 0);
     c.run_for(10 * PERIOD).unwrap();
-    // Node 0 never gets version 2's delta; frames naming it follow.
+    // Node 0 never gets version 2's delta, so never says it holds it;
+    // frames name it a swap deadline (50 ms) later all the same.
     c.drop_next_to_node(0, "Illumination");
     let lost = publish(&mut c, &mut p, 1);
-    c.run_for(5 * PERIOD).unwrap();
+    c.run_for(10 * PERIOD).unwrap();
     let later = publish(&mut c, &mut p, 2);
     c.run_for(20 * PERIOD).unwrap();
     c.frame_period_ns = None;
@@ -172,6 +173,85 @@ fn a_lost_delta_is_recovered_with_full_copies() {
         (first..first + presented.len() as u64).collect::<Vec<_>>()
     );
     assert!(n.log.disconnects.is_empty(), "{:?}", n.log.disconnects);
+}
+
+/// A new version is named by frames only once every live node said it
+/// holds it, so no frame waits for a solution in transit or being
+/// prepared; a node that never says so holds the cluster back one swap
+/// deadline at most.
+#[test]
+fn frames_name_a_version_once_every_node_holds_it() {
+    let mut nodes = specs(3);
+    // A slow link: its solution arrives, and its word comes back, last.
+    nodes[2].down_ns = 3 * MS;
+    nodes[2].up_ns = 3 * MS;
+    let mut c = Cluster::new(config(50), nodes, PERIOD);
+    let mut p = BTreeMap::new();
+    let first = publish(&mut c, &mut p, 0);
+    c.run_for(10 * PERIOD).unwrap();
+    let master = |c: &Cluster| c.master.as_ref().unwrap().illumination_version();
+    assert_eq!(master(&c), Some(first));
+
+    let second = publish(&mut c, &mut p, 1);
+    assert_eq!(master(&c), Some(first), "named before any node holds it");
+    c.run_for(4 * MS).unwrap();
+    assert_eq!(
+        master(&c),
+        Some(first),
+        "named before the slow node holds it"
+    );
+    c.run_for(3 * MS).unwrap();
+    assert_eq!(master(&c), Some(second));
+
+    // Node 1 never says it holds anything more: the next version is named
+    // one swap deadline (50 ms) after it was published, and node 1 still
+    // draws it.
+    c.mute_to_master(1, "IlluminationReady");
+    let third = publish(&mut c, &mut p, 2);
+    c.run_for(45 * MS).unwrap();
+    assert_eq!(master(&c), Some(second));
+    c.run_for(10 * MS).unwrap();
+    assert_eq!(master(&c), Some(third));
+    c.run_for(10 * PERIOD).unwrap();
+    c.frame_period_ns = None;
+    c.run_for(500 * MS).unwrap();
+    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
+    check_versions(&c, &p);
+    for n in &c.nodes {
+        let drawn: std::collections::BTreeSet<u64> =
+            n.log.illuminated.iter().map(|i| i.1).collect();
+        assert!(drawn.contains(&third), "{}", n.spec.config.name);
+        assert!(
+            n.log.resyncs.is_empty(),
+            "{} {:?} {:?}",
+            n.spec.config.name,
+            n.log.resyncs,
+            n.log.arrived
+        );
+    }
+}
+
+/// A node may only say it holds a version that was published.
+#[test]
+fn ready_for_an_unpublished_version_closes_only_its_node() {
+    let mut c = Cluster::new(config(50), specs(2), PERIOD);
+    let mut p = BTreeMap::new();
+    let v = publish(&mut c, &mut p, 0);
+    c.run_for(10 * PERIOD).unwrap();
+    let bytes = crate::codec::encode_frame(
+        &Message::IlluminationReady(crate::message::IlluminationReady { version: v + 1 }),
+        crate::MAX_FRAME_LEN,
+    )
+    .unwrap();
+    c.inject_bytes_to_master(0, bytes);
+    c.run_for(10 * PERIOD).unwrap();
+    assert_eq!(c.log.closed.len(), 1, "{:?}", c.log.closed);
+    assert!(
+        format!("{:?}", c.log.closed[0]).contains("IlluminationReady for version"),
+        "{:?}",
+        c.log.closed
+    );
+    assert!(c.nodes[1].presented_frames().len() >= 15);
 }
 
 fn hostile(c: &Cluster, body: IlluminationBody) -> Message {
