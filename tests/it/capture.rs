@@ -560,3 +560,98 @@ fn zero_light_and_degenerate_geometry_give_no_nan() {
             .all(|v| v.is_finite())
     );
 }
+
+/// The live solver's real reflectance comes from the captured map the
+/// material names: the wood plate captured without noise, meshed as the
+/// master knows it (grey albedo, no texture) and moved since the capture,
+/// gets on each element the map saw the wood's mean reflectance over the
+/// element (the true texture averaged over 36 points of it); under a name
+/// the cluster does not hold, every element keeps the grey.
+#[test]
+fn the_radiosity_mesh_takes_real_reflectance_from_the_captured_map() {
+    use showcase_light::radiosity::{Element, RadiosityMesh};
+    use showcase_master::capture::cluster::{captured_map, reflectance_map};
+    use showcase_master::radiosity_job::RadiosityOptions;
+    use showcase_master::radiosity_job::captured::take_captured_reflectance;
+    let (scene, sim) = sim_for(plate_scene((96, 96), false), 2);
+    let config = CaptureConfig {
+        frames: 16,
+        method: Method::Naive,
+        eta: known(&scene),
+        ..CaptureConfig::default()
+    };
+    let out = capture_reflectance(&scene, &sim, &config).unwrap();
+    let captured = captured_map("plate", &out.map);
+    assert_eq!(reflectance_map(&captured).unwrap(), out.map);
+
+    let mut truth = scene.clone();
+    truth.objects[0].transform.translation = Vec3::new(0.03, 0.02, -0.04);
+    truth.objects[0].transform.rotation = Quat::from_rotation_y(0.4);
+    let mut grey = truth.clone();
+    grey.objects[0].material.texture = None;
+    grey.objects[0].material.reflectance_map = Some("plate".into());
+    let options = RadiosityOptions::default().hierarchical_mesh();
+    let g = SceneGeometry::build(&grey, &ObjectFilter::All).unwrap();
+    let untouched = RadiosityMesh::build(&grey, &g, &options).unwrap();
+    let mut mesh = untouched.clone();
+    let maps = std::slice::from_ref(&captured);
+    let taken = take_captured_reflectance(&mut mesh, &grey, maps).unwrap();
+    let n = mesh.elements.len();
+    assert!(
+        n > 20 && taken * 10 >= n * 9,
+        "{taken} of {n} elements took the map"
+    );
+
+    // The true texture's mean over an element: 36 points of an 8 x 8
+    // subdivision of its triangle, through the plate's UVs.
+    let plate = &truth.objects[0];
+    let plate_mesh = truth.mesh(&plate.mesh).unwrap();
+    let mean_albedo = |e: &Element| {
+        let tri = plate_mesh.triangles[mesh.primitives[e.primitive as usize].triangle as usize];
+        let [a, b, c] = tri.map(|i| plate_mesh.uvs[i as usize].as_dvec2());
+        let mut sum = DVec3::ZERO;
+        let mut count = 0.0;
+        for i in 0..8 {
+            for j in 0..8 - i {
+                let (s, t) = ((i as f64 + 1.0 / 3.0) / 8.0, (j as f64 + 1.0 / 3.0) / 8.0);
+                let bary =
+                    (1.0 - s - t) * e.barycentric[0] + s * e.barycentric[1] + t * e.barycentric[2];
+                let uv = (1.0 - bary.x - bary.y) * a + bary.x * b + bary.y * c;
+                sum += plate.material.albedo_at(uv.as_vec2()).as_dvec3();
+                count += 1.0;
+            }
+        }
+        sum / count
+    };
+    let error = |m: &RadiosityMesh| {
+        let mut e: Vec<f64> = m
+            .elements
+            .iter()
+            .map(|e| {
+                let truth = mean_albedo(e);
+                (e.reflectance - truth).length() / truth.length()
+            })
+            .collect();
+        e.sort_by(f64::total_cmp);
+        (e[e.len() / 2], e[e.len() * 9 / 10])
+    };
+    let (median, p90) = error(&mesh);
+    let (grey_median, _) = error(&untouched);
+    eprintln!(
+        "captured reflectance per element against the true mean: median {median:.4}, p90 {p90:.4}; the grey albedo {grey_median:.4}"
+    );
+    assert!(median < 0.03 && p90 < 0.08, "median {median}, p90 {p90}");
+    assert!(
+        grey_median > 0.2,
+        "the grey is {grey_median} off: the check cannot tell"
+    );
+
+    let mut other = grey.clone();
+    other.objects[0].material.reflectance_map = Some("another".into());
+    let mut kept = untouched.clone();
+    assert_eq!(
+        take_captured_reflectance(&mut kept, &other, maps).unwrap(),
+        0
+    );
+    assert_eq!(kept, untouched);
+}

@@ -163,7 +163,7 @@ fn finer_patches_leave_no_runaway_element() {
             max_patch_area: area,
             ..Default::default()
         };
-        let (mesh, values) = indirect_values(&frame.showcase, &frame.eyes, &options).unwrap();
+        let (mesh, values) = indirect_values(&frame.showcase, &[], &frame.eyes, &options).unwrap();
         let mut per = std::collections::BTreeMap::<String, f64>::new();
         for (e, v) in mesh.elements.iter().zip(&values) {
             let name = frame.showcase.objects[e.object as usize].name.clone();

@@ -237,6 +237,57 @@ pub fn captured_map(name: &str, map: &ReflectanceMap) -> CapturedMap {
     }
 }
 
+/// A map as the scene snapshot carries it, back as the light transport
+/// uses it ([`captured_map`]'s inverse). The message was validated on
+/// arrival (sizes, finite values); what is checked here again names the
+/// map.
+pub fn reflectance_map(map: &CapturedMap) -> anyhow::Result<ReflectanceMap> {
+    let (w, h) = (map.camera.width, map.camera.height);
+    let n = w as usize * h as usize;
+    anyhow::ensure!(
+        [
+            map.reflectance.len(),
+            map.weight.len(),
+            map.depth.len(),
+            map.object.len()
+        ]
+        .iter()
+        .all(|len| *len == n),
+        "reflectance map {:?}: its images do not all have the camera's {w}x{h} pixels",
+        map.name
+    );
+    fn image<T>(width: u32, height: u32, data: Vec<T>) -> Image<T> {
+        Image {
+            width,
+            height,
+            data,
+        }
+    }
+    Ok(ReflectanceMap {
+        reflectance: image(
+            w,
+            h,
+            map.reflectance.iter().map(|v| Vec3::from(*v)).collect(),
+        ),
+        weight: image(w, h, map.weight.clone()),
+        depth: image(w, h, map.depth.clone()),
+        object: image(
+            w,
+            h,
+            map.object
+                .iter()
+                .map(|o| (*o != u32::MAX).then_some(*o))
+                .collect(),
+        ),
+        camera: map.camera.clone(),
+        object_transforms: map
+            .object_transforms
+            .iter()
+            .map(glam::DMat4::from_cols_array)
+            .collect(),
+    })
+}
+
 /// Settings of a capture through the cluster.
 #[derive(Clone, Debug)]
 pub struct ClusterCaptureOptions {

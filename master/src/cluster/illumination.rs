@@ -17,6 +17,7 @@ use crate::radiosity_job::live::LiveScene;
 use crate::radiosity_job::{RadiosityOptions, indirect_values};
 use showcase_light::radiosity::live::LiveUpdate;
 use showcase_light::render::{FrameScene, IndirectLight};
+use showcase_proto::capture::CapturedMap;
 use showcase_proto::message::{ElementLight, IlluminationMesh};
 use showcase_proto::{FrameState, Showcase};
 use std::sync::{Arc, Condvar, Mutex};
@@ -34,15 +35,28 @@ pub struct Request {
     pub scene: Arc<Showcase>,
     /// The frame's state: its lights, transforms and heads.
     pub state: FrameState,
+    /// The captured reflectance maps the cluster holds (shared, not
+    /// copied): the real reflectance where the scene names them.
+    pub maps: Arc<Vec<CapturedMap>>,
 }
 
 impl Request {
-    /// The request for `state` of `scene`, asked now.
+    /// The request for `state` of `scene`, asked now, with no captured
+    /// maps.
     pub fn of(scene: &Arc<Showcase>, state: &FrameState) -> Self {
         Self {
             asked_at: Instant::now(),
             scene: scene.clone(),
             state: state.clone(),
+            maps: Arc::default(),
+        }
+    }
+
+    /// The same request with the captured maps `maps`.
+    pub fn with_maps(self, maps: &Arc<Vec<CapturedMap>>) -> Self {
+        Self {
+            maps: maps.clone(),
+            ..self
         }
     }
 }
@@ -70,7 +84,7 @@ pub struct Solved {
 pub fn solve(request: Request, options: &RadiosityOptions) -> anyhow::Result<Solved> {
     let t = Instant::now();
     let resolved = FrameScene::resolve(&request.scene, &request.state)?;
-    let (_, values) = indirect_values(&resolved.showcase, &resolved.eyes, options)?;
+    let (_, values) = indirect_values(&resolved.showcase, &request.maps, &resolved.eyes, options)?;
     Ok(solved(&request, options, &values, t))
 }
 
@@ -118,7 +132,13 @@ fn serve_scene(
     let begun = Instant::now();
     let start = pool.install(|| -> anyhow::Result<_> {
         let resolved = FrameScene::resolve(&first.scene, &first.state)?;
-        let scene = LiveScene::new(&resolved.showcase, options)?;
+        let scene = LiveScene::new(&resolved.showcase, &first.maps, options)?;
+        if scene.captured_elements() > 0 {
+            tracing::info!(
+                elements = scene.captured_elements(),
+                "global illumination: real reflectance from the captured maps"
+            );
+        }
         Ok((resolved, scene))
     });
     let (resolved, scene) = match start {
@@ -141,7 +161,7 @@ fn serve_scene(
     };
     loop {
         let request = next()?;
-        if !Arc::ptr_eq(&request.scene, &first.scene) {
+        if !Arc::ptr_eq(&request.scene, &first.scene) || !Arc::ptr_eq(&request.maps, &first.maps) {
             return Some(request);
         }
         let begun = Instant::now();
@@ -272,10 +292,14 @@ impl Drop for Solver {
     }
 }
 
-/// What moved between two frames, as the solution sees it: the lights,
-/// the object transforms and the heads (the eyes' occlusion shadows).
+/// What changed between two frames, as the solution sees it: the scene
+/// version (a new scene, or new captured maps), the lights, the object
+/// transforms and the heads (the eyes' occlusion shadows).
 pub fn inputs_differ(a: &FrameState, b: &FrameState) -> bool {
-    a.lights != b.lights || a.object_transforms != b.object_transforms || a.heads != b.heads
+    a.scene_version != b.scene_version
+        || a.lights != b.lights
+        || a.object_transforms != b.object_transforms
+        || a.heads != b.heads
 }
 
 /// One published update: the frame it was solved for, the first frame

@@ -590,10 +590,10 @@ impl GlobalIllumination {
         let state = initial_state(&scene, core.scene_version());
         // The solver thread solves the first state itself, so that the
         // live solution it keeps starts there.
-        let (solver, mut results) = Solver::start(options, Some(Request::of(&scene, &state)))
-            .map_err(|e| {
-                ServerError::Illumination(format!("cannot start the solver thread: {e}"))
-            })?;
+        let first = Request::of(&scene, &state).with_maps(core.maps());
+        let (solver, mut results) = Solver::start(options, Some(first)).map_err(|e| {
+            ServerError::Illumination(format!("cannot start the solver thread: {e}"))
+        })?;
         let first = results
             .recv()
             .await
@@ -671,7 +671,8 @@ impl GlobalIllumination {
             return;
         }
         if self.asked.as_ref().is_none_or(|a| inputs_differ(a, state)) {
-            self.solver.ask(Request::of(core.scene(), state));
+            self.solver
+                .ask(Request::of(core.scene(), state).with_maps(core.maps()));
             self.outstanding = Some(state.frame);
             self.asked = Some(state.clone());
         }

@@ -13,6 +13,7 @@ use showcase_light::radiosity::live::LiveCorrection;
 use showcase_light::radiosity::{self, RadiosityMesh};
 use showcase_light::render::IndirectLight;
 use showcase_light::{ObjectFilter, SceneGeometry, world_matrix};
+use showcase_proto::capture::CapturedMap;
 use showcase_proto::{ObjectKind, Showcase, Transform};
 
 /// What a live solution of one scene is made over.
@@ -27,6 +28,8 @@ pub struct LiveScene {
     /// Per element: a projector reaches it.
     reach: Vec<bool>,
     options: radiosity::HierarchyOptions,
+    /// Real elements whose reflectance came from a captured map.
+    captured: usize,
 }
 
 /// A frame's state the live solution cannot follow.
@@ -50,15 +53,23 @@ pub enum Afresh {
 
 impl LiveScene {
     /// Mesh `showcase` (as it stands) with `options`' hierarchical mesh,
-    /// with its virtual objects as movers.
-    pub fn new(showcase: &Showcase, options: &RadiosityOptions) -> anyhow::Result<Self> {
+    /// with its virtual objects as movers, and the real reflectance from
+    /// the captured `maps` where the scene names them
+    /// ([`super::captured::take_captured_reflectance`]).
+    pub fn new(
+        showcase: &Showcase,
+        maps: &[CapturedMap],
+        options: &RadiosityOptions,
+    ) -> anyhow::Result<Self> {
         let all =
             SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
         let real =
             SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
-        let mesh = RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh())
+        let mut mesh = RadiosityMesh::build(showcase, &all, &options.hierarchical_mesh())
             .context("meshing")?;
         drop(all);
+        let captured = super::captured::take_captured_reflectance(&mut mesh, showcase, maps)
+            .context("taking the real reflectance from the captured maps")?;
         let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
         check_solvable(&mesh, &lights)?;
         let mut options = options.clone();
@@ -87,7 +98,19 @@ impl LiveScene {
             real_places,
             reach,
             options: options.hierarchy(),
+            captured,
         })
+    }
+
+    /// How many real elements took their reflectance from a captured map.
+    pub fn captured_elements(&self) -> usize {
+        self.captured
+    }
+
+    /// The mesh the solution is made over (its elements' reflectance as
+    /// solved).
+    pub fn mesh(&self) -> &RadiosityMesh {
+        &self.mesh
     }
 
     /// The live solution under `showcase`'s lights (the state this scene

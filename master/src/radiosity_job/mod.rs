@@ -4,6 +4,7 @@
 //! the projectors' irradiance maps and the virtual objects' light maps.
 
 pub mod bench;
+pub mod captured;
 pub mod consistency;
 pub mod export;
 pub mod gpu_hemicube;
@@ -277,20 +278,23 @@ pub fn indirect_field(
     eyes: &[glam::DVec3],
     options: &RadiosityOptions,
 ) -> anyhow::Result<(showcase_light::render::IndirectField, usize)> {
-    let (mesh, delta) = indirect_values(showcase, eyes, options)?;
+    let (mesh, delta) = indirect_values(showcase, &[], eyes, options)?;
     let elements = mesh.elements.len();
     let field = showcase_light::render::IndirectField::new(std::sync::Arc::new(mesh), &delta)?;
     Ok((field, elements))
 }
 
 /// [`indirect_field`]'s mesh and per-element values (what the cluster
-/// sends the nodes; [`RadiosityOptions::hierarchical_mesh`] meshes it).
+/// sends the nodes; [`RadiosityOptions::hierarchical_mesh`] meshes it),
+/// with the real reflectance from the captured `maps` where the scene
+/// names them.
 pub fn indirect_values(
     showcase: &Showcase,
+    maps: &[showcase_proto::capture::CapturedMap],
     eyes: &[glam::DVec3],
     options: &RadiosityOptions,
 ) -> anyhow::Result<(RadiosityMesh, Vec<showcase_light::render::IndirectLight>)> {
-    let scene = live::LiveScene::new(showcase, options)?;
+    let scene = live::LiveScene::new(showcase, maps, options)?;
     let solution = scene.start(showcase)?;
     let values = scene.field(&solution, showcase, eyes)?;
     let mesh = solution.mesh().context("no solution")?.clone();

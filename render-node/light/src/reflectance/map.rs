@@ -65,6 +65,20 @@ impl ReflectanceMap {
         })
     }
 
+    /// The reflectance this map gives object `object` over the points
+    /// `local` (in the object's own frame): the blend-weighted mean of
+    /// their samples, `None` where the map saw none of them (or the map
+    /// has no capture pose for the object).
+    pub fn reflectance_at(&self, object: u32, local: &[DVec3]) -> Option<DVec3> {
+        let o_c = self.object_transforms.get(object as usize)?;
+        let (sum, weight) = local
+            .iter()
+            .map(|p| self.sample(object, o_c.transform_point3(*p)))
+            .fold((DVec3::ZERO, 0.0), |a, s| (a.0 + s.0, a.1 + s.1));
+        let rho = sum / weight;
+        (weight > 1e-9 && rho.is_finite()).then_some(rho)
+    }
+
     /// Premultiplied `(weight * reflectance, weight)` of object `object`
     /// at world point `p_c` (capture pose), bilinearly filtered over the
     /// texels that saw that object at that depth.
