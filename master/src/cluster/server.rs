@@ -348,11 +348,11 @@ impl Server {
                         MasterEvent::FrameSwapped(s) => {
                             last_swap_at = Some(Instant::now());
                             swaps.insert(s.frame, s);
-                            if let Some(g) = gi.as_mut() {
-                                g.after_swap(&mut core, now(), &mut run);
-                            }
                         }
                         MasterEvent::FramePresented(p) => {
+                            if let Some(g) = gi.as_mut() {
+                                g.after_present(&mut core, now(), &mut run);
+                            }
                             let (Some(state), Some(swap)) =
                                 (states.remove(&p.frame), swaps.remove(&p.frame))
                             else {
@@ -571,7 +571,7 @@ struct GlobalIllumination {
     /// all hold yet; that frame waits for it.
     naming: Option<u64>,
     /// Live: a solve that landed while a frame was in flight, published
-    /// after its swap.
+    /// once it is presented.
     waiting: Option<Result<super::illumination::Solved, String>>,
     /// A published update not yet named by a frame: the frame it solved,
     /// its version, request-to-publish and solve times (ms).
@@ -689,12 +689,13 @@ impl GlobalIllumination {
     }
 
     /// A solve finished: keep it for its frame (lockstep); live, publish
-    /// it right after the next swap (`flowing`: frames are being swapped),
-    /// else now. After a swap no frame is in flight, so the solution
+    /// it once the next frame is presented (`flowing`: frames are being
+    /// swapped), else now. Then no frame is in flight, so the solution
     /// crosses the network and the nodes prepare it in the gap before the
-    /// next frame; published at once, it landed on a frame in flight one
+    /// next frame. Published at once, it landed on a frame in flight one
     /// time in five (`bench gi`, demo cabinet: that frame's
-    /// tracking-to-swap up to 12 ms).
+    /// tracking-to-swap up to 12 ms); published at the swap, its sending
+    /// delayed the other nodes' Swap (skew p99 2 ms against 0.09).
     fn landed(
         &mut self,
         core: &mut MasterCore,
@@ -713,8 +714,8 @@ impl GlobalIllumination {
         }
     }
 
-    /// A frame swapped: publish the solve waiting for it.
-    fn after_swap(&mut self, core: &mut MasterCore, now: u64, run: &mut ClusterRun) {
+    /// A frame was presented: publish the solve waiting for it.
+    fn after_present(&mut self, core: &mut MasterCore, now: u64, run: &mut ClusterRun) {
         if let Some(solved) = self.waiting.take() {
             let _ = self.publish_now(core, now, solved, run);
         }
