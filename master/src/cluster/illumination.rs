@@ -161,7 +161,9 @@ fn serve_scene(
     };
     loop {
         let request = next()?;
-        if !Arc::ptr_eq(&request.scene, &first.scene) || !Arc::ptr_eq(&request.maps, &first.maps) {
+        // The same maps: shared by the server, or equal (both none).
+        let same_maps = Arc::ptr_eq(&request.maps, &first.maps) || *request.maps == *first.maps;
+        if !Arc::ptr_eq(&request.scene, &first.scene) || !same_maps {
             return Some(request);
         }
         let begun = Instant::now();
