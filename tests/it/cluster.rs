@@ -54,6 +54,7 @@ fn settings(
         keep_frames: true,
         illumination_lag: None,
         illumination_patch_area: None,
+        maps: Vec::new(),
     }
 }
 
@@ -718,6 +719,85 @@ async fn a_live_node_keeps_a_count_not_every_frame() {
                 );
             }
         }
+    }
+}
+
+/// `run --maps DIR`: the maps `capture --out DIR` wrote (its
+/// `summary.json` is no map) reach every node in its first snapshot; a
+/// folder without maps is refused with how to make them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_master_started_with_captured_maps_sends_them_in_every_snapshot() {
+    use glam::{DVec3, Vec3};
+    use showcase_light::Image;
+    use showcase_light::reflectance::ReflectanceMap;
+    use showcase_master::capture::cluster::captured_maps_in;
+    use showcase_master::capture::write_reflectance_map;
+    use showcase_master::cluster::commands::walk_plan;
+    use showcase_master::cluster::{LoopbackPlan, run_loopback};
+    let dir = std::env::temp_dir().join(format!("showcase-run-maps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let camera = showcase_proto::PinholeDevice::look_at(
+        DVec3::new(0.0, 0.5, -0.5),
+        DVec3::ZERO,
+        DVec3::Y,
+        40.0,
+        4,
+        3,
+    );
+    let image = |data| Image {
+        width: 4,
+        height: 3,
+        data,
+    };
+    let map = ReflectanceMap {
+        reflectance: image(vec![Vec3::new(0.6, 0.5, 0.4); 12]),
+        weight: Image {
+            width: 4,
+            height: 3,
+            data: vec![1.0; 12],
+        },
+        depth: Image {
+            width: 4,
+            height: 3,
+            data: vec![0.7; 12],
+        },
+        object: Image {
+            width: 4,
+            height: 3,
+            data: vec![Some(0); 12],
+        },
+        camera,
+        object_transforms: vec![glam::DMat4::IDENTITY],
+    };
+    let err = captured_maps_in(&dir).unwrap_err();
+    assert!(format!("{err:#}").contains("capture --config"), "{err:#}");
+    write_reflectance_map(&dir, "plate", &map).unwrap();
+    std::fs::write(dir.join("summary.json"), b"{\"methods\": []}").unwrap();
+    let maps = captured_maps_in(&dir).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(maps.len(), 1);
+    assert_eq!(maps[0].name, "plate");
+
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
+    let scene = showcase_master::scene_file::load_any(&path).unwrap();
+    let plan = LoopbackPlan {
+        maps,
+        ..walk_plan(&scene, 2, 120.0, 10).unwrap()
+    };
+    let r = timeout(Duration::from_secs(60), run_loopback(plan))
+        .await
+        .expect("the loopback run ends")
+        .unwrap();
+    assert_eq!(r.logs.len(), 2);
+    for (name, log) in &r.logs {
+        assert_eq!(log.presented_count, 10, "{name}");
+        assert_eq!(
+            log.scenes.first().map(|s| s.1),
+            Some(1),
+            "{name}: {:?}",
+            log.scenes
+        );
     }
 }
 

@@ -237,6 +237,25 @@ pub fn captured_map(name: &str, map: &ReflectanceMap) -> CapturedMap {
     }
 }
 
+/// Every map in the folder `dir` (what `capture --out DIR` wrote), as the
+/// scene snapshot carries them, each checked as a node would check it.
+pub fn captured_maps_in(dir: &Path) -> anyhow::Result<Vec<CapturedMap>> {
+    use showcase_proto::Validate;
+    super::files::read_reflectance_maps(dir)?
+        .into_iter()
+        .map(|(name, map)| {
+            let m = captured_map(&name, &map);
+            m.validate().with_context(|| {
+                format!(
+                    "{}: reflectance map {name:?} cannot be sent to the nodes",
+                    dir.display()
+                )
+            })?;
+            Ok(m)
+        })
+        .collect()
+}
+
 /// A map as the scene snapshot carries it, back as the light transport
 /// uses it ([`captured_map`]'s inverse). The message was validated on
 /// arrival (sizes, finite values); what is checked here again names the

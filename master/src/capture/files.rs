@@ -64,6 +64,48 @@ pub fn write_reflectance_map(
     Ok(names)
 }
 
+/// Every map in `dir`, by name: each `NAME.json` whose format is
+/// [`FORMAT`] with its images (`summary.json` and other JSON files are not
+/// maps and are skipped). A folder with no map is an error that says how
+/// maps are made.
+pub fn read_reflectance_maps(dir: &Path) -> anyhow::Result<Vec<(String, ReflectanceMap)>> {
+    let entries =
+        std::fs::read_dir(dir).with_context(|| format!("{}: cannot list", dir.display()))?;
+    let mut names = Vec::new();
+    for entry in entries {
+        let path = entry
+            .with_context(|| format!("{}: cannot list", dir.display()))?
+            .path();
+        let (Some(name), Some("json")) = (
+            path.file_stem().and_then(|s| s.to_str()),
+            path.extension().and_then(|s| s.to_str()),
+        ) else {
+            continue;
+        };
+        #[derive(Deserialize)]
+        struct Format {
+            format: Option<String>,
+        }
+        let is_map = std::fs::read(&path)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Format>(&b).ok())
+            .is_some_and(|f| f.format.as_deref() == Some(FORMAT));
+        if is_map {
+            names.push(name.to_owned());
+        }
+    }
+    names.sort();
+    anyhow::ensure!(
+        !names.is_empty(),
+        "{}: no reflectance map here (a map is NAME.json of format {FORMAT:?} beside its NAME*.pfm images); `showcase-master capture --config CLUSTER.toml --out DIR` writes them",
+        dir.display()
+    );
+    names
+        .into_iter()
+        .map(|name| Ok((name.clone(), read_reflectance_map(dir, &name)?)))
+        .collect()
+}
+
 /// Read the map `NAME.*` from `dir`.
 pub fn read_reflectance_map(dir: &Path, name: &str) -> anyhow::Result<ReflectanceMap> {
     let read = |suffix: &str| -> anyhow::Result<showcase_light::RgbImage> {

@@ -19,7 +19,7 @@ pub mod pipeline;
 pub mod scenes;
 
 pub use bench::{Record, bench_reflectance, write_report};
-pub use files::{read_reflectance_map, write_reflectance_map};
+pub use files::{read_reflectance_map, read_reflectance_maps, write_reflectance_map};
 pub use pipeline::{
     CaptureConfig, CaptureOutcome, EtaMode, Method, ProjectorLevels, adjust_camera_gain,
     calibrate_projector, calibrate_reference, capture_map, capture_radiance,

@@ -45,6 +45,12 @@ pub struct RunArgs {
     /// Cluster configuration (see deploy/).
     #[arg(long)]
     pub config: PathBuf,
+    /// Captured reflectance maps to start with: every map in this folder
+    /// (what `capture --out DIR` wrote). The nodes get them in their
+    /// snapshot; in global mode a real object whose material names one
+    /// (`reflectance_map`) is solved with its reflectance.
+    #[arg(long, value_name = "DIR")]
+    pub maps: Option<PathBuf>,
     /// Write one JSON line of measurements per frame to this file.
     #[arg(long)]
     pub metrics: Option<PathBuf>,
@@ -84,6 +90,7 @@ impl RunArgs {
 pub(super) fn run_master(args: &RunArgs) -> Result<()> {
     runtime()?.block_on(crate::cluster::commands::run_master(
         &args.config,
+        args.maps.as_deref(),
         args.metrics.as_deref(),
         args.record.as_deref(),
         args.dashboard().as_ref(),

@@ -155,6 +155,7 @@ pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result
         keep_presented: false,
         illumination_lag: None,
         illumination_patch_area: None,
+        maps: Vec::new(),
     })
 }
 
@@ -268,6 +269,7 @@ pub async fn replay(
         keep_presented: true,
         illumination_lag: Some(REPLAY_ILLUMINATION_LAG),
         illumination_patch_area: None,
+        maps: Vec::new(),
     })
     .await?;
     let nodes = r
@@ -294,6 +296,7 @@ pub async fn replay(
 /// summary, exit 0); with `dashboard`, it serves the live dashboard too.
 pub async fn run_master(
     config: &Path,
+    maps: Option<&Path>,
     metrics: Option<&Path>,
     record: Option<&Path>,
     dashboard: Option<&DashboardOptions>,
@@ -314,6 +317,32 @@ pub async fn run_master(
     {
         bail!("{p}");
     }
+    let maps = match maps {
+        Some(dir) => {
+            let maps = crate::capture::cluster::captured_maps_in(dir)?;
+            let named: Vec<&str> = scene
+                .objects
+                .iter()
+                .filter_map(|o| o.material.reflectance_map.as_deref())
+                .collect();
+            let loaded: Vec<&str> = maps.iter().map(|m| m.name.as_str()).collect();
+            eprintln!(
+                "{} reflectance maps from {}: {}",
+                maps.len(),
+                dir.display(),
+                loaded.join(", ")
+            );
+            for missing in named.iter().filter(|n| !loaded.contains(n)) {
+                tracing::warn!(
+                    map = missing,
+                    "the scene names a reflectance map that {} does not hold; its object keeps the scene's albedo",
+                    dir.display()
+                );
+            }
+            maps
+        }
+        None => Vec::new(),
+    };
     let listen = showcase_render::net::resolve(&cfg.master.listen, "master.listen")?;
     let identity = ClusterIdentity::load(&base.join(&cfg.master.certs), crate::certs::MASTER_FILE)?;
     let tracking = match &cfg.tracking {
@@ -375,6 +404,7 @@ pub async fn run_master(
         keep_frames: false,
         illumination_lag: None,
         illumination_patch_area: None,
+        maps,
     })?;
     eprintln!(
         "master listening on {} for {} nodes; Ctrl-C or SIGTERM stops",

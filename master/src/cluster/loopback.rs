@@ -50,6 +50,8 @@ pub struct LoopbackPlan {
     pub illumination_lag: Option<u64>,
     /// See `ServerSettings::illumination_patch_area`.
     pub illumination_patch_area: Option<f64>,
+    /// See `ServerSettings::maps`.
+    pub maps: Vec<showcase_proto::capture::CapturedMap>,
 }
 
 /// What happened.
@@ -153,6 +155,7 @@ pub async fn run_loopback(plan: LoopbackPlan) -> Result<LoopbackResult, Loopback
         keep_frames: plan.keep_frames,
         illumination_lag: plan.illumination_lag,
         illumination_patch_area: plan.illumination_patch_area,
+        maps: plan.maps,
     })?;
     let addr = server.local_addr();
     let stop = CancellationToken::new();

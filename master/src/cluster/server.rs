@@ -10,6 +10,7 @@ use super::live::{LivePublisher, LiveStats, LiveSummary};
 use super::metrics::{FrameMetrics, frame_metrics};
 use super::show::Show;
 use super::timer::DeadlineTimer;
+use showcase_proto::capture::CapturedMap;
 use showcase_proto::session::{
     ConnId, MasterConfig, MasterCore, MasterError, MasterEvent, MasterOutput, SwapReport,
 };
@@ -63,6 +64,9 @@ pub struct ServerSettings {
     /// `None`: the radiosity job's default), which sets how many elements
     /// it has (`bench gi`'s records at about 20,000).
     pub illumination_patch_area: Option<f64>,
+    /// Captured reflectance maps the cluster starts with (`run --maps`):
+    /// every snapshot carries them, and global mode solves with them.
+    pub maps: Vec<CapturedMap>,
 }
 
 impl ServerSettings {
@@ -89,6 +93,7 @@ impl ServerSettings {
             keep_frames: false,
             illumination_lag: None,
             illumination_patch_area: None,
+            maps: Vec::new(),
         }
     }
 }
@@ -279,6 +284,9 @@ impl Server {
         let now = || start.elapsed().as_nanos() as u64;
         let hz = settings.core.target_hz as f64;
         let mut core = MasterCore::new(settings.core.clone(), scene)?;
+        if !settings.maps.is_empty() {
+            core.set_maps(0, std::mem::take(&mut settings.maps))?;
+        }
         let (tx, mut rx) = mpsc::unbounded_channel::<Inbound>();
         let mut tasks = JoinSet::new();
         let mut conns: HashMap<ConnId, mpsc::UnboundedSender<Outbound>> = HashMap::new();

@@ -769,6 +769,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
         keep_presented: false,
         illumination_lag: None,
         illumination_patch_area: None,
+        maps: Vec::new(),
     }))?;
     let seconds = started.elapsed().as_secs_f64();
     let rec = bench_record(node_count, HZ, opts.frames, &result);
