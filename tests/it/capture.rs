@@ -40,6 +40,18 @@ fn sim_for(mut scene: Showcase, samples: u32) -> (Showcase, SimShowcase) {
     (scene, sim)
 }
 
+/// The naive capture of 16 frames, eta known: what the map tests start
+/// from.
+fn naive_capture(scene: &Showcase, sim: &SimShowcase) -> showcase_master::capture::CaptureOutcome {
+    let config = CaptureConfig {
+        frames: 16,
+        method: Method::Naive,
+        eta: known(scene),
+        ..CaptureConfig::default()
+    };
+    capture_reflectance(scene, sim, &config).unwrap()
+}
+
 fn known(scene: &Showcase) -> EtaMode {
     let r = &scene.projectors[0].response;
     EtaMode::Known {
@@ -175,13 +187,7 @@ fn stored_map_re_renders_from_a_new_view_and_pose() {
         b: Vec3::new(0.2, 0.3, 0.6),
     });
     let (scene, sim) = sim_for(plate, 2);
-    let config = CaptureConfig {
-        frames: 16,
-        method: Method::Naive,
-        eta: known(&scene),
-        ..CaptureConfig::default()
-    };
-    let out = capture_reflectance(&scene, &sim, &config).unwrap();
+    let out = naive_capture(&scene, &sim);
     let dir = std::env::temp_dir().join(format!("showcase-capture-map-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let files = write_reflectance_map(&dir, "plate", &out.map).unwrap();
@@ -259,13 +265,7 @@ fn stored_map_re_renders_from_a_new_view_and_pose() {
 #[test]
 fn merged_maps_fill_each_others_blank_regions_without_seams() {
     let (scene, sim) = sim_for(plate_scene((48, 48), false), 2);
-    let config = CaptureConfig {
-        frames: 16,
-        method: Method::Naive,
-        eta: known(&scene),
-        ..CaptureConfig::default()
-    };
-    let out = capture_reflectance(&scene, &sim, &config).unwrap();
+    let out = naive_capture(&scene, &sim);
     let (truth, _) = sim.ground_truth(0).unwrap();
     let half = |keep_left: bool| {
         let valid = Image::from_fn(48, 48, |x, y| {
@@ -574,13 +574,7 @@ fn the_radiosity_mesh_takes_real_reflectance_from_the_captured_map() {
     use showcase_master::radiosity_job::RadiosityOptions;
     use showcase_master::radiosity_job::captured::take_captured_reflectance;
     let (scene, sim) = sim_for(plate_scene((96, 96), false), 2);
-    let config = CaptureConfig {
-        frames: 16,
-        method: Method::Naive,
-        eta: known(&scene),
-        ..CaptureConfig::default()
-    };
-    let out = capture_reflectance(&scene, &sim, &config).unwrap();
+    let out = naive_capture(&scene, &sim);
     let captured = captured_map("plate", &out.map);
     assert_eq!(reflectance_map(&captured).unwrap(), out.map);
 

@@ -684,13 +684,28 @@ async fn a_node_makes_its_frames_folder_before_it_joins() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Run `plan` (a walk on two nodes) to its end, within a minute.
+async fn walk_loopback(
+    plan: showcase_master::cluster::LoopbackPlan,
+) -> showcase_master::cluster::LoopbackResult {
+    let r = timeout(
+        Duration::from_secs(60),
+        showcase_master::cluster::run_loopback(plan),
+    )
+    .await
+    .expect("the loopback run ends")
+    .unwrap();
+    assert_eq!(r.logs.len(), 2);
+    r
+}
+
 /// A live node keeps the count and the last presented frame, not a record
 /// per frame (its memory stays flat over a day); asked to keep them (replay
 /// checks), it keeps every one, the same last one included.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_live_node_keeps_a_count_not_every_frame() {
+    use showcase_master::cluster::LoopbackPlan;
     use showcase_master::cluster::commands::walk_plan;
-    use showcase_master::cluster::{LoopbackPlan, run_loopback};
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/scenes/showcase.toml");
     let scene = showcase_master::scene_file::load_any(&path).unwrap();
@@ -700,11 +715,7 @@ async fn a_live_node_keeps_a_count_not_every_frame() {
             keep_presented: keep,
             ..walk_plan(&scene, 2, 120.0, N).unwrap()
         };
-        let r = timeout(Duration::from_secs(60), run_loopback(plan))
-            .await
-            .expect("the loopback run ends")
-            .unwrap();
-        assert_eq!(r.logs.len(), 2);
+        let r = walk_loopback(plan).await;
         for (name, log) in &r.logs {
             assert_eq!(log.presented_count, N, "{name}");
             assert_eq!(log.last_presented.map(|p| p.0), Some(N - 1), "{name}");
@@ -732,8 +743,8 @@ async fn a_master_started_with_captured_maps_sends_them_in_every_snapshot() {
     use showcase_light::reflectance::ReflectanceMap;
     use showcase_master::capture::cluster::captured_maps_in;
     use showcase_master::capture::write_reflectance_map;
+    use showcase_master::cluster::LoopbackPlan;
     use showcase_master::cluster::commands::walk_plan;
-    use showcase_master::cluster::{LoopbackPlan, run_loopback};
     let dir = std::env::temp_dir().join(format!("showcase-run-maps-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let camera = showcase_proto::PinholeDevice::look_at(
@@ -785,11 +796,7 @@ async fn a_master_started_with_captured_maps_sends_them_in_every_snapshot() {
         maps,
         ..walk_plan(&scene, 2, 120.0, 10).unwrap()
     };
-    let r = timeout(Duration::from_secs(60), run_loopback(plan))
-        .await
-        .expect("the loopback run ends")
-        .unwrap();
-    assert_eq!(r.logs.len(), 2);
+    let r = walk_loopback(plan).await;
     for (name, log) in &r.logs {
         assert_eq!(log.presented_count, 10, "{name}");
         assert_eq!(

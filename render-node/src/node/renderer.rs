@@ -139,11 +139,9 @@ impl Renderer for StateHashRenderer {
 mod tests {
     use super::*;
 
-    #[test]
-    fn state_hash_depends_on_what_is_drawn() {
-        let scene = Arc::new(Showcase::default());
-        let mut r = StateHashRenderer::new("face-0", Role::Face);
-        let mut f = FrameState {
+    /// Frame 3 of scene version 1, with nothing in it.
+    fn frame_3() -> FrameState {
+        FrameState {
             frame: 3,
             time_s: 0.05,
             scene_version: 1,
@@ -152,7 +150,14 @@ mod tests {
             object_transforms: vec![],
             tracking_time_ns: Some(7),
             illumination_version: None,
-        };
+        }
+    }
+
+    #[test]
+    fn state_hash_depends_on_what_is_drawn() {
+        let scene = Arc::new(Showcase::default());
+        let mut r = StateHashRenderer::new("face-0", Role::Face);
+        let mut f = frame_3();
         assert!(r.render(&f, &scene).is_err(), "no scene yet");
         r.set_scene(1, scene.clone()).unwrap();
         let a = r.render(&f, &scene).unwrap().hash;
@@ -198,14 +203,8 @@ mod tests {
         let (a, b, a_again) = (solution(1, 1.0), solution(2, 2.0), solution(1, 3.0));
         let scene = Arc::new(Showcase::default());
         let f = FrameState {
-            frame: 3,
-            time_s: 0.05,
-            scene_version: 1,
-            heads: vec![],
-            lights: vec![],
-            object_transforms: vec![],
-            tracking_time_ns: None,
             illumination_version: Some(1),
+            ..frame_3()
         };
         let drawn = |prepare: &[&Arc<Solution>], with: &Arc<Solution>| {
             let mut r = StateHashRenderer::new("projector-0", Role::Projector);

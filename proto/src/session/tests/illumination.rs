@@ -79,6 +79,11 @@ fn check_versions(c: &Cluster, published: &BTreeMap<u64, u64>) {
     }
 }
 
+/// The versions a node drew frames with.
+fn drawn_versions(n: &crate::session::testing::SimNode) -> std::collections::BTreeSet<u64> {
+    n.log.illuminated.iter().map(|i| i.1).collect()
+}
+
 #[test]
 fn every_node_presents_each_frame_with_the_version_it_names() {
     let mut c = Cluster::new(config(50), specs(3), PERIOD);
@@ -97,8 +102,7 @@ fn every_node_presents_each_frame_with_the_version_it_names() {
     assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
     check_versions(&c, &p);
     for n in &c.nodes {
-        let drawn: std::collections::BTreeSet<u64> =
-            n.log.illuminated.iter().map(|i| i.1).collect();
+        let drawn = drawn_versions(n);
         assert_eq!(
             drawn,
             versions.iter().copied().collect(),
@@ -218,8 +222,7 @@ fn frames_name_a_version_once_every_node_holds_it() {
     assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
     check_versions(&c, &p);
     for n in &c.nodes {
-        let drawn: std::collections::BTreeSet<u64> =
-            n.log.illuminated.iter().map(|i| i.1).collect();
+        let drawn = drawn_versions(n);
         assert!(drawn.contains(&third), "{}", n.spec.config.name);
         assert!(
             n.log.resyncs.is_empty(),
