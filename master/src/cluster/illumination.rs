@@ -6,10 +6,10 @@
 //! updates it (a virtual light or object moved, a head moved) instead of
 //! solving afresh, which only another scene or a real object's move asks
 //! for;
-//! the loop publishes each solution ([`MasterCore::set_illumination`]) as
-//! it lands, and frames name the version they are drawn with. The frame
-//! clock never waits for the solver, except once at start: frame 0 is
-//! drawn with a solution.
+//! the loop publishes each solution ([`MasterCore::set_illumination`])
+//! once the frame in flight when it lands is presented, and frames name it
+//! once every node holds it. The frame clock never waits for the solver,
+//! except once at start: frame 0 is drawn with a solution.
 //!
 //! [`MasterCore::set_illumination`]: showcase_proto::session::MasterCore::set_illumination
 
