@@ -79,6 +79,16 @@ fn check_versions(c: &Cluster, published: &BTreeMap<u64, u64>) {
     }
 }
 
+/// Stop the frame clock, let every frame in flight finish, and check that
+/// no connection closed and every frame was drawn with its version.
+#[track_caller]
+fn drain_and_check(c: &mut Cluster, published: &BTreeMap<u64, u64>) {
+    c.frame_period_ns = None;
+    c.run_for(500 * MS).unwrap();
+    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
+    check_versions(c, published);
+}
+
 /// The versions a node drew frames with.
 fn drawn_versions(n: &crate::session::testing::SimNode) -> std::collections::BTreeSet<u64> {
     n.log.illuminated.iter().map(|i| i.1).collect()
@@ -97,10 +107,7 @@ fn every_node_presents_each_frame_with_the_version_it_names() {
         versions.push(publish(&mut c, &mut p, k));
         c.run_for(7 * PERIOD).unwrap();
     }
-    c.frame_period_ns = None;
-    c.run_for(500 * MS).unwrap();
-    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
-    check_versions(&c, &p);
+    drain_and_check(&mut c, &p);
     for n in &c.nodes {
         let drawn = drawn_versions(n);
         assert_eq!(
@@ -130,10 +137,7 @@ fn a_late_joiner_gets_the_current_solution() {
     c.run_for(10 * PERIOD).unwrap();
     c.restart_node(1);
     c.run_for(20 * PERIOD).unwrap();
-    c.frame_period_ns = None;
-    c.run_for(500 * MS).unwrap();
-    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
-    check_versions(&c, &p);
+    drain_and_check(&mut c, &p);
     let late = &c.nodes[1];
     assert!(late.presented_frames().len() >= 15, "{late:?}");
     assert!(late.log.illuminated.iter().all(|i| i.1 == current));
@@ -155,10 +159,7 @@ fn a_lost_delta_is_recovered_with_full_copies() {
     c.run_for(10 * PERIOD).unwrap();
     let later = publish(&mut c, &mut p, 2);
     c.run_for(20 * PERIOD).unwrap();
-    c.frame_period_ns = None;
-    c.run_for(500 * MS).unwrap();
-    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
-    check_versions(&c, &p);
+    drain_and_check(&mut c, &p);
     let n = &c.nodes[0];
     for v in [lost, later] {
         assert!(
@@ -217,10 +218,7 @@ fn frames_name_a_version_once_every_node_holds_it() {
     c.run_for(10 * MS).unwrap();
     assert_eq!(master(&c), Some(third));
     c.run_for(10 * PERIOD).unwrap();
-    c.frame_period_ns = None;
-    c.run_for(500 * MS).unwrap();
-    assert!(c.log.closed.is_empty(), "{:?}", c.log.closed);
-    check_versions(&c, &p);
+    drain_and_check(&mut c, &p);
     for n in &c.nodes {
         let drawn = drawn_versions(n);
         assert!(drawn.contains(&third), "{}", n.spec.config.name);
