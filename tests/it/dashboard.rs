@@ -9,10 +9,12 @@ use showcase_master::certs;
 use showcase_master::cli::{Cli, run};
 use showcase_master::cluster::ClusterRun;
 use showcase_master::cluster::Roster;
-use showcase_master::cluster::dashboard::bench::{dashboard_addr, http_get, node_state};
+use showcase_master::cluster::dashboard::bench::{
+    EventStream, dashboard_addr, http_get, node_state,
+};
 use showcase_master::cluster::dashboard::{Dashboard, DashboardOptions};
 use showcase_master::cluster::faults::loopback_config;
-use showcase_master::cluster::live::{LivePublisher, LiveStats};
+use showcase_master::cluster::live::{History, LivePublisher, LiveSnapshot, LiveStats};
 use showcase_proto::Role;
 use showcase_proto::session::ConnId;
 use showcase_render::net::ClusterIdentity;
@@ -282,8 +284,8 @@ async fn metrics_and_state_serve_the_published_snapshot() {
     let (status, page) = get(addr, "/", &[]).await;
     assert_eq!(status, 200);
     assert!(
-        page.contains("api/state"),
-        "the page does not poll the state"
+        page.contains("api/stream"),
+        "the page does not read the event stream"
     );
     let (status, body) = get(addr, "/nothing", &[]).await;
     assert_eq!(status, 404);
@@ -313,6 +315,89 @@ async fn with_a_token_requests_without_it_get_401() {
         assert_eq!(status, 200, "{path}?token=");
     }
     stop.cancel();
+    showcase_master::cluster::dashboard::stop(task).await;
+}
+
+/// `/api/stream` sends the current snapshot with every plot point, then
+/// each published one with the points from the newest it sent (which may
+/// have grown) on; it asks for the token like every other path, and says
+/// `end` and closes when the dashboard stops (rather than being dropped
+/// after the stop's grace), so an open page does not hold the master.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_event_stream_sends_each_snapshot_with_the_points_a_page_lacks() {
+    let token = "s3cret-token-0123456789";
+    let snapshot = |version: u64, t: &[f64], skew: &[f64]| LiveSnapshot {
+        scene_version: version,
+        history: History {
+            interval_ms: 500.0,
+            t_unix_ms: t.to_vec(),
+            swap_skew_ms_max: skew.iter().map(|&v| Some(v)).collect(),
+            tracking_to_swap_ms_max: vec![None; t.len()],
+        },
+        ..LiveSnapshot::default()
+    };
+    let (mut publisher, rx) = LivePublisher::new(Duration::from_millis(100));
+    publisher.publish(snapshot(1, &[1000.0, 1500.0, 2000.0], &[0.1, 0.2, 0.3]));
+    let dash = Dashboard::bind(&DashboardOptions {
+        addr: "127.0.0.1:0".parse().unwrap(),
+        public: false,
+        token: Some(token.to_owned()),
+    })
+    .unwrap();
+    let addr = dash.local_addr();
+    let stop = CancellationToken::new();
+    let task = dash.serve(rx, stop.clone()).unwrap();
+
+    let (status, body) = get(addr, "/api/stream", &[]).await;
+    assert_eq!(status, 401, "{body}");
+    let path = format!("/api/stream?token={token}");
+    let events = tokio::task::spawn_blocking(move || {
+        let mut stream = EventStream::open(addr, &path).unwrap();
+        let mut next = || {
+            let (name, data) = stream.next_event().unwrap().expect("an event");
+            assert_eq!(name, "state", "{data}");
+            serde_json::from_str::<serde_json::Value>(&data).unwrap()
+        };
+        let mut events = vec![next()];
+        // The oldest point has left the master's history; the one at 2000
+        // grew and one at 2500 is new.
+        publisher.publish(snapshot(2, &[1500.0, 2000.0, 2500.0], &[0.2, 0.35, 0.4]));
+        events.push(next());
+        publisher.publish(snapshot(3, &[1500.0, 2000.0, 2500.0], &[0.2, 0.35, 0.45]));
+        events.push(next());
+        stop.cancel();
+        let end = stream.next_event().unwrap();
+        assert_eq!(
+            end.as_ref().map(|(name, _)| name.as_str()),
+            Some("end"),
+            "the stream did not say it ended: {end:?}"
+        );
+        assert!(
+            stream.next_event().unwrap().is_none(),
+            "the stream went on after its end"
+        );
+        drop(publisher);
+        events
+    })
+    .await
+    .unwrap();
+    let points = |e: &serde_json::Value| {
+        let h = &e["state"]["history"];
+        let t: Vec<f64> = serde_json::from_value(h["t_unix_ms"].clone()).unwrap();
+        let v: Vec<f64> = serde_json::from_value(h["swap_skew_ms_max"].clone()).unwrap();
+        (t, v)
+    };
+    assert_eq!(events[0]["append"], false);
+    assert_eq!(events[0]["state"]["scene_version"], 1);
+    assert_eq!(
+        points(&events[0]),
+        (vec![1000.0, 1500.0, 2000.0], vec![0.1, 0.2, 0.3])
+    );
+    assert_eq!(events[1]["append"], true);
+    assert_eq!(events[1]["state"]["scene_version"], 2);
+    assert_eq!(points(&events[1]), (vec![2000.0, 2500.0], vec![0.35, 0.4]));
+    assert_eq!(events[2]["state"]["scene_version"], 3);
+    assert_eq!(points(&events[2]), (vec![2500.0], vec![0.45]));
     showcase_master::cluster::dashboard::stop(task).await;
 }
 
@@ -513,6 +598,31 @@ fn the_page_shows_the_nodes_and_an_eviction() {
              document.querySelectorAll('#nodes tr[data-state=\"joined\"]').length === 4",
             Duration::from_secs(20),
         );
+        // The page's plot points, merged from the stream's events, are the
+        // master's: none doubled where an event resent the newest, none
+        // lost. Only the closed intervals before the page's newest point
+        // are compared; the master may have published since.
+        b.wait_for(
+            "points !== null && points.t_unix_ms.length >= 6",
+            Duration::from_secs(20),
+        );
+        let page: serde_json::Value =
+            serde_json::from_str(b.eval("JSON.stringify(points)").as_str().unwrap()).unwrap();
+        let (_, state) = http_get(addr, "/api/state", &[]).unwrap();
+        let master: serde_json::Value = serde_json::from_str(&state).unwrap();
+        let closed = |h: &serde_json::Value, before: f64| -> Vec<(f64, serde_json::Value)> {
+            let t = h["t_unix_ms"].as_array().unwrap();
+            t.iter()
+                .zip(h["swap_skew_ms_max"].as_array().unwrap())
+                .map(|(t, v)| (t.as_f64().unwrap(), v.clone()))
+                .filter(|(t, _)| *t < before)
+                .collect()
+        };
+        let newest = page["t_unix_ms"].as_array().unwrap().last().unwrap();
+        let newest = newest.as_f64().unwrap();
+        let on_page = closed(&page, newest);
+        assert!(on_page.len() >= 5, "{page}");
+        assert_eq!(on_page, closed(&master["history"], newest));
     }
 
     // kill -9 face-1 (the second node process).

@@ -543,6 +543,22 @@ pub struct History {
     pub tracking_to_swap_ms_max: Vec<Option<f64>>,
 }
 
+impl History {
+    /// The points from the interval that starts at `t_unix_ms` on (all of
+    /// them for `None`): what a reader that holds the points up to that
+    /// interval lacks. That interval itself is included, because the newest
+    /// point grows until its interval ends.
+    pub fn from(&self, t_unix_ms: Option<f64>) -> History {
+        let start = t_unix_ms.map_or(0, |t| self.t_unix_ms.partition_point(|&x| x < t));
+        History {
+            interval_ms: self.interval_ms,
+            t_unix_ms: self.t_unix_ms[start..].to_vec(),
+            swap_skew_ms_max: self.swap_skew_ms_max[start..].to_vec(),
+            tracking_to_swap_ms_max: self.tracking_to_swap_ms_max[start..].to_vec(),
+        }
+    }
+}
+
 /// The master's side of the dashboard: publishes a snapshot at most every
 /// `every`, so the frame loop does the work a few times a second, and
 /// counts the time that work takes (the dashboard's cost to the frame loop,

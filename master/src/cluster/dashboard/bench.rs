@@ -15,7 +15,7 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use showcase_light::metrics::percentile;
 use showcase_proto::Role;
-use std::io::{Read, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -124,6 +124,75 @@ pub fn http_get(addr: SocketAddr, path: &str, headers: &[&str]) -> Result<(u16, 
         .and_then(|c| c.parse().ok())
         .with_context(|| format!("no status in {:?}", head.lines().next()))?;
     Ok((status, body.to_owned()))
+}
+
+/// A reader of the dashboard's event stream (`/api/stream`), as a page
+/// holds it: one connection, each published snapshot an event. It asks in
+/// HTTP/1.0, so the body comes unchunked until the server closes it. Every
+/// read is bounded by a 5 s timeout.
+pub struct EventStream {
+    reader: BufReader<TcpStream>,
+}
+
+impl EventStream {
+    /// Open `path` (with `?token=` where the dashboard needs one) on `addr`.
+    pub fn open(addr: SocketAddr, path: &str) -> Result<Self> {
+        let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
+            .with_context(|| format!("cannot connect to {addr}"))?;
+        s.set_read_timeout(Some(Duration::from_secs(5)))?;
+        s.set_write_timeout(Some(Duration::from_secs(5)))?;
+        (&s).write_all(format!("GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").as_bytes())?;
+        let mut reader = BufReader::new(s);
+        let mut status = String::new();
+        reader.read_line(&mut status)?;
+        let code = status.split(' ').nth(1).unwrap_or("");
+        if code != "200" {
+            let mut rest = String::new();
+            let _ = reader.read_to_string(&mut rest);
+            bail!("{path} answered {:?}: {rest}", status.trim_end());
+        }
+        loop {
+            let mut line = String::new();
+            if reader.read_line(&mut line)? == 0 {
+                bail!("{path}: the answer ended in its header");
+            }
+            if line == "\r\n" || line == "\n" {
+                return Ok(Self { reader });
+            }
+        }
+    }
+
+    /// The next event's name and data; `None` once the server has ended
+    /// the stream.
+    pub fn next_event(&mut self) -> Result<Option<(String, String)>> {
+        let (mut name, mut data) = (String::from("message"), None::<String>);
+        loop {
+            let mut line = String::new();
+            if self.reader.read_line(&mut line)? == 0 {
+                return Ok(None);
+            }
+            let line = line.trim_end_matches(['\r', '\n']);
+            if line.is_empty() {
+                match data.take() {
+                    Some(d) => return Ok(Some((name, d))),
+                    None => continue,
+                }
+            }
+            let (field, value) = line.split_once(':').unwrap_or((line, ""));
+            let value = value.strip_prefix(' ').unwrap_or(value);
+            match field {
+                "event" => name = value.to_owned(),
+                "data" => match data.as_mut() {
+                    Some(d) => {
+                        d.push('\n');
+                        d.push_str(value);
+                    }
+                    None => data = Some(value.to_owned()),
+                },
+                _ => {}
+            }
+        }
+    }
 }
 
 /// The master's CPU time so far (s): the sum of its threads' run time
