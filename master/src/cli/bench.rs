@@ -29,8 +29,9 @@ pub enum BenchTarget {
     Faults,
     /// Memory over a long run: 4 nodes at 120 Hz, RSS against frames.
     Soak,
-    /// The live dashboard's cost: master CPU with it off and on (4 node
-    /// processes at 120 Hz, alternated runs), and eviction to `/api/state`.
+    /// The live dashboard's cost: master CPU with it off and on (pairs of
+    /// clusters run at the same time, 4 node processes at 120 Hz each), and
+    /// eviction to the page's stream.
     Dashboard,
     /// Global illumination: the projectors' maps and the faces' views
     /// (the GPU renderers, or their CPU references without an adapter) in
@@ -60,7 +61,7 @@ pub struct BenchArgs {
     #[arg(long, default_value = "showcase-bench")]
     pub out: PathBuf,
     /// Frames per configuration (default: 600 for cluster, 30 for render,
-    /// 12000 for soak; dashboard: the measured window of each run, 1200
+    /// 12000 for soak; dashboard: the measured window of each pair, 1200
     /// frames = 10 s at 120 Hz; gi and photometric: the one frame of the walk judged, 60).
     #[arg(long)]
     pub frames: Option<u64>,
@@ -99,7 +100,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',')]
     pub object_records: Vec<String>,
     /// Radiosity: timed runs per `incremental_object` record (default 5);
-    /// dashboard: runs with it off, and as many on (default 3).
+    /// dashboard: pairs of clusters, one with it and one without (default 8).
     #[arg(long)]
     pub repeats: Option<usize>,
     /// Faults and dashboard: the `showcase-node` binary (default: beside
@@ -405,15 +406,15 @@ fn dashboard(args: &BenchArgs, pb: &indicatif::ProgressBar) -> Result<()> {
         (120..=720_000).contains(&frames),
         "--frames {frames}: the window must be 120 to 720000 frames (1 s to 100 min at 120 Hz)"
     );
-    let runs = args.repeats.unwrap_or(3);
+    let pairs = args.repeats.unwrap_or(8);
     anyhow::ensure!(
-        (1..=50).contains(&runs),
-        "--repeats {runs}: 1 to 50 runs per side"
+        (1..=100).contains(&pairs),
+        "--repeats {pairs}: 1 to 100 pairs of clusters"
     );
     let record = bench_dashboard(&DashboardBenchOptions {
         scene: crate::demo::default_scene(),
         node_bin: args.node_bin.clone(),
-        runs,
+        pairs,
         window: std::time::Duration::from_secs_f64(frames as f64 / 120.0),
         keep: args.keep,
     })?;

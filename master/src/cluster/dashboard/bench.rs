@@ -1,14 +1,18 @@
 //! `bench dashboard`: what serving the dashboard costs the master, and how
-//! soon it shows an eviction. A real cluster of processes on loopback (this
-//! binary's `run` and four state-hash `showcase-node`s at 120 Hz), run
-//! `runs` times with the dashboard off and `runs` times on, alternated
-//! (off-on, then on-off); with it on, a client fetches `/api/state` and
-//! `/metrics` at the page's rate (every 250 ms). The figure is the master
-//! process's CPU time (its threads' run time in `/proc/PID/task/*/schedstat`)
-//! per second of the measured window. After each run with the dashboard on, one
-//! node is killed (-9) and `/api/state` is polled every 5 ms until it shows
-//! the node evicted. Every wait is bounded; the processes are killed on
-//! return.
+//! soon the page shows an eviction. Each pair runs two real clusters of
+//! processes on loopback at the same time, each this binary's `run` and
+//! four state-hash `showcase-node`s at 120 Hz, one with the dashboard and
+//! one without; whatever the machine does during the window happens to
+//! both. (Runs one after the other drifted by more than the effect: 0.06 to
+//! 0.099 CPU s/s between rounds.) With the dashboard on, a client reads the
+//! page's event stream and scrapes `/metrics` every 250 ms. The figure is
+//! each master's CPU time (its threads' run time in
+//! `/proc/PID/task/*/schedstat`) per second of the window; the dashboard's
+//! share is the median over pairs of on / off - 1, with a bootstrap
+//! interval, beside the cost attributed to it (its thread and the frame
+//! loop's snapshots). After the window, one node of the cluster with the
+//! dashboard is killed (-9) and the stream is read until an event shows it
+//! evicted. Every wait is bounded; the processes are killed on return.
 
 use super::super::faults::{ProcessBench, Procs, free_port, loopback_config_at, signal, wait_for};
 use anyhow::{Context, Result, bail};
@@ -30,8 +34,9 @@ const NODES: [(&str, Role); 4] = [
     ("projector-1", Role::Projector),
 ];
 const HZ: f64 = 120.0;
-/// The page's poll interval (`page.html`'s `POLL_MS`).
-const CLIENT_EVERY: Duration = Duration::from_millis(250);
+/// How often the client scrapes `/metrics`: the rate the page polled at
+/// before it read a stream, far more often than Prometheus scrapes.
+const SCRAPE_EVERY: Duration = Duration::from_millis(250);
 /// Linux's `USER_HZ`: the unit of `/proc/PID/stat`'s CPU times.
 const CLOCK_TICKS_PER_S: f64 = 100.0;
 
@@ -42,8 +47,8 @@ pub struct DashboardBenchOptions {
     pub scene: PathBuf,
     /// The `showcase-node` binary (default: beside this one).
     pub node_bin: Option<PathBuf>,
-    /// Runs with the dashboard off, and as many with it on.
-    pub runs: usize,
+    /// Pairs of clusters (one with the dashboard, one without).
+    pub pairs: usize,
     /// The measured window of each run.
     pub window: Duration,
     /// Keep the work folder (config, logs) afterwards.
@@ -53,46 +58,49 @@ pub struct DashboardBenchOptions {
 /// The record `bench dashboard --json` prints.
 #[derive(Clone, Debug, Serialize)]
 pub struct DashboardBenchRecord {
-    /// Render nodes (processes).
+    /// Render nodes (processes) of each cluster.
     pub nodes: usize,
     /// Target frame rate.
     pub hz: f64,
-    /// Runs per side.
-    pub runs: usize,
+    /// Pairs of clusters, each run at the same time.
+    pub pairs: usize,
     /// Length of each measured window (s).
     pub window_s: f64,
-    /// What the client did while the dashboard was on.
+    /// What the client did with the dashboard.
     pub client: String,
-    /// Master CPU seconds per second, dashboard off, per run.
+    /// Master CPU seconds per second, dashboard off, per pair.
     pub cpu_off: Vec<f64>,
-    /// The same with the dashboard on and the client fetching.
+    /// The same with the dashboard on and the client reading, per pair.
     pub cpu_on: Vec<f64>,
     /// Median of `cpu_off`.
     pub cpu_off_p50: f64,
     /// Median of `cpu_on`.
     pub cpu_on_p50: f64,
-    /// `cpu_on_p50 / cpu_off_p50 - 1`: the dashboard's share (0.02 = 2 %).
+    /// Per pair, `cpu_on / cpu_off - 1`.
+    pub cpu_overhead_per_pair: Vec<f64>,
+    /// Median of `cpu_overhead_per_pair`: the dashboard's share (0.02 = 2 %).
     pub cpu_overhead: f64,
-    /// Per pair of runs (one off, one on, back to back), on minus off
-    /// (CPU s/s): the machine's drift cancels within a pair.
-    pub cpu_on_minus_off: Vec<f64>,
-    /// Median of `cpu_on_minus_off` over `cpu_off_p50`.
-    pub cpu_overhead_paired: f64,
-    /// The dashboard thread's own CPU (s/s) in each run with it on: what
-    /// serving costs, without the run-to-run noise of the whole master.
+    /// A 95 % interval of `cpu_overhead` (percentile bootstrap): how
+    /// finely this machine resolved it.
+    pub cpu_overhead_ci95: [f64; 2],
+    /// The dashboard thread's own CPU (s/s) per pair: what serving costs,
+    /// without the noise of comparing two processes.
     pub dashboard_thread_cpu: Vec<f64>,
-    /// The frame loop's time making and publishing snapshots (s/s) in each
-    /// run with it on, from `showcase_dashboard_snapshot_seconds_total`.
+    /// The frame loop's time making and publishing snapshots (s/s) per
+    /// pair, from `showcase_dashboard_snapshot_seconds_total`.
     pub snapshot_cpu: Vec<f64>,
-    /// Median of `dashboard_thread_cpu + snapshot_cpu` over `cpu_off_p50`:
-    /// the dashboard's cost, attributed. Not in it: the client's side of the
-    /// loopback traffic, and what sharing the cores does to the frame loop.
+    /// Median over pairs of `dashboard_thread_cpu + snapshot_cpu` over the
+    /// rest of that master's CPU: the dashboard's cost, attributed. Not in
+    /// it: the client's side of the loopback traffic, and what sharing the
+    /// cores does to the frame loop.
     pub attributed_overhead: f64,
-    /// From kill -9 of a node to `/api/state` showing it evicted (ms), per
-    /// run with the dashboard on; the page adds up to its 250 ms poll.
-    pub eviction_to_state_ms: Vec<f64>,
-    /// Median of `eviction_to_state_ms`.
-    pub eviction_to_state_ms_p50: Option<f64>,
+    /// Events the page's stream delivered in each window (5 a second).
+    pub stream_events: Vec<usize>,
+    /// From kill -9 of a node to the stream's event showing it evicted
+    /// (ms), per pair: what the page shows, with nothing added.
+    pub eviction_to_page_ms: Vec<f64>,
+    /// Median of `eviction_to_page_ms`.
+    pub eviction_to_page_ms_p50: Option<f64>,
     /// Where the processes' logs were kept (removed unless `--keep`).
     pub work_dir: String,
 }
@@ -277,141 +285,199 @@ pub fn node_state(addr: SocketAddr, node: &str) -> Option<String> {
         .and_then(|n| n["state"].as_str().map(str::to_owned))
 }
 
-struct RunFigures {
-    cpu: f64,
-    /// The dashboard thread's share of `cpu` (CPU s/s); 0 with it off.
+/// One cluster of processes: a master, with the dashboard or without, and
+/// its nodes. Dropping it kills what is still running.
+struct Cluster {
+    procs: Procs,
+    log: PathBuf,
+}
+
+impl Cluster {
+    fn start(run: &Run<'_>, dashboard: bool, tag: &str) -> Result<Self> {
+        let cfg = loopback_config_at(free_port()?, run.scene, "source = \"scripted\"", &NODES, HZ);
+        let config = run.dir.join(format!("cluster-{tag}.toml"));
+        std::fs::write(&config, cfg)?;
+        let log = run.dir.join(format!("master-{tag}.log"));
+        let mut master = Command::new(run.exe);
+        master.arg("run").arg("--config").arg(&config);
+        if dashboard {
+            master.args(["--dashboard", "127.0.0.1:0"]);
+        }
+        let master = master
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log)?)
+            .spawn()
+            .with_context(|| format!("cannot start {}", run.exe.display()))?;
+        let mut procs = Procs(vec![master]);
+        for (name, _) in NODES {
+            let node_log = std::fs::File::create(run.dir.join(format!("{name}-{tag}.log")))?;
+            procs.0.push(
+                Command::new(run.node_bin)
+                    .arg("--config")
+                    .arg(&config)
+                    .args(["--name", name, "--renderer", "state-hash"])
+                    .stdout(Stdio::null())
+                    .stderr(node_log)
+                    .spawn()
+                    .with_context(|| format!("cannot start {}", run.node_bin.display()))?,
+            );
+        }
+        Ok(Self { procs, log })
+    }
+
+    fn pid(&self) -> u32 {
+        self.procs.0[0].id()
+    }
+
+    fn started(&self) -> bool {
+        std::fs::read_to_string(&self.log).is_ok_and(|t| t.contains("frame clock started"))
+    }
+
+    /// SIGTERM to the master, and a bounded wait for it.
+    fn stop(mut self) -> Result<()> {
+        signal(&self.procs.0[0], "-TERM")?;
+        wait_for(Duration::from_secs(10), || {
+            self.procs.0[0].try_wait().ok().flatten().is_some()
+        });
+        Ok(())
+    }
+}
+
+/// What every pair shares.
+struct Run<'a> {
+    exe: &'a Path,
+    node_bin: &'a Path,
+    dir: &'a Path,
+    scene: &'a Path,
+    window: Duration,
+}
+
+struct PairFigures {
+    cpu_on: f64,
+    cpu_off: f64,
+    /// The dashboard thread's share of `cpu_on` (CPU s/s).
     dashboard_cpu: f64,
-    /// The frame loop's time making snapshots (s/s); 0 with it off.
+    /// The frame loop's time making snapshots (s/s).
     snapshot_cpu: f64,
+    /// Events the page's stream delivered in the window.
+    events: usize,
     eviction_ms: Option<f64>,
 }
 
-/// One run of the cluster with the dashboard off or on.
-fn one_run(
-    exe: &Path,
-    node_bin: &Path,
-    dir: &Path,
-    scene: &Path,
-    window: Duration,
-    dashboard: bool,
-    index: usize,
-) -> Result<RunFigures> {
-    let cfg = loopback_config_at(free_port()?, scene, "source = \"scripted\"", &NODES, HZ);
-    let config = dir.join(format!("cluster-{index}.toml"));
-    std::fs::write(&config, cfg)?;
-    let master_log = dir.join(format!("master-{index}.log"));
-    let mut master = Command::new(exe);
-    master.arg("run").arg("--config").arg(&config);
-    if dashboard {
-        master.args(["--dashboard", "127.0.0.1:0"]);
-    }
-    let master = master
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&master_log)?)
-        .spawn()
-        .with_context(|| format!("cannot start {}", exe.display()))?;
-    let pid = master.id();
-    let mut procs = Procs(vec![master]);
-    for (name, _) in NODES {
-        let log = std::fs::File::create(dir.join(format!("{name}-{index}.log")))?;
-        procs.0.push(
-            Command::new(node_bin)
-                .arg("--config")
-                .arg(&config)
-                .args(["--name", name, "--renderer", "state-hash"])
-                .stdout(Stdio::null())
-                .stderr(log)
-                .spawn()
-                .with_context(|| format!("cannot start {}", node_bin.display()))?,
-        );
-    }
-    let started = wait_for(Duration::from_secs(60), || {
-        std::fs::read_to_string(&master_log).is_ok_and(|t| t.contains("frame clock started"))
+/// The page's side of the client: the event stream, read on a thread of
+/// its own, each event with its time of arrival.
+fn read_stream(addr: SocketAddr) -> Result<std::sync::mpsc::Receiver<(Instant, String)>> {
+    let mut stream = EventStream::open(addr, "/api/stream")?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        // Ends with the stream (the master stops) or when nobody listens.
+        while let Ok(Some((name, data))) = stream.next_event() {
+            if name == "state" && tx.send((Instant::now(), data)).is_err() {
+                break;
+            }
+        }
     });
-    if !started {
+    Ok(rx)
+}
+
+/// Whether a stream event shows `node` evicted.
+fn shows_evicted(event: &str, node: &str) -> bool {
+    serde_json::from_str::<serde_json::Value>(event).is_ok_and(|v| {
+        v["state"]["nodes"].as_array().is_some_and(|nodes| {
+            nodes
+                .iter()
+                .any(|n| n["name"] == node && n["state"] == "evicted")
+        })
+    })
+}
+
+/// One pair: a cluster with the dashboard and one without, running at the
+/// same time, so that whatever the machine does in the window happens to
+/// both. `on_first` says which is started first.
+fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> {
+    let (on, off) = if on_first {
+        let on = Cluster::start(run, true, &format!("{index}-on"))?;
+        (on, Cluster::start(run, false, &format!("{index}-off"))?)
+    } else {
+        let off = Cluster::start(run, false, &format!("{index}-off"))?;
+        (Cluster::start(run, true, &format!("{index}-on"))?, off)
+    };
+    if !wait_for(Duration::from_secs(60), || on.started() && off.started()) {
         bail!(
-            "the frame clock did not start within 60 s; see {}",
-            master_log.display()
+            "the frame clocks did not start within 60 s; see {} and {}",
+            on.log.display(),
+            off.log.display()
         );
     }
-    let addr = if dashboard {
-        Some(dashboard_addr(&master_log).context("the master printed no dashboard address")?)
-    } else {
-        None
-    };
+    let addr = dashboard_addr(&on.log).context("the master printed no dashboard address")?;
     // Settle: clock probes and the first frames' catch-up.
     std::thread::sleep(Duration::from_secs(1));
+    let events = read_stream(addr)?;
     let stop = Arc::new(AtomicBool::new(false));
-    let client = addr.map(|addr| {
+    let scraper = {
         let stop = stop.clone();
         std::thread::spawn(move || {
-            let mut fetches = 0u64;
+            let mut scrapes = 0u64;
             while !stop.load(Ordering::Relaxed) {
                 let t = Instant::now();
-                if http_get(addr, "/api/state", &[]).is_ok_and(|(s, _)| s == 200) {
-                    fetches += 1;
-                }
                 if http_get(addr, "/metrics", &[]).is_ok_and(|(s, _)| s == 200) {
-                    fetches += 1;
+                    scrapes += 1;
                 }
-                std::thread::sleep(CLIENT_EVERY.saturating_sub(t.elapsed()));
+                std::thread::sleep(SCRAPE_EVERY.saturating_sub(t.elapsed()));
             }
-            fetches
+            scrapes
         })
-    });
-    let snapshots = |addr: Option<SocketAddr>| addr.map_or(Ok(0.0), snapshot_seconds);
-    let s0 = snapshots(addr)?;
-    let (t0, c0, d0) = (
+    };
+    let s0 = snapshot_seconds(addr)?;
+    let (t0, on0, off0, d0) = (
         Instant::now(),
-        cpu_seconds(pid)?,
-        dashboard_thread_seconds(pid)?,
+        cpu_seconds(on.pid())?,
+        cpu_seconds(off.pid())?,
+        dashboard_thread_seconds(on.pid())?,
     );
-    std::thread::sleep(window);
-    let (c1, d1, elapsed) = (
-        cpu_seconds(pid)?,
-        dashboard_thread_seconds(pid)?,
+    std::thread::sleep(run.window);
+    let (on1, off1, d1, elapsed) = (
+        cpu_seconds(on.pid())?,
+        cpu_seconds(off.pid())?,
+        dashboard_thread_seconds(on.pid())?,
         t0.elapsed().as_secs_f64(),
     );
-    let s1 = snapshots(addr)?;
-    if dashboard {
-        anyhow::ensure!(
-            d1 > 0.0,
-            "the master has no thread named {:?} (or it never ran): the dashboard's own cost cannot be told apart",
-            super::THREAD_NAME
-        );
-    }
+    let s1 = snapshot_seconds(addr)?;
     stop.store(true, Ordering::Relaxed);
-    if let Some(c) = client {
-        let fetches = c.join().unwrap_or(0);
-        anyhow::ensure!(fetches > 0, "the client fetched nothing from {addr:?}");
-    }
-    let eviction_ms = match addr {
-        Some(addr) => {
-            let victim = NODES.len();
-            let t_kill = Instant::now();
-            procs.0[victim].kill()?;
-            procs.0[victim].wait()?;
-            let mut seen = None;
-            wait_for(Duration::from_secs(5), || {
-                let evicted = node_state(addr, NODES[victim - 1].0).as_deref() == Some("evicted");
-                if evicted {
-                    seen = Some(t_kill.elapsed().as_secs_f64() * 1e3);
-                }
-                evicted
-            });
-            seen
+    let scrapes = scraper.join().unwrap_or(0);
+    anyhow::ensure!(scrapes > 0, "the client scraped nothing from {addr}");
+    anyhow::ensure!(
+        d1 > 0.0,
+        "the master has no thread named {:?} (or it never ran): the dashboard's own cost cannot be told apart",
+        super::THREAD_NAME
+    );
+    let in_window = events.try_iter().count();
+    anyhow::ensure!(in_window > 0, "the page's stream delivered nothing");
+    // kill -9 a node of the cluster with the dashboard; the page sees its
+    // eviction when an event of the stream shows it.
+    let mut on = on;
+    let victim = NODES.len();
+    let t_kill = Instant::now();
+    on.procs.0[victim].kill()?;
+    on.procs.0[victim].wait()?;
+    let mut eviction_ms = None;
+    while let Ok((at, event)) = events.recv_timeout(Duration::from_secs(5)) {
+        if at >= t_kill && shows_evicted(&event, NODES[victim - 1].0) {
+            eviction_ms = Some(at.duration_since(t_kill).as_secs_f64() * 1e3);
+            break;
         }
-        None => None,
-    };
-    signal(&procs.0[0], "-TERM")?;
-    wait_for(Duration::from_secs(10), || {
-        procs.0[0].try_wait().ok().flatten().is_some()
-    });
-    drop(procs);
-    Ok(RunFigures {
-        cpu: (c1 - c0) / elapsed,
+        if t_kill.elapsed() > Duration::from_secs(5) {
+            break;
+        }
+    }
+    on.stop()?;
+    off.stop()?;
+    Ok(PairFigures {
+        cpu_on: (on1 - on0) / elapsed,
+        cpu_off: (off1 - off0) / elapsed,
         dashboard_cpu: (d1 - d0) / elapsed,
         snapshot_cpu: (s1 - s0) / elapsed,
+        events: in_window,
         eviction_ms,
     })
 }
@@ -420,82 +486,93 @@ fn median(v: &[f64]) -> f64 {
     percentile(v, 50.0).unwrap_or(f64::NAN)
 }
 
+/// A 95 % interval of the median of `v`: the percentile bootstrap, 2,000
+/// resamples from a fixed seed (so a record can be recomputed).
+fn median_ci95(v: &[f64]) -> [f64; 2] {
+    use rand::{Rng, SeedableRng};
+    if v.is_empty() {
+        return [f64::NAN; 2];
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x5eed);
+    let mut medians: Vec<f64> = (0..2000)
+        .map(|_| {
+            let resample: Vec<f64> = (0..v.len())
+                .map(|_| v[rng.random_range(0..v.len())])
+                .collect();
+            median(&resample)
+        })
+        .collect();
+    medians.sort_by(f64::total_cmp);
+    [medians[49], medians[1949]]
+}
+
 /// Run the bench.
 pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRecord> {
-    anyhow::ensure!(opts.runs >= 1, "the bench needs at least one run per side");
+    anyhow::ensure!(opts.pairs >= 1, "the bench needs at least one pair");
     let ProcessBench {
         exe,
         node_bin,
         scene,
         dir,
     } = ProcessBench::prepare(opts.node_bin.as_deref(), &opts.scene, "dashboard", &NODES)?;
-    let (mut off, mut on, mut evictions) = (Vec::new(), Vec::new(), Vec::new());
+    let run = Run {
+        exe: &exe,
+        node_bin: &node_bin,
+        dir: &dir,
+        scene: &scene,
+        window: opts.window,
+    };
+    let (mut off, mut on, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
     let (mut thread, mut snapshot, mut attributed) = (Vec::new(), Vec::new(), Vec::new());
-    let mut paired = Vec::new();
-    for pair in 0..opts.runs {
-        let order = if pair % 2 == 0 {
-            [false, true]
-        } else {
-            [true, false]
-        };
-        let mut pair_cpu = [0.0; 2];
-        for (k, dashboard) in order.into_iter().enumerate() {
-            let r = one_run(
-                &exe,
-                &node_bin,
-                &dir,
-                &scene,
-                opts.window,
-                dashboard,
-                pair * 2 + k,
-            )?;
-            eprintln!(
-                "bench dashboard: run {} dashboard {}: {:.4} CPU s/s (its thread {:.5}, snapshots {:.6}), eviction seen after {:?} ms",
-                pair * 2 + k,
-                if dashboard { "on" } else { "off" },
-                r.cpu,
-                r.dashboard_cpu,
-                r.snapshot_cpu,
-                r.eviction_ms
-            );
-            pair_cpu[usize::from(dashboard)] = r.cpu;
-            if dashboard {
-                on.push(r.cpu);
-                thread.push(r.dashboard_cpu);
-                snapshot.push(r.snapshot_cpu);
-                attributed.push(r.dashboard_cpu + r.snapshot_cpu);
-                evictions.extend(r.eviction_ms);
-            } else {
-                off.push(r.cpu);
-            }
-        }
-        paired.push(pair_cpu[1] - pair_cpu[0]);
+    let (mut events, mut evictions) = (Vec::new(), Vec::new());
+    for pair in 0..opts.pairs {
+        let r = one_pair(&run, pair, pair % 2 == 0)?;
+        eprintln!(
+            "bench dashboard: pair {pair}: {:.4} CPU s/s on, {:.4} off ({:+.1} %); its thread {:.5}, snapshots {:.6}; {} events; eviction seen after {:?} ms",
+            r.cpu_on,
+            r.cpu_off,
+            (r.cpu_on / r.cpu_off - 1.0) * 100.0,
+            r.dashboard_cpu,
+            r.snapshot_cpu,
+            r.events,
+            r.eviction_ms
+        );
+        on.push(r.cpu_on);
+        off.push(r.cpu_off);
+        ratio.push(r.cpu_on / r.cpu_off - 1.0);
+        thread.push(r.dashboard_cpu);
+        snapshot.push(r.snapshot_cpu);
+        attributed.push(
+            (r.dashboard_cpu + r.snapshot_cpu) / (r.cpu_on - r.dashboard_cpu - r.snapshot_cpu),
+        );
+        events.push(r.events);
+        evictions.extend(r.eviction_ms);
     }
     if !opts.keep {
         let _ = std::fs::remove_dir_all(&dir);
     }
-    let (cpu_off_p50, cpu_on_p50) = (median(&off), median(&on));
     Ok(DashboardBenchRecord {
         nodes: NODES.len(),
         hz: HZ,
-        runs: opts.runs,
+        pairs: opts.pairs,
         window_s: opts.window.as_secs_f64(),
         client: format!(
-            "GET /api/state and /metrics every {} ms",
-            CLIENT_EVERY.as_millis()
+            "the page's event stream (/api/stream), and GET /metrics every {} ms on a new connection",
+            SCRAPE_EVERY.as_millis()
         ),
+        cpu_off_p50: median(&off),
+        cpu_on_p50: median(&on),
         cpu_off: off,
         cpu_on: on,
-        cpu_off_p50,
-        cpu_on_p50,
-        cpu_overhead: cpu_on_p50 / cpu_off_p50 - 1.0,
-        cpu_overhead_paired: median(&paired) / cpu_off_p50,
-        cpu_on_minus_off: paired,
+        cpu_overhead: median(&ratio),
+        cpu_overhead_ci95: median_ci95(&ratio),
+        cpu_overhead_per_pair: ratio,
         dashboard_thread_cpu: thread,
         snapshot_cpu: snapshot,
-        attributed_overhead: median(&attributed) / cpu_off_p50,
-        eviction_to_state_ms_p50: percentile(&evictions, 50.0),
-        eviction_to_state_ms: evictions,
+        attributed_overhead: median(&attributed),
+        stream_events: events,
+        eviction_to_page_ms_p50: percentile(&evictions, 50.0),
+        eviction_to_page_ms: evictions,
         work_dir: dir.display().to_string(),
     })
 }

@@ -6,10 +6,11 @@
 //! thread of its own ([`THREAD_NAME`], a single-threaded runtime), so a
 //! client never wakes the frame loop's workers and its whole cost is that
 //! thread's CPU time. The page holds one connection open and is sent each
-//! snapshot as it is published, with only the plot points it lacks: a
-//! request per update cost that thread about 100 µs, mostly the kernel's
-//! connection set-up and teardown (`bench dashboard`). `/api/state` and
-//! `/metrics` serialise each snapshot once, however many requests read it.
+//! snapshot as it is published, with only the plot points it lacks, rather
+//! than fetching the whole history each time. Each message costs that
+//! thread about 90 µs on the 2-core VM, most of it the kernel's loopback
+//! delivery (`bench dashboard`). `/api/state` and `/metrics` serialise each
+//! snapshot once, however many requests read it.
 //! It binds loopback unless told otherwise: a
 //! non-loopback address needs `--dashboard-public` and an access token,
 //! and every request then carries it (`Authorization: Bearer TOKEN` or
