@@ -148,7 +148,7 @@ impl LoopbackCluster {
     }
 
     /// Start node `name` of `role` with `devices`; its task and its stop
-    /// token (the caller joins it, or hands it to [`Self::keep`]).
+    /// token (the caller joins it; [`Self::start_node`] keeps it instead).
     pub fn spawn_node(
         &self,
         name: &str,

@@ -6,7 +6,7 @@
 //! (the hierarchical solution's indirect correction,
 //! [`crate::radiosity_job::indirect_field`]), each seen by the cabinet's
 //! cameras and the observers in the physically complete world
-//! ([`views::Transport::Complete`]). The maps come from the projector
+//! (`views::Transport::Complete`). The maps come from the projector
 //! nodes' GPU renderer where an adapter opens, else from its CPU
 //! reference; without occlusion shadows always from the CPU reference (the
 //! GPU renderer always draws them); `renderer` says what drew the maps.
@@ -40,7 +40,7 @@ pub struct GiBenchOptions {
     /// have lit the rest of the room).
     pub without_occlusion: bool,
     /// Frames of the live loopback cluster per mode (0: none): the
-    /// scripted walk at [`INTERACTIVE_HZ`] with one state-hash node per
+    /// scripted walk at `INTERACTIVE_HZ` with one state-hash node per
     /// output, in direct and in global mode, one after the other.
     pub live_frames: u64,
     /// The largest radiosity patch of global mode's solution (m^2; `None`:

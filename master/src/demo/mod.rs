@@ -152,7 +152,7 @@ impl Report {
 
 /// Why the demo cannot run phase `name` on `scene` (what the scene
 /// lacks), or `None` when it can. The `radiosity` phase is decided by
-/// its mesh ([`radiosity_stage`]).
+/// its mesh (`radiosity_stage`).
 pub fn unsupported(scene: &showcase_proto::Showcase, name: &str) -> Option<String> {
     let real = scene
         .objects

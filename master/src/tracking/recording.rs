@@ -138,7 +138,7 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     parse_recording(std::io::BufReader::new(f), &file)
 }
 
-/// [`parse`], reporting a cut instead of logging it.
+/// [`read_recording`] from any reader (`file` names it in errors).
 pub fn parse_recording(mut reader: impl BufRead, file: &str) -> Result<Recording, RecordingError> {
     let err = |line: usize, problem: String| RecordingError::Format {
         file: file.to_owned(),

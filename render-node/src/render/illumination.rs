@@ -85,8 +85,8 @@ impl FieldCache {
 
 /// A renderer's global-illumination state: the field drawn with every
 /// frame, the solution version it was made from, and the mesh cache.
-/// Both roles hold one ([`super::ProjectorRenderer`],
-/// [`super::FaceRenderer`]).
+/// Both roles hold one ([`super::projector_gpu::ProjectorRenderer`],
+/// [`super::face_gpu::FaceRenderer`]).
 #[derive(Debug, Default)]
 pub struct LiveIllumination {
     /// The field drawn with every frame (global mode), if any.

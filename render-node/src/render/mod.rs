@@ -4,7 +4,7 @@
 //! draw through ([`gpu_frame`]: frame inputs, scene buffers, the shadow
 //! stage, the timed encoder), the pass list that skips what a frame does
 //! not need ([`passes`]), the GPU-against-CPU map comparison
-//! ([`compare`]), the render bench ([`bench`]) and the [`Renderer`] seam
+//! ([`compare`]), the render bench ([`bench`](mod@bench)) and the [`Renderer`] seam
 //! a node drives them through ([`renderer`]). Their CPU references and
 //! the frame model are `showcase_light::render`.
 #![forbid(unsafe_code)]

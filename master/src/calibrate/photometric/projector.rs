@@ -18,7 +18,7 @@
 //!    measures against a target of known reflectance (a camera of unknown
 //!    scale per channel cannot tell a projector's white from the
 //!    reflectance captured under it, so that white is the anchor), and
-//!    `black + peak * d^gamma` is fitted per channel ([`fit_power`]).
+//!    `black + peak * d^gamma` is fitted per channel (`fit_power`).
 //! 4. Held-out levels between the fitted ones judge the new profile
 //!    against the one in place (the model where there is none); the new
 //!    one is kept only if it is no worse.

@@ -196,7 +196,7 @@ impl Dashboard {
     }
 
     /// Serve `snapshot` from the dashboard's own thread until `stop` is
-    /// cancelled; then open requests get [`STOP_GRACE`] to finish.
+    /// cancelled; then open requests get a grace of 2 s to finish.
     pub fn serve(
         self,
         snapshot: watch::Receiver<Arc<LiveSnapshot>>,
@@ -246,7 +246,7 @@ impl Dashboard {
 }
 
 /// Wait for a dashboard whose stop token was cancelled: at most
-/// [`STOP_GRACE`] and a little more.
+/// the 2 s grace and a little more.
 pub async fn stop(task: DashboardTask) {
     match tokio::task::spawn_blocking(move || task.0.join()).await {
         Ok(Ok(Ok(()))) => {}

@@ -6,7 +6,7 @@
 //! links it changes ([`Hierarchy::move_object`]); the real surfaces' own
 //! interreflection on a second hierarchy over the real elements, linked
 //! once (the real geometry never moves). What the displays add is then
-//! [`correction`], as [`super::augmented::indirect_correction`] computes
+//! `augmented::correction`, as [`super::augmented::indirect_correction`] computes
 //! it from scratch.
 
 use super::augmented::{IndirectLight, correction, real_part};

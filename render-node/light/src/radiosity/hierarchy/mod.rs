@@ -5,7 +5,7 @@
 //! power (BF refinement), so the number of links grows about linearly with
 //! the elements instead of with their square.
 //!
-//! - **Tree** ([`tree`]): a median-split binary tree over the active
+//! - **Tree** (`tree.rs`): a median-split binary tree over the active
 //!   elements. Flat nodes (coplanar members) act as one patch; the others
 //!   are volume clusters.
 //! - **Sources**: a node radiates with the intensity of its members,
@@ -15,7 +15,7 @@
 //!   exact for a flat node (then it is `Q max(0, n.w) / pi`) and 15 % high
 //!   for a sphere's worth of orientations.
 //! - **Receivers**: a flat node takes irradiance with the cosine at its
-//!   normal; a volume cluster keeps it as spherical harmonics ([`sh`]),
+//!   normal; a volume cluster keeps it as spherical harmonics (`sh.rs`),
 //!   read by each member at its own normal when pushed down.
 //! - **Links**: between leaves that are close, the closed-form
 //!   point-to-triangle form factor averaged over four points of the
