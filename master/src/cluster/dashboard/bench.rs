@@ -90,9 +90,11 @@ pub struct DashboardBenchRecord {
     /// pair, from `showcase_dashboard_snapshot_seconds_total`.
     pub snapshot_cpu: Vec<f64>,
     /// Median over pairs of `dashboard_thread_cpu + snapshot_cpu` over the
-    /// rest of that master's CPU: the dashboard's cost, attributed. Not in
-    /// it: the client's side of the loopback traffic, and what sharing the
-    /// cores does to the frame loop.
+    /// rest of that master's CPU: the dashboard's cost, attributed. On
+    /// loopback the kernel runs the receiving client's side of each send in
+    /// the sender's thread, so this holds some of the client's work that a
+    /// browser on another machine would do there; not in it is what sharing
+    /// the cores does to the frame loop.
     pub attributed_overhead: f64,
     /// Events the page's stream delivered in each window (5 a second).
     pub stream_events: Vec<usize>,
