@@ -604,6 +604,39 @@ mod tests {
     }
 
     #[test]
+    fn the_interval_of_the_median_holds_it_and_narrows_with_more_pairs() {
+        assert_eq!(median_ci95(&[0.03; 5]), [0.03, 0.03]);
+        // A spread like the bench's: pairs a few percent either side.
+        let spread = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| 0.02 + 0.05 * ((i * 7919 % 101) as f64 / 100.0 - 0.5))
+                .collect()
+        };
+        let (few, many) = (spread(8), spread(200));
+        let [lo, hi] = median_ci95(&few);
+        let m = median(&few);
+        assert!(lo <= m && m <= hi, "{lo} {m} {hi}");
+        assert!(lo >= -0.0051 && hi <= 0.0451, "{lo} {hi}");
+        let [lo2, hi2] = median_ci95(&many);
+        assert!(
+            hi2 - lo2 < (hi - lo) / 2.0,
+            "{lo2}..{hi2} against {lo}..{hi}"
+        );
+        // The same record gives the same interval.
+        assert_eq!(median_ci95(&few), [lo, hi]);
+    }
+
+    #[test]
+    fn an_eviction_is_read_from_the_named_node_of_a_stream_event() {
+        let event = r#"{"append":true,"state":{"nodes":[
+            {"name":"face-0","state":"joined"},{"name":"face-1","state":"evicted"}]}}"#;
+        assert!(shows_evicted(event, "face-1"));
+        assert!(!shows_evicted(event, "face-0"));
+        assert!(!shows_evicted(event, "projector-0"));
+        assert!(!shows_evicted("not json", "face-1"));
+    }
+
+    #[test]
     fn the_dashboard_address_is_read_from_the_log() {
         let dir = std::env::temp_dir().join(format!("showcase-dash-log-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
