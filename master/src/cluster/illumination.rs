@@ -13,7 +13,7 @@
 //!
 //! [`MasterCore::set_illumination`]: showcase_proto::session::MasterCore::set_illumination
 
-use crate::radiosity_job::live::LiveScene;
+use crate::radiosity_job::live::{Following, LiveScene};
 use crate::radiosity_job::{RadiosityOptions, indirect_values};
 use showcase_light::radiosity::live::LiveUpdate;
 use showcase_light::render::{FrameScene, IndirectLight};
@@ -146,8 +146,8 @@ fn serve_scene(
         Err(e) => return send(Err(format!("{e:#}"))).then(next).flatten(),
     };
     let live = pool.install(|| -> anyhow::Result<_> {
-        let live = scene.start(&resolved.showcase)?;
-        let values = scene.field(&live, &resolved.showcase, &resolved.eyes)?;
+        let live = Following::start(&scene, &resolved.showcase)?;
+        let values = live.field(&resolved.showcase, &resolved.eyes)?;
         Ok((live, values))
     });
     let mut live = match live {
@@ -176,24 +176,19 @@ fn serve_scene(
                 continue;
             }
         };
-        let Ok(places) = scene.places(&resolved.showcase) else {
-            return Some(request);
-        };
-        let lights: Vec<_> = resolved
-            .showcase
-            .lights
-            .iter()
-            .map(|l| l.light.clone())
-            .collect();
         let updated = pool.install(|| -> anyhow::Result<_> {
-            let done = live.update(&lights, &places)?;
-            Ok((
+            let Ok(done) = live.update(&resolved.showcase)? else {
+                return Ok(None);
+            };
+            Ok(Some((
                 done,
-                scene.field(&live, &resolved.showcase, &resolved.eyes)?,
-            ))
+                live.field(&resolved.showcase, &resolved.eyes)?,
+            )))
         });
         match updated {
-            Ok((done, values)) => {
+            // A change the live solution cannot follow (a real object moved).
+            Ok(None) => return Some(request),
+            Ok(Some((done, values))) => {
                 let mut solution = solved(&request, options, &values, begun);
                 solution.update = Some(done);
                 if !send(Ok(solution)) {

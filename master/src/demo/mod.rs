@@ -287,13 +287,26 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         report.ran("interactive", t, interactive.detail);
         report.figures.extend(interactive.figures);
     }
+    // Global mode's solution, as the demo's cluster keeps it: made once
+    // for the nodes' scene and followed to each frame the phases judge.
+    let judged_globally = ["photometric", "rendering"]
+        .iter()
+        .any(|p| unsupported(&scene, p).is_none());
+    let live = judged_globally
+        .then(|| views::live_scene(&scene))
+        .transpose()?;
+    let mut fields = live
+        .as_ref()
+        .map(|(live, first)| views::GlobalFields::start(live, first))
+        .transpose()?;
     if let Some(reason) = unsupported(&scene, "photometric") {
         report.skipped("photometric", reason);
     } else {
         let t = Instant::now();
         let pb = progress("photometric", None);
         pb.set_message("each face through its mirror, from its observer's place");
-        let outcome = photometric_stage(&truth, &mut scene, &transport)?;
+        let fields = fields.as_mut().context("no global solution")?;
+        let outcome = photometric_stage(&truth, &mut scene, &transport, fields)?;
         pb.finish_and_clear();
         report.ran("photometric", t, outcome.detail);
         report.figures.extend(outcome.figures);
@@ -302,8 +315,15 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         report.skipped("rendering", reason);
     } else {
         let t = Instant::now();
-        let rendering =
-            rendering::rendering_stage(&truth, &scene, opts, &transport, &mut report.gallery)?;
+        let fields = fields.as_mut().context("no global solution")?;
+        let rendering = rendering::rendering_stage(
+            &truth,
+            &scene,
+            opts,
+            &transport,
+            &mut report.gallery,
+            fields,
+        )?;
         report.ran("rendering", t, rendering.detail);
         report.figures.extend(rendering.figures);
     }
@@ -605,9 +625,10 @@ fn photometric_stage(
     truth: &showcase_proto::Showcase,
     scene: &mut showcase_proto::Showcase,
     transport: &views::Transport,
+    fields: &mut views::GlobalFields<'_>,
 ) -> Result<StageOutcome> {
     let (judged, record) =
-        photometric::photometric_record(truth, scene, PHOTOMETRIC_FRAME, transport)?;
+        photometric::photometric_record(truth, scene, PHOTOMETRIC_FRAME, transport, fields)?;
     let faces = &judged.faces;
     for j in faces {
         if let Some(f) = scene.faces.get_mut(j.face) {

@@ -336,17 +336,21 @@ pub fn bench_photometric_scene(
         paths_per_point: truth_paths,
         seed: super::rendering::COMPLETE_SEED,
     });
-    photometric_record(truth, calibrated, frame, &transport)
+    let (scene, first) = views::live_scene(calibrated)?;
+    let mut fields = views::GlobalFields::start(&scene, &first)?;
+    photometric_record(truth, calibrated, frame, &transport, &mut fields)
 }
 
 /// [`bench_photometric_scene`] in the complete world `transport` (its
 /// paths also trace the tripod's real light; targets and real parts
-/// traced before are reused).
+/// traced before are reused), with global mode's field at `frame` from
+/// `fields`.
 pub(super) fn photometric_record(
     truth: &Showcase,
     calibrated: &Showcase,
     frame: u64,
     transport: &Transport,
+    fields: &mut views::GlobalFields<'_>,
 ) -> Result<(Judged, Value)> {
     let Transport::Complete(options, _) = transport else {
         anyhow::bail!("the photometric figures are judged in the complete world");
@@ -372,12 +376,7 @@ pub(super) fn photometric_record(
         state = Some(show.frame_state(f, 0.0, &truth, 1).0);
     }
     let state = state.context("no frame")?;
-    let resolved = FrameScene::resolve(&calibrated, &state)?;
-    let (field, _) = crate::radiosity_job::indirect_field(
-        &resolved.showcase,
-        &resolved.eyes,
-        &Default::default(),
-    )?;
+    let field = fields.at(&FrameScene::resolve(&calibrated, &state)?)?;
     let backend = Backend::open();
     let mut renderers = NodeRenderers::new(&backend, Arc::new(calibrated.clone()))?;
     renderers.set_indirect(Arc::new(field));

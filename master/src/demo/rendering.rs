@@ -21,7 +21,8 @@ fn rendered_frames(frames: u64) -> Vec<u64> {
 
 /// Every output of the cabinet rendered by the node renderers at a few
 /// frames of the walk (calibrated devices, demo resolution) in global
-/// mode (each frame's solution) and in direct mode, what the cabinet's
+/// mode (the field of `fields`, the cluster's solution followed from
+/// frame to frame) and in direct mode, what the cabinet's
 /// cameras measure of the projectors' light against the target, and what
 /// each observer sees of them through the simulated cabinet (true
 /// devices) next to its target, with CIEDE2000 heat maps: global mode in
@@ -35,6 +36,7 @@ pub(super) fn rendering_stage(
     opts: &DemoOptions,
     complete_transport: &Transport,
     gallery: &mut Vec<GalleryRow>,
+    fields: &mut views::GlobalFields<'_>,
 ) -> Result<StageOutcome> {
     use crate::cluster::commands::walk_tracking;
     use crate::cluster::{Show, Tracking};
@@ -81,12 +83,7 @@ pub(super) fn rendering_stage(
         let t = Instant::now();
         let outputs = renderers.render(state)?;
         render_s.push(t.elapsed().as_secs_f64());
-        let resolved = FrameScene::resolve(&calibrated, state)?;
-        let (field, _) = crate::radiosity_job::indirect_field(
-            &resolved.showcase,
-            &resolved.eyes,
-            &Default::default(),
-        )?;
+        let field = fields.at(&FrameScene::resolve(&calibrated, state)?)?;
         global_renderers.set_indirect(std::sync::Arc::new(field));
         let global = global_renderers.render(state)?;
         let mut nodes = Vec::new();

@@ -9,7 +9,7 @@ use super::{RadiosityOptions, check_solvable, memory_check};
 use anyhow::Context;
 use glam::{DAffine3, DVec3};
 use rayon::prelude::*;
-use showcase_light::radiosity::live::LiveCorrection;
+use showcase_light::radiosity::live::{LiveCorrection, LiveUpdate};
 use showcase_light::radiosity::{self, RadiosityMesh};
 use showcase_light::render::IndirectLight;
 use showcase_light::{ObjectFilter, SceneGeometry, world_matrix};
@@ -190,6 +190,48 @@ impl LiveScene {
             })
             .collect();
         Ok(live.correction(Some(&lit))?)
+    }
+}
+
+/// A live solution that follows one scene's states as the cluster's solver
+/// does: made once for the scene, each later state an update of it (the
+/// virtual objects' places and the lights).
+pub struct Following<'s> {
+    scene: &'s LiveScene,
+    live: LiveCorrection<'s>,
+}
+
+impl<'s> Following<'s> {
+    /// The solution of `scene` under `showcase`'s lights (the state the
+    /// scene was made for).
+    pub fn start(scene: &'s LiveScene, showcase: &Showcase) -> anyhow::Result<Self> {
+        Ok(Self {
+            scene,
+            live: scene.start(showcase)?,
+        })
+    }
+
+    /// Follow `showcase`, a later state of the scene; the outer error when
+    /// the update failed (the solution is then gone), the inner one when
+    /// the solution cannot follow the state (solve it afresh).
+    pub fn update(&mut self, showcase: &Showcase) -> anyhow::Result<Result<LiveUpdate, Afresh>> {
+        let places = match self.scene.places(showcase) {
+            Ok(p) => p,
+            Err(afresh) => return Ok(Err(afresh)),
+        };
+        let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
+        Ok(Ok(self.live.update(&lights, &places)?))
+    }
+
+    /// The field seen by `eyes` with `showcase`'s virtual objects where
+    /// they are ([`LiveScene::field`]).
+    pub fn field(&self, showcase: &Showcase, eyes: &[DVec3]) -> anyhow::Result<Vec<IndirectLight>> {
+        self.scene.field(&self.live, showcase, eyes)
+    }
+
+    /// The mesh, with the virtual objects where the last update put them.
+    pub fn mesh(&self) -> anyhow::Result<&RadiosityMesh> {
+        self.live.mesh().context("the live solution is gone")
     }
 }
 

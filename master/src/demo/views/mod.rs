@@ -9,6 +9,7 @@
 //! resolution and device compensation all show up in the comparison with
 //! the target (all lighting virtual).
 
+use crate::radiosity_job::live::{Following, LiveScene};
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -41,6 +42,44 @@ pub(super) use images::{
     HEAT_MAP_SUFFIX, HEAT_STOPS, HEAT_UNCOVERED, heat_stop_rgb, write_heat_map, write_radiance,
     write_values,
 };
+
+/// The live scene of global mode: the nodes' scene `calibrated` (taken to
+/// the demo's resolution) meshed at the walk's first state, as the demo's
+/// cluster makes it before frame 0; and that state.
+pub(super) fn live_scene(calibrated: &Showcase) -> Result<(LiveScene, FrameScene)> {
+    let nodes = at_demo_resolution(calibrated)?;
+    let first = FrameScene::resolve(
+        &nodes,
+        &crate::cluster::illumination::initial_state(&nodes, 1),
+    )?;
+    let scene = LiveScene::new(&first.showcase, &[], &Default::default())
+        .context("global mode's solution of the nodes' scene")?;
+    Ok((scene, first))
+}
+
+/// Global mode's field at each frame the demo judges, as the cluster's
+/// solver makes it: one solution of the live scene, updated from the
+/// walk's first state to each judged frame in turn (frames in order).
+pub(super) struct GlobalFields<'s>(Following<'s>);
+
+impl<'s> GlobalFields<'s> {
+    /// The solution at `first`, the state `scene` was made at.
+    pub(super) fn start(scene: &'s LiveScene, first: &FrameScene) -> Result<Self> {
+        Ok(Self(Following::start(scene, &first.showcase)?))
+    }
+
+    /// The field at `frame` (the nodes' scene resolved at a later state).
+    pub(super) fn at(&mut self, frame: &FrameScene) -> Result<IndirectField> {
+        self.0
+            .update(&frame.showcase)?
+            .map_err(|e| anyhow::anyhow!("global mode's solution cannot follow the walk: {e}"))?;
+        let values = self.0.field(&frame.showcase, &frame.eyes)?;
+        Ok(IndirectField::new(
+            Arc::new(self.0.mesh()?.clone()),
+            &values,
+        )?)
+    }
+}
 
 /// Demo rendering resolutions: a quarter of the pixels of the cabinet's
 /// projectors, a CRT face of 320x256 per eye, 320x240 eye views.
