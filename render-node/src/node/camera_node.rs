@@ -105,6 +105,8 @@ pub struct CameraNode<C: ManualCamera> {
     name: String,
     camera: Option<C>,
     open: Option<CameraOpener<C>>,
+    /// The scene's camera the open camera was opened for (lazy nodes).
+    opened_for: Option<Camera>,
     scene: Option<Arc<Showcase>>,
 }
 
@@ -121,17 +123,21 @@ impl<C: ManualCamera> CameraNode<C> {
             name: name.into(),
             camera: Some(camera),
             open: None,
+            opened_for: None,
             scene: None,
         }
     }
 
     /// The node of camera `name`, opening its camera at the first capture
-    /// with the scene camera's size and calibration.
+    /// with the scene camera's size and calibration, and again (after
+    /// closing it) at the first capture after the scene's camera changed:
+    /// a new calibration, another size.
     pub fn lazy(name: &str, open: CameraOpener<C>) -> Self {
         Self {
             name: name.into(),
             camera: None,
             open: Some(open),
+            opened_for: None,
             scene: None,
         }
     }
@@ -164,12 +170,18 @@ impl<C: ManualCamera> CameraNode<C> {
     /// size.
     fn ready(&mut self) -> Result<&mut C, String> {
         let want = self.scene_camera()?;
+        if self.open.is_some() && self.opened_for.as_ref() != Some(&want) {
+            // Closed before it is opened again: a device streams to one
+            // opener at a time.
+            self.camera = None;
+        }
         if self.camera.is_none() {
             let open = self
                 .open
                 .as_mut()
                 .ok_or("the camera could not be opened before")?;
             self.camera = Some(open(&want)?);
+            self.opened_for = Some(want.clone());
         }
         let camera = self.camera.as_mut().expect("opened above");
         let (w, h) = (camera.device().width, camera.device().height);
@@ -457,6 +469,80 @@ mod tests {
             e.contains("--camera v4l2:/dev/showcase-no-such-camera:8x6"),
             "{e}"
         );
+    }
+
+    /// A lazily opened camera follows the scene's camera: the same camera
+    /// keeps it open, another size or calibration closes it and opens it
+    /// again for that camera.
+    #[test]
+    fn a_lazy_camera_is_opened_again_when_the_scenes_camera_changes() {
+        let root =
+            std::env::temp_dir().join(format!("showcase-camnode-reopen-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        for (w, h) in [(8, 6), (16, 12)] {
+            let mut rec = Recorder::create(
+                root.join(format!("{w}x{h}")),
+                device(w, h),
+                CameraResponse::default(),
+            )
+            .unwrap();
+            // One frame for each capture the camera serves while open.
+            for k in 0..2 {
+                rec.push(&TimedFrame {
+                    frame: CameraFrame {
+                        codes: Image::from_fn(w, h, |x, _| [x as u16 * 10; 3]),
+                        bits: 8,
+                    },
+                    timestamp_s: f64::from(k) / 30.0,
+                    start_of_exposure: false,
+                    sequence: k,
+                    exposure_s: 1.0 / 30.0,
+                })
+                .unwrap();
+            }
+            rec.finish().unwrap();
+        }
+        let opened = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let (dir, log) = (root.clone(), opened.clone());
+        let mut node = CameraNode::lazy(
+            "camera-0",
+            Box::new(move |c: &Camera| {
+                let (w, h) = (c.device.width, c.device.height);
+                log.lock().unwrap().push((w, h));
+                RecordedCamera::open(dir.join(format!("{w}x{h}"))).map_err(|e| e.to_string())
+            }),
+        );
+        let scene = |w, h| {
+            Arc::new(Showcase {
+                cameras: vec![Camera {
+                    name: "camera-0".into(),
+                    device: device(w, h),
+                    response: CameraResponse::default(),
+                }],
+                ..Showcase::default()
+            })
+        };
+        let request = CaptureFrames {
+            id: 1,
+            exposure_s: 1.0 / 30.0,
+            gain: 1.0,
+            period_s: 0.0,
+            count: 1,
+        };
+        let size = |f: &[CameraFrame]| (f[0].codes.width, f[0].codes.height);
+        node.set_scene(scene(8, 6));
+        assert_eq!(size(&node.capture(&request).unwrap()), (8, 6));
+        node.set_scene(scene(8, 6));
+        assert_eq!(size(&node.capture(&request).unwrap()), (8, 6));
+        assert_eq!(
+            *opened.lock().unwrap(),
+            [(8, 6)],
+            "the same camera was opened again"
+        );
+        node.set_scene(scene(16, 12));
+        assert_eq!(size(&node.capture(&request).unwrap()), (16, 12));
+        assert_eq!(*opened.lock().unwrap(), [(8, 6), (16, 12)]);
+        std::fs::remove_dir_all(&root).ok();
     }
 
     /// A recorded camera of another size than the scene's camera, or asked
