@@ -402,6 +402,46 @@ mod tests {
         )
     }
 
+    /// A scene whose one camera, `camera-0`, is `w x h`.
+    fn scene_with_camera(w: u32, h: u32) -> Arc<Showcase> {
+        Arc::new(Showcase {
+            cameras: vec![Camera {
+                name: "camera-0".into(),
+                device: device(w, h),
+                response: CameraResponse::default(),
+            }],
+            ..Showcase::default()
+        })
+    }
+
+    /// One frame at 1/30 s and unit gain.
+    const ONE_FRAME: CaptureFrames = CaptureFrames {
+        id: 1,
+        exposure_s: 1.0 / 30.0,
+        gain: 1.0,
+        period_s: 0.0,
+        count: 1,
+    };
+
+    /// A recording in `dir` of `frames` frames of a `w x h` camera.
+    fn record(dir: &std::path::Path, w: u32, h: u32, frames: u32) {
+        let mut rec = Recorder::create(dir, device(w, h), CameraResponse::default()).unwrap();
+        for k in 0..frames {
+            rec.push(&TimedFrame {
+                frame: CameraFrame {
+                    codes: Image::from_fn(w, h, |x, _| [x as u16 * 20; 3]),
+                    bits: 8,
+                },
+                timestamp_s: f64::from(k) / 30.0,
+                start_of_exposure: false,
+                sequence: k,
+                exposure_s: 1.0 / 30.0,
+            })
+            .unwrap();
+        }
+        rec.finish().unwrap();
+    }
+
     #[test]
     fn specs_parse_and_bad_ones_say_the_form() {
         assert_eq!(
@@ -449,20 +489,10 @@ mod tests {
         let spec = "v4l2:/dev/showcase-no-such-camera:16x12".parse().unwrap();
         let host = camera_node("camera-0", &spec, V4l2NodeOptions::default()).unwrap();
         let mut devices = host.0.lock().unwrap();
-        devices.set_scene(Arc::new(Showcase {
-            cameras: vec![Camera {
-                name: "camera-0".into(),
-                device: device(8, 6),
-                response: CameraResponse::default(),
-            }],
-            ..Showcase::default()
-        }));
+        devices.set_scene(scene_with_camera(8, 6));
         let request = CaptureFrames {
-            id: 1,
             exposure_s: 0.02,
-            gain: 1.0,
-            period_s: 0.0,
-            count: 1,
+            ..ONE_FRAME
         };
         let e = devices.capture(&request).unwrap_err();
         assert!(
@@ -480,27 +510,8 @@ mod tests {
             std::env::temp_dir().join(format!("showcase-camnode-reopen-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&root);
         for (w, h) in [(8, 6), (16, 12)] {
-            let mut rec = Recorder::create(
-                root.join(format!("{w}x{h}")),
-                device(w, h),
-                CameraResponse::default(),
-            )
-            .unwrap();
             // One frame for each capture the camera serves while open.
-            for k in 0..2 {
-                rec.push(&TimedFrame {
-                    frame: CameraFrame {
-                        codes: Image::from_fn(w, h, |x, _| [x as u16 * 10; 3]),
-                        bits: 8,
-                    },
-                    timestamp_s: f64::from(k) / 30.0,
-                    start_of_exposure: false,
-                    sequence: k,
-                    exposure_s: 1.0 / 30.0,
-                })
-                .unwrap();
-            }
-            rec.finish().unwrap();
+            record(&root.join(format!("{w}x{h}")), w, h, 2);
         }
         let opened = Arc::new(std::sync::Mutex::new(Vec::new()));
         let (dir, log) = (root.clone(), opened.clone());
@@ -512,35 +523,18 @@ mod tests {
                 RecordedCamera::open(dir.join(format!("{w}x{h}"))).map_err(|e| e.to_string())
             }),
         );
-        let scene = |w, h| {
-            Arc::new(Showcase {
-                cameras: vec![Camera {
-                    name: "camera-0".into(),
-                    device: device(w, h),
-                    response: CameraResponse::default(),
-                }],
-                ..Showcase::default()
-            })
-        };
-        let request = CaptureFrames {
-            id: 1,
-            exposure_s: 1.0 / 30.0,
-            gain: 1.0,
-            period_s: 0.0,
-            count: 1,
-        };
         let size = |f: &[CameraFrame]| (f[0].codes.width, f[0].codes.height);
-        node.set_scene(scene(8, 6));
-        assert_eq!(size(&node.capture(&request).unwrap()), (8, 6));
-        node.set_scene(scene(8, 6));
-        assert_eq!(size(&node.capture(&request).unwrap()), (8, 6));
+        node.set_scene(scene_with_camera(8, 6));
+        assert_eq!(size(&node.capture(&ONE_FRAME).unwrap()), (8, 6));
+        node.set_scene(scene_with_camera(8, 6));
+        assert_eq!(size(&node.capture(&ONE_FRAME).unwrap()), (8, 6));
         assert_eq!(
             *opened.lock().unwrap(),
             [(8, 6)],
             "the same camera was opened again"
         );
-        node.set_scene(scene(16, 12));
-        assert_eq!(size(&node.capture(&request).unwrap()), (16, 12));
+        node.set_scene(scene_with_camera(16, 12));
+        assert_eq!(size(&node.capture(&ONE_FRAME).unwrap()), (16, 12));
         assert_eq!(*opened.lock().unwrap(), [(8, 6), (16, 12)]);
         std::fs::remove_dir_all(&root).ok();
     }
@@ -553,38 +547,13 @@ mod tests {
         let dir =
             std::env::temp_dir().join(format!("showcase-camnode-size-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let mut rec = Recorder::create(&dir, device(8, 6), CameraResponse::default()).unwrap();
-        rec.push(&TimedFrame {
-            frame: CameraFrame {
-                codes: Image::from_fn(8, 6, |x, _| [x as u16 * 20; 3]),
-                bits: 8,
-            },
-            timestamp_s: 0.0,
-            start_of_exposure: false,
-            sequence: 0,
-            exposure_s: 1.0 / 30.0,
-        })
-        .unwrap();
-        rec.finish().unwrap();
+        record(&dir, 8, 6, 1);
         let node = |w, h| {
             let mut n = CameraNode::new("camera-0", RecordedCamera::open(&dir).unwrap());
-            n.set_scene(Arc::new(Showcase {
-                cameras: vec![Camera {
-                    name: "camera-0".into(),
-                    device: device(w, h),
-                    response: CameraResponse::default(),
-                }],
-                ..Showcase::default()
-            }));
+            n.set_scene(scene_with_camera(w, h));
             n
         };
-        let request = CaptureFrames {
-            id: 1,
-            exposure_s: 1.0 / 30.0,
-            gain: 1.0,
-            period_s: 0.0,
-            count: 1,
-        };
+        let request = ONE_FRAME;
         let e = node(16, 12).capture(&request).unwrap_err();
         assert!(
             e.contains("delivers 8x6 frames") && e.contains("is 16x12") && e.contains("record"),

@@ -174,16 +174,25 @@ impl MasterCore {
         self.illumination.pending = None;
     }
 
-    /// A node holds (and has prepared) `r.version`.
-    pub(super) fn illumination_ready(&mut self, conn: ConnId, r: IlluminationReady) {
+    /// Whether `version`, named by a node's `message`, can have been
+    /// published (it is not newer than the newest held); a node naming a
+    /// later one breaks the protocol and is closed.
+    fn published_or_close(&mut self, conn: ConnId, message: &str, version: u64) -> bool {
         let newest = self.illumination.held.keys().next_back().copied();
-        if newest.is_none_or(|n| r.version > n) {
+        if newest.is_none_or(|n| version > n) {
             let detail = format!(
-                "IlluminationReady for version {}, the newest is {}",
-                r.version,
+                "{message} for version {version}, the newest is {}",
                 opt_text(newest)
             );
             self.violation(conn, detail);
+            return false;
+        }
+        true
+    }
+
+    /// A node holds (and has prepared) `r.version`.
+    pub(super) fn illumination_ready(&mut self, conn: ConnId, r: IlluminationReady) {
+        if !self.published_or_close(conn, "IlluminationReady", r.version) {
             return;
         }
         if let Some(Peer::Live(n)) = self.peers.get_mut(&conn) {
@@ -229,14 +238,7 @@ impl MasterCore {
     /// A node lacks `version`: send it full copies of every held version
     /// from `version` on. A version never published closes the node.
     pub(super) fn illumination_resync(&mut self, conn: ConnId, r: IlluminationResync) {
-        let newest = self.illumination.held.keys().next_back().copied();
-        if newest.is_none_or(|n| r.version > n) {
-            let detail = format!(
-                "IlluminationResync for version {}, the newest is {}",
-                r.version,
-                opt_text(newest)
-            );
-            self.violation(conn, detail);
+        if !self.published_or_close(conn, "IlluminationResync", r.version) {
             return;
         }
         let copies: Vec<Message> = self
