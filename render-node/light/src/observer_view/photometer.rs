@@ -19,6 +19,7 @@ use crate::hardware::CameraFrame;
 use crate::render::{FrameScene, RenderSetupError};
 use crate::sampling::pixel_seed;
 use crate::sim::devices::expose;
+use crate::sim::quantiser::Quantiser;
 use crate::{DeviceRays, Image, RgbImage};
 use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
@@ -43,6 +44,8 @@ pub struct Photometer<'a> {
     /// Per camera pixel, the CRT pixel each subsample ray sees by way of
     /// the mirror (row-major index), if any.
     mirror: Vec<Vec<usize>>,
+    /// The camera's quantisation.
+    quantiser: Quantiser,
     frames: u64,
 }
 
@@ -83,6 +86,7 @@ impl<'a> Photometer<'a> {
             camera,
             options,
             mirror,
+            quantiser: Quantiser::new(&camera.response),
             frames: 0,
         })
     }
@@ -157,7 +161,7 @@ impl<'a> Photometer<'a> {
         let first = self.frames;
         self.frames += exposures_s.len() as u64;
         let linear: Vec<DVec3> = radiance.data.iter().map(|v| v.as_dvec3()).collect();
-        let response = &self.camera.response;
+        let (response, quantiser) = (&self.camera.response, &self.quantiser);
         let seed = self.options.seed ^ 0x7E1F_0A2D;
         exposures_s
             .par_iter()
@@ -166,7 +170,13 @@ impl<'a> Photometer<'a> {
                 codes: Image {
                     width: radiance.width,
                     height: radiance.height,
-                    data: expose(response, &linear, *t, pixel_seed(seed, first + j as u64)),
+                    data: expose(
+                        response,
+                        quantiser,
+                        &linear,
+                        *t,
+                        pixel_seed(seed, first + j as u64),
+                    ),
                 },
                 bits: response.bits.clamp(1, 16),
             })

@@ -25,6 +25,7 @@
 //! per pixel (at least 1): a projector showing black adds only its black
 //! level, whose noise is small even with one path.
 
+use super::quantiser::Quantiser;
 use super::world::{ProjectorLight, SimWorld, TransportImage};
 use super::{SimError, SimLights};
 use crate::finite::{finite_or, finite_or_zero};
@@ -157,8 +158,10 @@ impl SimShowcase {
                 index,
             });
         }
+        let response = self.shared.cameras[index].response.clone();
         Ok(SimCamera {
-            response: self.shared.cameras[index].response.clone(),
+            quantiser: Arc::new(Quantiser::new(&response)),
+            response,
             shared: self.shared.clone(),
             index,
             captures: 0,
@@ -398,6 +401,8 @@ pub struct SimCamera {
     captures: u64,
     /// The camera's response, its gain as last fixed.
     response: CameraResponse,
+    /// Its quantisation (the gain does not change it).
+    quantiser: Arc<Quantiser>,
 }
 
 impl SimCamera {
@@ -461,7 +466,13 @@ impl CameraDevice for SimCamera {
             ((self.index as u64) << 32) ^ self.captures,
         );
         self.captures += 1;
-        let codes = expose(self.response(), &radiance, exposure_s, seed);
+        let codes = expose(
+            self.response(),
+            &self.quantiser,
+            &radiance,
+            exposure_s,
+            seed,
+        );
         let d = self.device();
         Ok(CameraFrame {
             codes: Image {
@@ -477,15 +488,22 @@ impl CameraDevice for SimCamera {
 /// A camera's codes for `radiance` (per pixel) exposed for `exposure_s`:
 /// signal `gain * exposure * radiance`, shot and read noise from the
 /// stream `seed`, clipped to full scale, the response curve
-/// ([`CameraResponse::encode`]) and quantisation to `bits`.
+/// ([`CameraResponse::encode`]) and quantisation to `bits`, through
+/// `quantiser` when it is `response`'s (else one made for it).
 pub fn expose(
     response: &CameraResponse,
+    quantiser: &Quantiser,
     radiance: &[DVec3],
     exposure_s: f64,
     seed: u64,
 ) -> Vec<[u16; 3]> {
-    let bits = response.bits.clamp(1, 16);
-    let max_code = ((1u32 << bits) - 1) as f64;
+    let made;
+    let quantiser = if quantiser.matches(response) {
+        quantiser
+    } else {
+        made = Quantiser::new(response);
+        &made
+    };
     let gain = finite_or(response.gain as f64, 0.0) * finite_or(exposure_s, 0.0);
     let read = finite_or(response.read_noise as f64, 0.0).max(0.0);
     let shot = finite_or(response.shot_noise as f64, 0.0).max(0.0);
@@ -498,7 +516,7 @@ pub fn expose(
                 let sd = (shot * s.max(0.0) + read * read).sqrt();
                 let z: f64 = StandardNormal.sample(&mut rng);
                 let s = finite_or(s + sd * z, 0.0).clamp(0.0, 1.0);
-                (response.encode(c, s) * max_code).round() as u16
+                quantiser.code(c, s)
             })
         })
         .collect()

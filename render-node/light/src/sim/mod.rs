@@ -10,6 +10,7 @@
 pub mod devices;
 pub mod irradiance_cache;
 pub mod lights;
+pub mod quantiser;
 pub mod world;
 
 pub use devices::{SimCamera, SimConfig, SimProjector, SimShowcase, wheel_weights};
