@@ -5,15 +5,17 @@
 //! one without; whatever the machine does during the window happens to
 //! both. (Runs one after the other drifted by more than the effect: 0.06 to
 //! 0.099 CPU s/s between rounds.) With the dashboard on, a client reads the
-//! page's event stream and scrapes `/metrics` every 250 ms. The figure is
-//! each master's CPU time (its threads' run time in
-//! `/proc/PID/task/*/schedstat`) per second of the window; the dashboard's
-//! share is the median over pairs of on / off - 1, with a bootstrap
-//! interval, beside the cost attributed to it (its thread and the frame
-//! loop's snapshots). After the window, one node of the cluster with the
-//! dashboard is killed (-9) and the stream is read until an event shows it
-//! evicted. Every wait is bounded; the processes are killed on return.
-
+//! page's event stream and scrapes `/metrics` every 250 ms on one
+//! kept-alive connection. The figure is each master's CPU time (its
+//! threads' run time in `/proc/PID/task/*/schedstat`) per second of the
+//! window; the dashboard's share is the median over pairs of on / off - 1,
+//! with a bootstrap interval, beside the cost attributed to it (its thread
+//! and the frame loop's snapshots). Two identical clusters side by side
+//! differ by up to 8 % in a window, so after it the master with the
+//! dashboard is also measured with the client on and off in turn
+//! ([`TOGGLE`]). Then one of its nodes is killed (-9) and the stream is
+//! read until an event shows it evicted. Every wait is bounded; the
+//! processes are killed on return.
 use super::super::faults::{ProcessBench, Procs, free_port, loopback_config_at, signal, wait_for};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -35,7 +37,9 @@ const NODES: [(&str, Role); 4] = [
 ];
 const HZ: f64 = 120.0;
 /// How often the client scrapes `/metrics`: the rate the page polled at
-/// before it read a stream, far more often than Prometheus scrapes.
+/// before it read a stream, far more often than Prometheus scrapes (15 s
+/// is usual). It keeps its connection open between scrapes, as
+/// Prometheus does.
 const SCRAPE_EVERY: Duration = Duration::from_millis(250);
 /// Linux's `USER_HZ`: the unit of `/proc/PID/stat`'s CPU times.
 const CLOCK_TICKS_PER_S: f64 = 100.0;
@@ -96,7 +100,23 @@ pub struct DashboardBenchRecord {
     /// browser on another machine would do there; not in it is what sharing
     /// the cores does to the frame loop.
     pub attributed_overhead: f64,
-    /// Events the page's stream delivered in each window (5 a second).
+    /// Slots of the toggled measurement, after each window: the master
+    /// with the dashboard, its client on and off in turn (on, off, off,
+    /// on, twice).
+    pub toggle_slots: usize,
+    /// Length of each slot (s).
+    pub toggle_slot_s: f64,
+    /// Per pair, that master's CPU in the slots with the client over the
+    /// slots without it, less the snapshots it makes in both (their own
+    /// counter), minus 1: the dashboard's cost with no noise between two
+    /// processes (two identical clusters side by side differ by up to
+    /// 8 %). A slot with the client includes opening its connections.
+    pub toggled_overhead_per_pair: Vec<f64>,
+    /// Median of `toggled_overhead_per_pair`.
+    pub toggled_overhead: f64,
+    /// A 95 % interval of `toggled_overhead` (percentile bootstrap).
+    pub toggled_overhead_ci95: [f64; 2],
+    /// Events the page's stream delivered in each window (4 a second).
     pub stream_events: Vec<usize>,
     /// From kill -9 of a node to the stream's event showing it evicted
     /// (ms), per pair: what the page shows, with nothing added.
@@ -134,6 +154,99 @@ pub fn http_get(addr: SocketAddr, path: &str, headers: &[&str]) -> Result<(u16, 
         .and_then(|c| c.parse().ok())
         .with_context(|| format!("no status in {:?}", head.lines().next()))?;
     Ok((status, body.to_owned()))
+}
+
+/// A client that keeps one HTTP/1.1 connection open for its GETs, as a
+/// Prometheus scraper does, and opens another when the server has closed
+/// it. Every read and write is bounded by a 5 s timeout.
+pub struct KeepAlive {
+    addr: SocketAddr,
+    conn: Option<BufReader<TcpStream>>,
+}
+
+impl KeepAlive {
+    /// A client of `addr`; it connects on the first GET.
+    pub fn new(addr: SocketAddr) -> Self {
+        Self { addr, conn: None }
+    }
+
+    /// GET `path`: the status and the body, which must come with a
+    /// `Content-Length`. A connection the server closed between two GETs
+    /// is opened again once.
+    pub fn get(&mut self, path: &str) -> Result<(u16, String)> {
+        let reused = self.conn.is_some();
+        match self.get_on_connection(path) {
+            Err(_) if reused => {
+                self.conn = None;
+                self.get_on_connection(path)
+            }
+            r => r,
+        }
+    }
+
+    fn get_on_connection(&mut self, path: &str) -> Result<(u16, String)> {
+        let r = self.exchange(path);
+        if r.is_err() {
+            self.conn = None;
+        }
+        r
+    }
+
+    fn exchange(&mut self, path: &str) -> Result<(u16, String)> {
+        let addr = self.addr;
+        let conn = match &mut self.conn {
+            Some(c) => c,
+            None => {
+                let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
+                    .with_context(|| format!("cannot connect to {addr}"))?;
+                s.set_read_timeout(Some(Duration::from_secs(5)))?;
+                s.set_write_timeout(Some(Duration::from_secs(5)))?;
+                self.conn.insert(BufReader::new(s))
+            }
+        };
+        conn.get_mut()
+            .write_all(format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())?;
+        let mut status = String::new();
+        anyhow::ensure!(
+            conn.read_line(&mut status)? > 0,
+            "the server closed the connection"
+        );
+        let code: u16 = status
+            .split(' ')
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .with_context(|| format!("no status in {:?}", status.trim_end()))?;
+        let (mut length, mut close) = (None, false);
+        loop {
+            let mut line = String::new();
+            anyhow::ensure!(
+                conn.read_line(&mut line)? > 0,
+                "the answer ended in its header"
+            );
+            let line = line.trim_end_matches(['\r', '\n']);
+            if line.is_empty() {
+                break;
+            }
+            if let Some((name, value)) = line.split_once(':') {
+                let value = value.trim();
+                if name.eq_ignore_ascii_case("content-length") {
+                    length = Some(value.parse::<usize>().context("a bad Content-Length")?);
+                } else if name.eq_ignore_ascii_case("connection") {
+                    close = value.eq_ignore_ascii_case("close");
+                }
+            }
+        }
+        let length = length.context("the answer has no Content-Length")?;
+        let mut body = vec![0; length];
+        conn.read_exact(&mut body)?;
+        if close {
+            self.conn = None;
+        }
+        Ok((
+            code,
+            String::from_utf8(body).context("the answer is not UTF-8")?,
+        ))
+    }
 }
 
 /// A reader of the dashboard's event stream (`/api/stream`), as a page
@@ -355,6 +468,10 @@ struct Run<'a> {
 }
 
 struct PairFigures {
+    /// The master with the dashboard, CPU s/s: the mean of the toggled
+    /// slots with the client on, and with it off.
+    toggled_on: f64,
+    toggled_off: f64,
     cpu_on: f64,
     cpu_off: f64,
     /// The dashboard thread's share of `cpu_on` (CPU s/s).
@@ -366,20 +483,87 @@ struct PairFigures {
     eviction_ms: Option<f64>,
 }
 
-/// The page's side of the client: the event stream, read on a thread of
-/// its own, each event with its time of arrival.
-fn read_stream(addr: SocketAddr) -> Result<std::sync::mpsc::Receiver<(Instant, String)>> {
-    let mut stream = EventStream::open(addr, "/api/stream")?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        // Ends with the stream (the master stops) or when nobody listens.
-        while let Ok(Some((name, data))) = stream.next_event() {
-            if name == "state" && tx.send((Instant::now(), data)).is_err() {
-                break;
+/// The bench's client of the dashboard: the page's event stream, read on
+/// a thread of its own (each event with its time of arrival), and a
+/// scraper of `/metrics` every [`SCRAPE_EVERY`] on one kept-alive
+/// connection. [`Client::stop`] closes both.
+struct Client {
+    events: std::sync::mpsc::Receiver<(Instant, String)>,
+    /// The stream's connection, to shut it down.
+    stream: TcpStream,
+    stop: Arc<AtomicBool>,
+    scraper: std::thread::JoinHandle<u64>,
+}
+
+impl Client {
+    fn start(addr: SocketAddr) -> Result<Self> {
+        let mut stream = EventStream::open(addr, "/api/stream")?;
+        let handle = stream.reader.get_ref().try_clone()?;
+        let (tx, events) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            // Ends with the stream (the master stops, or the client is
+            // stopped) or when nobody listens.
+            while let Ok(Some((name, data))) = stream.next_event() {
+                if name == "state" && tx.send((Instant::now(), data)).is_err() {
+                    break;
+                }
             }
+        });
+        let stop = Arc::new(AtomicBool::new(false));
+        let scraper = {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut scrapes = 0u64;
+                let mut client = KeepAlive::new(addr);
+                while !stop.load(Ordering::Relaxed) {
+                    let t = Instant::now();
+                    if client.get("/metrics").is_ok_and(|(s, _)| s == 200) {
+                        scrapes += 1;
+                    }
+                    std::thread::sleep(SCRAPE_EVERY.saturating_sub(t.elapsed()));
+                }
+                scrapes
+            })
+        };
+        Ok(Self {
+            events,
+            stream: handle,
+            stop,
+            scraper,
+        })
+    }
+
+    /// Close the stream and stop scraping: the scrapes made.
+    fn stop(self) -> u64 {
+        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        self.stop.store(true, Ordering::Relaxed);
+        self.scraper.join().unwrap_or(0)
+    }
+}
+
+/// The slots of the toggled measurement, in order: whether the client is
+/// on in each (ABBA twice, so a drift in time cancels).
+const TOGGLE: [bool; 8] = [true, false, false, true, true, false, false, true];
+
+/// How long each slot of the toggled measurement lasts.
+const TOGGLE_SLOT: Duration = Duration::from_millis(1250);
+
+/// The master `pid`'s CPU s/s in the slots of [`TOGGLE`], with the client
+/// on and off: the mean of each.
+fn toggled(addr: SocketAddr, pid: u32) -> Result<(f64, f64)> {
+    let (mut on, mut off) = (Vec::new(), Vec::new());
+    for client_on in TOGGLE {
+        let client = client_on.then(|| Client::start(addr)).transpose()?;
+        let (t0, c0) = (Instant::now(), cpu_seconds(pid)?);
+        std::thread::sleep(TOGGLE_SLOT);
+        let rate = (cpu_seconds(pid)? - c0) / t0.elapsed().as_secs_f64();
+        if let Some(c) = client {
+            anyhow::ensure!(c.stop() > 0, "the client scraped nothing from {addr}");
         }
-    });
-    Ok(rx)
+        if client_on { &mut on } else { &mut off }.push(rate);
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    Ok((mean(&on), mean(&off)))
 }
 
 /// Whether a stream event shows `node` evicted.
@@ -414,22 +598,7 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
     let addr = dashboard_addr(&on.log).context("the master printed no dashboard address")?;
     // Settle: clock probes and the first frames' catch-up.
     std::thread::sleep(Duration::from_secs(1));
-    let events = read_stream(addr)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let scraper = {
-        let stop = stop.clone();
-        std::thread::spawn(move || {
-            let mut scrapes = 0u64;
-            while !stop.load(Ordering::Relaxed) {
-                let t = Instant::now();
-                if http_get(addr, "/metrics", &[]).is_ok_and(|(s, _)| s == 200) {
-                    scrapes += 1;
-                }
-                std::thread::sleep(SCRAPE_EVERY.saturating_sub(t.elapsed()));
-            }
-            scrapes
-        })
-    };
+    let client = Client::start(addr)?;
     let s0 = snapshot_seconds(addr)?;
     let (t0, on0, off0, d0) = (
         Instant::now(),
@@ -445,16 +614,16 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
         t0.elapsed().as_secs_f64(),
     );
     let s1 = snapshot_seconds(addr)?;
-    stop.store(true, Ordering::Relaxed);
-    let scrapes = scraper.join().unwrap_or(0);
-    anyhow::ensure!(scrapes > 0, "the client scraped nothing from {addr}");
+    let in_window = client.events.try_iter().count();
+    anyhow::ensure!(client.stop() > 0, "the client scraped nothing from {addr}");
     anyhow::ensure!(
         d1 > 0.0,
         "the master has no thread named {:?} (or it never ran): the dashboard's own cost cannot be told apart",
         super::THREAD_NAME
     );
-    let in_window = events.try_iter().count();
     anyhow::ensure!(in_window > 0, "the page's stream delivered nothing");
+    let (toggled_on, toggled_off) = toggled(addr, on.pid())?;
+    let watcher = Client::start(addr)?;
     // kill -9 a node of the cluster with the dashboard; the page sees its
     // eviction when an event of the stream shows it.
     let mut on = on;
@@ -463,7 +632,7 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
     on.procs.0[victim].kill()?;
     on.procs.0[victim].wait()?;
     let mut eviction_ms = None;
-    while let Ok((at, event)) = events.recv_timeout(Duration::from_secs(5)) {
+    while let Ok((at, event)) = watcher.events.recv_timeout(Duration::from_secs(5)) {
         if at >= t_kill && shows_evicted(&event, NODES[victim - 1].0) {
             eviction_ms = Some(at.duration_since(t_kill).as_secs_f64() * 1e3);
             break;
@@ -472,9 +641,12 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
             break;
         }
     }
+    watcher.stop();
     on.stop()?;
     off.stop()?;
     Ok(PairFigures {
+        toggled_on,
+        toggled_off,
         cpu_on: (on1 - on0) / elapsed,
         cpu_off: (off1 - off0) / elapsed,
         dashboard_cpu: (d1 - d0) / elapsed,
@@ -526,14 +698,16 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
     };
     let (mut off, mut on, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
     let (mut thread, mut snapshot, mut attributed) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut events, mut evictions) = (Vec::new(), Vec::new());
+    let (mut events, mut evictions, mut toggled) = (Vec::new(), Vec::new(), Vec::new());
     for pair in 0..opts.pairs {
         let r = one_pair(&run, pair, pair % 2 == 0)?;
         eprintln!(
-            "bench dashboard: pair {pair}: {:.4} CPU s/s on, {:.4} off ({:+.1} %); its thread {:.5}, snapshots {:.6}; {} events; eviction seen after {:?} ms",
+            "bench dashboard: pair {pair}: {:.4} CPU s/s on, {:.4} off ({:+.1} %); toggled {:.4} client on, {:.4} off; its thread {:.5}, snapshots {:.6}; {} events; eviction seen after {:?} ms",
             r.cpu_on,
             r.cpu_off,
             (r.cpu_on / r.cpu_off - 1.0) * 100.0,
+            r.toggled_on,
+            r.toggled_off,
             r.dashboard_cpu,
             r.snapshot_cpu,
             r.events,
@@ -547,6 +721,9 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
         attributed.push(
             (r.dashboard_cpu + r.snapshot_cpu) / (r.cpu_on - r.dashboard_cpu - r.snapshot_cpu),
         );
+        // Off slots still make snapshots: without them is without the
+        // dashboard.
+        toggled.push(r.toggled_on / (r.toggled_off - r.snapshot_cpu) - 1.0);
         events.push(r.events);
         evictions.extend(r.eviction_ms);
     }
@@ -559,7 +736,7 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
         pairs: opts.pairs,
         window_s: opts.window.as_secs_f64(),
         client: format!(
-            "the page's event stream (/api/stream), and GET /metrics every {} ms on a new connection",
+            "the page's event stream (/api/stream), and GET /metrics every {} ms on one kept-alive connection",
             SCRAPE_EVERY.as_millis()
         ),
         cpu_off_p50: median(&off),
@@ -572,6 +749,11 @@ pub fn bench_dashboard(opts: &DashboardBenchOptions) -> Result<DashboardBenchRec
         dashboard_thread_cpu: thread,
         snapshot_cpu: snapshot,
         attributed_overhead: median(&attributed),
+        toggle_slots: TOGGLE.len(),
+        toggle_slot_s: TOGGLE_SLOT.as_secs_f64(),
+        toggled_overhead: median(&toggled),
+        toggled_overhead_ci95: median_ci95(&toggled),
+        toggled_overhead_per_pair: toggled,
         stream_events: events,
         eviction_to_page_ms_p50: percentile(&evictions, 50.0),
         eviction_to_page_ms: evictions,
@@ -624,6 +806,48 @@ mod tests {
         );
         // The same record gives the same interval.
         assert_eq!(median_ci95(&few), [lo, hi]);
+    }
+
+    #[test]
+    fn the_scraper_keeps_its_connection_and_opens_another_when_the_server_closed_it() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        let server = std::thread::spawn(move || {
+            let answer = |conn: &mut BufReader<TcpStream>, reply: &str| {
+                let mut line = String::new();
+                while conn.read_line(&mut line).unwrap() > 0 && line != "\r\n" {
+                    line.clear();
+                }
+                conn.get_mut().write_all(reply.as_bytes()).unwrap();
+            };
+            let accept = || {
+                let (s, _) = listener.accept().unwrap();
+                s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+                BufReader::new(s)
+            };
+            let mut first = accept();
+            answer(
+                &mut first,
+                "HTTP/1.1 200 OK\r\nContent-Length: 3\r\n\r\none",
+            );
+            answer(
+                &mut first,
+                "HTTP/1.1 200 OK\r\ncontent-length: 3\r\n\r\ntwo",
+            );
+            drop(first);
+            let mut second = accept();
+            answer(
+                &mut second,
+                "HTTP/1.1 404 Not Found\r\nContent-Length: 5\r\nConnection: close\r\n\r\nthree",
+            );
+        });
+        let mut client = KeepAlive::new(addr);
+        assert_eq!(client.get("/metrics").unwrap(), (200, "one".to_owned()));
+        assert_eq!(client.get("/metrics").unwrap(), (200, "two".to_owned()));
+        // The server closed the first connection: one more is opened.
+        assert_eq!(client.get("/x").unwrap(), (404, "three".to_owned()));
+        assert!(client.conn.is_none(), "Connection: close was not heeded");
+        server.join().unwrap();
     }
 
     #[test]

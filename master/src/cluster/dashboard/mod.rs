@@ -8,7 +8,7 @@
 //! thread's CPU time. The page holds one connection open and is sent each
 //! snapshot as it is published, with only the plot points it lacks, rather
 //! than fetching the whole history each time. Each message costs that
-//! thread about 90 µs on the 2-core VM, most of it the kernel's loopback
+//! thread about 100 µs on the 2-core VM, most of it the kernel's loopback
 //! delivery (`bench dashboard`). `/api/state` and `/metrics` serialise each
 //! snapshot once, however many requests read it.
 //! It binds loopback unless told otherwise: a
