@@ -82,6 +82,11 @@ impl Quantiser {
     pub fn code(&self, channel: usize, s: f64) -> u16 {
         let c = channel.min(2);
         let t = &self.thresholds[c];
+        // Below the first threshold (a dark pixel's noise clipped to 0 is
+        // common): code 0, without the grid.
+        if t.first().is_none_or(|&t1| s < t1) {
+            return 0;
+        }
         let cell = s.to_bits() >> (52 - self.mantissa_bits);
         let Some(i) = cell.checked_sub(self.first_cell) else {
             return by_bisection(t, s);
