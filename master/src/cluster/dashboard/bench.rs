@@ -156,6 +156,9 @@ pub fn http_get(addr: SocketAddr, path: &str, headers: &[&str]) -> Result<(u16, 
     Ok((status, body.to_owned()))
 }
 
+/// The largest body [`KeepAlive`] reads (bytes).
+const MAX_BODY: usize = 16 << 20;
+
 /// A client that keeps one HTTP/1.1 connection open for its GETs, as a
 /// Prometheus scraper does, and opens another when the server has closed
 /// it. Every read and write is bounded by a 5 s timeout.
@@ -237,6 +240,10 @@ impl KeepAlive {
             }
         }
         let length = length.context("the answer has no Content-Length")?;
+        anyhow::ensure!(
+            length <= MAX_BODY,
+            "the answer's Content-Length {length} is over the {MAX_BODY} bytes a scrape may be"
+        );
         let mut body = vec![0; length];
         conn.read_exact(&mut body)?;
         if close {
