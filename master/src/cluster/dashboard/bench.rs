@@ -12,10 +12,10 @@
 //! with a bootstrap interval, beside the cost attributed to it (its thread
 //! and the frame loop's snapshots). Two identical clusters side by side
 //! differ by up to 8 % in a window, so after it the master with the
-//! dashboard is also measured with the client on and off in turn
-//! ([`TOGGLE`]). Then one of its nodes is killed (-9) and the stream is
-//! read until an event shows it evicted. Every wait is bounded; the
-//! processes are killed on return.
+//! dashboard is also measured with the client on and off in turn (on,
+//! off, off, on, twice). Then one of its nodes is killed (-9) and the
+//! stream is read until an event shows it evicted. Every wait is bounded;
+//! the processes are killed on return.
 use super::super::faults::{ProcessBench, Procs, free_port, loopback_config_at, signal, wait_for};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
