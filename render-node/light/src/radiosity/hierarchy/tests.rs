@@ -230,6 +230,59 @@ fn an_update_after_a_light_moves_matches_a_fresh_solve() {
     );
 }
 
+#[test]
+fn an_updates_tail_brings_it_nearer_the_converged_answer_than_its_gathers_alone() {
+    // A closed white box (rho 0.8) lit by a point light that moves 10 cm:
+    // light bounces many times, so the gathers' change shrinks slowly and
+    // the update stops early and adds the series' tail. Against the same
+    // links gathered to convergence it must be nearer than the same number
+    // of plain gathers, and take fewer gathers than gathering on until the
+    // change is under the tolerance, at most twice as far off as that.
+    let s = crate::radiosity::tests::closed_box(0.8, 0.0);
+    let (m, g) = mesh_of(&s, 0.02, 1);
+    let light = |x: f32| showcase_proto::Light::Point {
+        position: glam::Vec3::new(x, 0.5, 0.5),
+        intensity: glam::Vec3::splat(0.5),
+    };
+    let o = HierarchyOptions::default();
+    let emission: Vec<DVec3> = m.elements.iter().map(|e| e.emission).collect();
+    let mut h = Hierarchy::new(&m, &g, None, &o).unwrap();
+    let before = h
+        .solve(&emission, &h.direct_of(&light(0.4)))
+        .unwrap()
+        .radiosity;
+    let direct = h.direct_of(&light(0.5));
+    let mut updated = before.clone();
+    let gathers = h.update(&mut updated, &emission, &direct);
+    let init = h.initial(&emission, &direct);
+    let mut plain = before.clone();
+    for _ in 0..gathers {
+        plain = h.gather_step(&init, &plain);
+    }
+    let mut to_tolerance = before.clone();
+    let (plain_gathers, _, _) = h.iterate(&init, &mut to_tolerance, None);
+    let mut converged = to_tolerance.clone();
+    for _ in 0..300 {
+        converged = h.gather_step(&init, &converged);
+    }
+    let off = |b: &[DVec3]| relative_error(&m, b, &m, &converged, 4).unwrap();
+    let (e_updated, e_plain, e_to_tolerance) = (off(&updated), off(&plain), off(&to_tolerance));
+    // Measured: 3 gathers and 0.17 % off; the same 3 gathers without the
+    // tail 0.25 %; gathering on to the tolerance 5 gathers and 0.12 %.
+    assert!(
+        e_updated < e_plain,
+        "the tail did not help: {e_updated} against {e_plain} after {gathers} plain gathers"
+    );
+    assert!(
+        e_updated < 2.0 * e_to_tolerance,
+        "update off the converged B by {e_updated}, gathering on to the tolerance by {e_to_tolerance}"
+    );
+    assert!(
+        gathers < plain_gathers,
+        "{gathers} gathers against {plain_gathers} gathering on to the tolerance"
+    );
+}
+
 /// The closed box of the progressive solver's move tests, with a floating
 /// inside corner (object 2: three plates that light each other) at
 /// `shift` instead of its block, lit also by a point light.
