@@ -127,33 +127,82 @@ pub struct DashboardBenchRecord {
     pub work_dir: String,
 }
 
+/// A connection to `addr` whose every read and write is bounded by a 5 s
+/// timeout.
+fn connect(addr: SocketAddr) -> Result<BufReader<TcpStream>> {
+    let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
+        .with_context(|| format!("cannot connect to {addr}"))?;
+    s.set_read_timeout(Some(Duration::from_secs(5)))?;
+    s.set_write_timeout(Some(Duration::from_secs(5)))?;
+    Ok(BufReader::new(s))
+}
+
+/// An answer's status line and the headers the bench's clients read.
+struct Head {
+    status: u16,
+    status_line: String,
+    content_length: Option<usize>,
+    /// `Connection: close`.
+    close: bool,
+}
+
+/// Read an answer's head, up to the empty line that ends it.
+fn read_head(conn: &mut BufReader<TcpStream>) -> Result<Head> {
+    let mut status_line = String::new();
+    anyhow::ensure!(
+        conn.read_line(&mut status_line)? > 0,
+        "the server closed the connection"
+    );
+    let status_line = status_line.trim_end().to_owned();
+    let status = status_line
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .with_context(|| format!("no status in {status_line:?}"))?;
+    let mut head = Head {
+        status,
+        status_line,
+        content_length: None,
+        close: false,
+    };
+    loop {
+        let mut line = String::new();
+        anyhow::ensure!(
+            conn.read_line(&mut line)? > 0,
+            "the answer ended in its header"
+        );
+        let line = line.trim_end_matches(['\r', '\n']);
+        if line.is_empty() {
+            return Ok(head);
+        }
+        if let Some((name, value)) = line.split_once(':') {
+            let value = value.trim();
+            if name.eq_ignore_ascii_case("content-length") {
+                head.content_length = Some(value.parse::<usize>().context("a bad Content-Length")?);
+            } else if name.eq_ignore_ascii_case("connection") {
+                head.close = value.eq_ignore_ascii_case("close");
+            }
+        }
+    }
+}
+
 /// A GET of `path` on `addr` over HTTP/1.1 with `headers` (`Name: value`),
 /// the connection closed after it: the status and the body. Bounded by a
 /// 5 s timeout on each read and write.
 pub fn http_get(addr: SocketAddr, path: &str, headers: &[&str]) -> Result<(u16, String)> {
-    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
-        .with_context(|| format!("cannot connect to {addr}"))?;
-    s.set_read_timeout(Some(Duration::from_secs(5)))?;
-    s.set_write_timeout(Some(Duration::from_secs(5)))?;
+    let mut conn = connect(addr)?;
     let mut req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
     for h in headers {
         req += h;
         req += "\r\n";
     }
     req += "\r\n";
-    s.write_all(req.as_bytes())?;
-    let mut raw = Vec::new();
-    s.read_to_end(&mut raw)?;
-    let text = String::from_utf8(raw).context("the answer is not UTF-8")?;
-    let (head, body) = text
-        .split_once("\r\n\r\n")
-        .context("the answer has no header end")?;
-    let status = head
-        .split(' ')
-        .nth(1)
-        .and_then(|c| c.parse().ok())
-        .with_context(|| format!("no status in {:?}", head.lines().next()))?;
-    Ok((status, body.to_owned()))
+    conn.get_mut().write_all(req.as_bytes())?;
+    let head = read_head(&mut conn)?;
+    let mut body = String::new();
+    conn.read_to_string(&mut body)
+        .context("the answer is not UTF-8")?;
+    Ok((head.status, body))
 }
 
 /// The largest body [`KeepAlive`] reads (bytes).
@@ -178,81 +227,36 @@ impl KeepAlive {
     /// is opened again once.
     pub fn get(&mut self, path: &str) -> Result<(u16, String)> {
         let reused = self.conn.is_some();
-        match self.get_on_connection(path) {
-            Err(_) if reused => {
-                self.conn = None;
-                self.get_on_connection(path)
-            }
+        match self.exchange(path) {
+            Err(_) if reused => self.exchange(path),
             r => r,
         }
     }
 
-    fn get_on_connection(&mut self, path: &str) -> Result<(u16, String)> {
-        let r = self.exchange(path);
-        if r.is_err() {
-            self.conn = None;
-        }
-        r
-    }
-
+    /// One GET on the open connection (or a new one), which is taken while
+    /// in use: an error or a `Connection: close` drops it.
     fn exchange(&mut self, path: &str) -> Result<(u16, String)> {
-        let addr = self.addr;
-        let conn = match &mut self.conn {
+        let mut conn = match self.conn.take() {
             Some(c) => c,
-            None => {
-                let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
-                    .with_context(|| format!("cannot connect to {addr}"))?;
-                s.set_read_timeout(Some(Duration::from_secs(5)))?;
-                s.set_write_timeout(Some(Duration::from_secs(5)))?;
-                self.conn.insert(BufReader::new(s))
-            }
+            None => connect(self.addr)?,
         };
         conn.get_mut()
-            .write_all(format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())?;
-        let mut status = String::new();
-        anyhow::ensure!(
-            conn.read_line(&mut status)? > 0,
-            "the server closed the connection"
-        );
-        let code: u16 = status
-            .split(' ')
-            .nth(1)
-            .and_then(|c| c.parse().ok())
-            .with_context(|| format!("no status in {:?}", status.trim_end()))?;
-        let (mut length, mut close) = (None, false);
-        loop {
-            let mut line = String::new();
-            anyhow::ensure!(
-                conn.read_line(&mut line)? > 0,
-                "the answer ended in its header"
-            );
-            let line = line.trim_end_matches(['\r', '\n']);
-            if line.is_empty() {
-                break;
-            }
-            if let Some((name, value)) = line.split_once(':') {
-                let value = value.trim();
-                if name.eq_ignore_ascii_case("content-length") {
-                    length = Some(value.parse::<usize>().context("a bad Content-Length")?);
-                } else if name.eq_ignore_ascii_case("connection") {
-                    close = value.eq_ignore_ascii_case("close");
-                }
-            }
-        }
-        let length = length.context("the answer has no Content-Length")?;
+            .write_all(format!("GET {path} HTTP/1.1\r\nHost: {}\r\n\r\n", self.addr).as_bytes())?;
+        let head = read_head(&mut conn)?;
+        let length = head
+            .content_length
+            .context("the answer has no Content-Length")?;
         anyhow::ensure!(
             length <= MAX_BODY,
             "the answer's Content-Length {length} is over the {MAX_BODY} bytes a scrape may be"
         );
         let mut body = vec![0; length];
         conn.read_exact(&mut body)?;
-        if close {
-            self.conn = None;
+        let body = String::from_utf8(body).context("the answer is not UTF-8")?;
+        if !head.close {
+            self.conn = Some(conn);
         }
-        Ok((
-            code,
-            String::from_utf8(body).context("the answer is not UTF-8")?,
-        ))
+        Ok((head.status, body))
     }
 }
 
@@ -267,29 +271,17 @@ pub struct EventStream {
 impl EventStream {
     /// Open `path` (with `?token=` where the dashboard needs one) on `addr`.
     pub fn open(addr: SocketAddr, path: &str) -> Result<Self> {
-        let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
-            .with_context(|| format!("cannot connect to {addr}"))?;
-        s.set_read_timeout(Some(Duration::from_secs(5)))?;
-        s.set_write_timeout(Some(Duration::from_secs(5)))?;
-        (&s).write_all(format!("GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").as_bytes())?;
-        let mut reader = BufReader::new(s);
-        let mut status = String::new();
-        reader.read_line(&mut status)?;
-        let code = status.split(' ').nth(1).unwrap_or("");
-        if code != "200" {
+        let mut reader = connect(addr)?;
+        reader
+            .get_mut()
+            .write_all(format!("GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").as_bytes())?;
+        let head = read_head(&mut reader).with_context(|| format!("opening {path}"))?;
+        if head.status != 200 {
             let mut rest = String::new();
             let _ = reader.read_to_string(&mut rest);
-            bail!("{path} answered {:?}: {rest}", status.trim_end());
+            bail!("{path} answered {:?}: {rest}", head.status_line);
         }
-        loop {
-            let mut line = String::new();
-            if reader.read_line(&mut line)? == 0 {
-                bail!("{path}: the answer ended in its header");
-            }
-            if line == "\r\n" || line == "\n" {
-                return Ok(Self { reader });
-            }
-        }
+        Ok(Self { reader })
     }
 
     /// The next event's name and data; `None` once the server has ended
@@ -495,6 +487,7 @@ struct PairFigures {
 /// scraper of `/metrics` every [`SCRAPE_EVERY`] on one kept-alive
 /// connection. [`Client::stop`] closes both.
 struct Client {
+    addr: SocketAddr,
     events: std::sync::mpsc::Receiver<(Instant, String)>,
     /// The stream's connection, to shut it down.
     stream: TcpStream,
@@ -533,6 +526,7 @@ impl Client {
             })
         };
         Ok(Self {
+            addr,
             events,
             stream: handle,
             stop,
@@ -540,11 +534,14 @@ impl Client {
         })
     }
 
-    /// Close the stream and stop scraping: the scrapes made.
-    fn stop(self) -> u64 {
+    /// Close the stream and stop scraping; an error when no scrape
+    /// succeeded.
+    fn stop(self) -> Result<()> {
         let _ = self.stream.shutdown(std::net::Shutdown::Both);
         self.stop.store(true, Ordering::Relaxed);
-        self.scraper.join().unwrap_or(0)
+        let scrapes = self.scraper.join().unwrap_or(0);
+        anyhow::ensure!(scrapes > 0, "the client scraped nothing from {}", self.addr);
+        Ok(())
     }
 }
 
@@ -565,7 +562,7 @@ fn toggled(addr: SocketAddr, pid: u32) -> Result<(f64, f64)> {
         std::thread::sleep(TOGGLE_SLOT);
         let rate = (cpu_seconds(pid)? - c0) / t0.elapsed().as_secs_f64();
         if let Some(c) = client {
-            anyhow::ensure!(c.stop() > 0, "the client scraped nothing from {addr}");
+            c.stop()?;
         }
         if client_on { &mut on } else { &mut off }.push(rate);
     }
@@ -622,7 +619,7 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
     );
     let s1 = snapshot_seconds(addr)?;
     let in_window = client.events.try_iter().count();
-    anyhow::ensure!(client.stop() > 0, "the client scraped nothing from {addr}");
+    client.stop()?;
     anyhow::ensure!(
         d1 > 0.0,
         "the master has no thread named {:?} (or it never ran): the dashboard's own cost cannot be told apart",
@@ -648,7 +645,8 @@ fn one_pair(run: &Run<'_>, index: usize, on_first: bool) -> Result<PairFigures> 
             break;
         }
     }
-    watcher.stop();
+    // Its scrapes are not the figure; the eviction was.
+    let _ = watcher.stop();
     on.stop()?;
     off.stop()?;
     Ok(PairFigures {

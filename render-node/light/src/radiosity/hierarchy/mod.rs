@@ -508,8 +508,7 @@ impl<'a> Hierarchy<'a> {
         while it < self.options.max_iterations {
             let next = self.gather_step(&init, b);
             let residual = relative_change(&self.mesh, &self.tree.order, b, &next);
-            let step: Vec<DVec3> = next.iter().zip(b.iter()).map(|(n, o)| *n - *o).collect();
-            *b = next;
+            let previous = std::mem::replace(b, next);
             it += 1;
             let ratio = last
                 .map(|l| residual / l)
@@ -523,8 +522,8 @@ impl<'a> Hierarchy<'a> {
             if residual < tolerance || settled {
                 if let Some(t) = tail {
                     // Radiosity is never negative, whatever the estimate.
-                    for (v, d) in b.iter_mut().zip(&step) {
-                        *v = (*v + *d * t).max(DVec3::ZERO);
+                    for (v, p) in b.iter_mut().zip(&previous) {
+                        *v = (*v + (*v - *p) * t).max(DVec3::ZERO);
                     }
                 }
                 break;
