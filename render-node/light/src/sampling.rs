@@ -22,6 +22,38 @@ pub fn hash64(x: u64) -> u64 {
     mix64(x.wrapping_add(GOLDEN_GAMMA))
 }
 
+/// A SplitMix64 stream: the random numbers of one path (or one item) of
+/// a render. Seeding is one store and each number one [`hash64`], so a
+/// path that draws a handful of numbers pays for those only (a ChaCha
+/// stream computes a 256-byte block before its first number).
+#[derive(Clone, Debug)]
+pub struct SplitMix64 {
+    state: u64,
+}
+
+impl SplitMix64 {
+    /// The stream whose first output is `hash64(seed)`.
+    pub fn new(seed: u64) -> Self {
+        Self { state: seed }
+    }
+}
+
+impl rand::RngCore for SplitMix64 {
+    fn next_u32(&mut self) -> u32 {
+        (self.next_u64() >> 32) as u32
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        let out = hash64(self.state);
+        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        out
+    }
+
+    fn fill_bytes(&mut self, dst: &mut [u8]) {
+        rand::rand_core::impls::fill_bytes_via_next(self, dst)
+    }
+}
+
 /// A uniform number in `[0, 1)` from a hash.
 pub fn unit(x: u64) -> f64 {
     (hash64(x) >> 11) as f64 / (1u64 << 53) as f64
@@ -82,21 +114,20 @@ pub fn pixel_seed(seed: u64, index: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::{Rng, RngCore, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn splitmix64_matches_the_reference_sequence() {
         // SplitMix64 from state 0 (Vigna's reference implementation).
-        let mut state = 0u64;
-        let mut next = || {
-            let out = hash64(state);
-            state = state.wrapping_add(GOLDEN_GAMMA);
-            out
-        };
-        assert_eq!(next(), 0xE220_A839_7B1D_CDAF);
-        assert_eq!(next(), 0x6E78_9E6A_A1B9_65F4);
-        assert_eq!(next(), 0x06C4_5D18_8009_454F);
+        let mut stream = SplitMix64::new(0);
+        assert_eq!(stream.next_u64(), 0xE220_A839_7B1D_CDAF);
+        assert_eq!(stream.next_u64(), 0x6E78_9E6A_A1B9_65F4);
+        assert_eq!(stream.next_u32(), 0x06C4_5D18);
+        let mut bytes = [0u8; 12];
+        SplitMix64::new(0).fill_bytes(&mut bytes);
+        assert_eq!(bytes[..8], 0xE220_A839_7B1D_CDAFu64.to_le_bytes());
+        assert_eq!(bytes[8..], 0x6E78_9E6Au32.to_le_bytes());
     }
 
     #[test]

@@ -39,14 +39,13 @@
 use crate::finite::finite_or_zero;
 use crate::{DeviceRays, Hit, Image, IntensityLight, ObjectFilter, Ray, RgbImage, SceneGeometry};
 use glam::{DVec3, Vec3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 use rayon::prelude::*;
 use showcase_proto::{Material, Showcase};
 
 use super::{SimError, SimLights};
 use crate::geometry::face_forward;
-use crate::sampling::{cosine_direction, pixel_seed, stratified_point};
+use crate::sampling::{SplitMix64, cosine_direction, pixel_seed, stratified_point};
 
 /// Longest path (in bounces) the estimator follows, and the most mirrors
 /// a camera ray follows.
@@ -627,7 +626,7 @@ impl SimWorld {
         mut beta: DVec3,
         lights: &SimLights<'_>,
         first: (f64, f64),
-        rng: &mut ChaCha8Rng,
+        rng: &mut SplitMix64,
     ) -> (DVec3, f64) {
         let mut sum = DVec3::ZERO;
         let mut first_distance = f64::INFINITY;
@@ -736,7 +735,7 @@ impl SimWorld {
 /// (an n x n jittered grid, n = floor(sqrt(count)), the paths past n^2
 /// not): the first bounce carries most of the indirect light.
 struct PathStart {
-    rng: ChaCha8Rng,
+    rng: SplitMix64,
     emitter: [f64; 3],
     area: (f64, f64),
     first: (f64, f64),
@@ -744,7 +743,7 @@ struct PathStart {
 
 impl PathStart {
     fn new(s: u32, count: u32, seed: u64) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(pixel_seed(seed, u64::from(s)));
+        let mut rng = SplitMix64::new(pixel_seed(seed, u64::from(s)));
         let emitter = rng.random();
         let area = stratified_point(s, count, (rng.random(), rng.random()));
         let first = stratified_point(s, count, (rng.random(), rng.random()));
