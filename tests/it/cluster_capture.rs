@@ -182,15 +182,18 @@ fn a_projector_node_leaving_keeps_the_maps_done() {
 /// A saturated or a dark frame stops the job with what to change.
 #[test]
 fn saturated_and_dark_frames_say_what_to_change() {
+    use showcase_light::Image;
+    use showcase_light::hardware::CameraFrame;
     use showcase_master::capture::cluster::check_exposure;
-    use showcase_proto::capture::FrameCodes;
-    let frame = |v: u16| FrameCodes {
-        width: 10,
-        height: 10,
+    let frame = |v: u16| CameraFrame {
+        codes: Image {
+            width: 10,
+            height: 10,
+            data: (0..100)
+                .map(|i| if i < 5 { [v; 3] } else { [800; 3] })
+                .collect(),
+        },
         bits: 12,
-        codes: (0..100)
-            .map(|i| if i < 5 { [v; 3] } else { [800; 3] })
-            .collect(),
     };
     assert!(check_exposure(&frame(800), "camera-0", 1.0).is_ok());
     let e = check_exposure(&frame(4095), "camera-0", 1.0).unwrap_err();
@@ -198,10 +201,8 @@ fn saturated_and_dark_frames_say_what_to_change() {
         e.contains("saturated") && e.contains("lower the camera gain"),
         "{e}"
     );
-    let dark = FrameCodes {
-        codes: vec![[10; 3]; 100],
-        ..frame(0)
-    };
+    let mut dark = frame(0);
+    dark.codes.data = vec![[10; 3]; 100];
     let e = check_exposure(&dark, "camera-0", 1.0).unwrap_err();
     assert!(e.contains("dark") && e.contains("raise the gain"), "{e}");
 }

@@ -22,8 +22,9 @@ use showcase_light::hardware::{CameraDevice, CameraFrame, ProjectorDevice, patte
 use showcase_light::reflectance::ReflectanceMap;
 use showcase_light::sim::{SimConfig, SimShowcase};
 use showcase_light::{Image, RgbImage};
-use showcase_proto::capture::{CaptureFrames, CapturedMap, FrameCodes, Pattern};
+use showcase_proto::capture::{CaptureFrames, CapturedMap, Pattern};
 use showcase_proto::{CameraResponse, PinholeDevice, Role, Showcase};
+use showcase_render::camera::Levels;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -135,32 +136,21 @@ pub const MAX_SATURATED: f64 = 0.01;
 /// called dark.
 pub const MIN_PEAK: f64 = 0.01;
 
-/// `Err` with what to change when `frame` is saturated or dark.
-pub fn check_exposure(frame: &FrameCodes, node: &str, gain: f64) -> Result<(), String> {
-    let max = (1u32 << frame.bits.clamp(1, 16)) - 1;
-    let n = frame.codes.len().max(1);
-    let saturated = frame
-        .codes
-        .iter()
-        .filter(|c| c.iter().any(|v| *v as u32 >= max))
-        .count();
-    if saturated as f64 > MAX_SATURATED * n as f64 {
+/// `Err` with what to change when `frame` is saturated or dark, measured
+/// as every camera frame is ([`Levels`]; the peak is the brightest pixel).
+pub fn check_exposure(frame: &CameraFrame, node: &str, gain: f64) -> Result<(), String> {
+    let levels = Levels::of(frame, 0.0);
+    if levels.saturated_fraction > MAX_SATURATED {
         return Err(format!(
             "camera node {node:?}: the capture is saturated ({:.1} % of pixels at full scale): lower the camera gain ({gain:.4}) or exposure in its calibration",
-            100.0 * saturated as f64 / n as f64
+            100.0 * levels.saturated_fraction
         ));
     }
-    let peak = frame
-        .codes
-        .iter()
-        .flat_map(|c| c.iter())
-        .copied()
-        .max()
-        .unwrap_or(0);
-    if (peak as f64) < MIN_PEAK * max as f64 {
+    let peak = f64::from(levels.peak) / f64::from(levels.top);
+    if peak < MIN_PEAK {
         return Err(format!(
             "camera node {node:?}: the capture is dark (brightest pixel at {:.2} % of full scale): check that the projector node lights what the camera sees, or raise the gain ({gain:.4}) or exposure",
-            100.0 * peak as f64 / max as f64
+            100.0 * peak
         ));
     }
     Ok(())
@@ -197,19 +187,20 @@ impl CameraDevice for RemoteCamera {
         let frames = self.link.capture(&self.node, request, size)?;
         let mut out = Vec::with_capacity(frames.len());
         for f in frames {
-            if self.check_exposure {
-                check_exposure(&f, &self.node, request.gain).map_err(RemoteError)?;
-            }
-            self.frames += 1;
-            self.bytes += f.codes.len() as u64 * 6;
-            out.push(CameraFrame {
+            let frame = CameraFrame {
                 codes: Image {
                     width: f.width,
                     height: f.height,
                     data: f.codes,
                 },
                 bits: f.bits,
-            });
+            };
+            if self.check_exposure {
+                check_exposure(&frame, &self.node, request.gain).map_err(RemoteError)?;
+            }
+            self.frames += 1;
+            self.bytes += frame.codes.data.len() as u64 * 6;
+            out.push(frame);
         }
         Ok(out)
     }
