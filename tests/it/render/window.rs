@@ -154,14 +154,21 @@ fn xorg_dummy(count: usize, dir: &Path, procs: &mut Kill) -> Result<Option<u32>>
     );
     let config = dir.join("xorg.conf");
     std::fs::write(&config, conf)?;
+    let log = dir.join("xorg.log");
     let mut server = Command::new("Xorg");
     server
         .arg("-config")
         .arg(&config)
         .arg("-logfile")
-        .arg(dir.join("xorg.log"))
+        .arg(&log)
         .args(["-novtswitch", "-sharevts"]);
-    start_x(server, "Xorg", procs)
+    // The scratch folder goes with the test: a failed start shows its
+    // log's errors.
+    start_x(server, "Xorg", procs).with_context(|| {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        let errors: Vec<&str> = text.lines().filter(|l| l.contains("(EE)")).collect();
+        format!("Xorg's log:\n{}", errors.join("\n"))
+    })
 }
 
 /// The pixels of the root window's rectangle at `origin` of `size` as
