@@ -52,6 +52,9 @@ pub(super) struct Moments {
     p: [DVec3; 3],
     /// `M` as `[xx, yy, zz, xy, xz, yz]` per channel.
     m: [[f64; 6]; 3],
+    /// Every member faces one way (a leaf, or a flat node): the intensity
+    /// is `max(0, P . w) / pi`, which needs no `M`.
+    flat: bool,
 }
 
 impl Moments {
@@ -69,10 +72,20 @@ impl Moments {
             q,
             p: [n * q.x, n * q.y, n * q.z],
             m: [0, 1, 2].map(|c| nn.map(|v| v * q[c])),
+            flat: true,
         }
     }
 
-    pub(super) fn add(&mut self, o: &Self) {
+    /// The sum of two nodes' moments, for their parent; `flat` when the
+    /// parent is.
+    pub(super) fn parent(a: &Self, b: &Self, flat: bool) -> Self {
+        let mut s = *a;
+        s.add(b);
+        s.flat = flat;
+        s
+    }
+
+    fn add(&mut self, o: &Self) {
         self.q += o.q;
         for c in 0..3 {
             self.p[c] += o.p[c];
@@ -83,7 +96,15 @@ impl Moments {
     }
 
     /// Radiant intensity (W/sr per channel) towards unit direction `w`.
+    /// A flat node's members all face `w` or all face away (but within a
+    /// hair of grazing), so it is `max(0, P . w) / pi`: the sum of the
+    /// members' own cosine lobes, which the general form equals there.
     pub(super) fn intensity(&self, w: DVec3) -> DVec3 {
+        if self.flat {
+            return DVec3::new(self.p[0].dot(w), self.p[1].dot(w), self.p[2].dot(w))
+                .max(DVec3::ZERO)
+                / PI;
+        }
         let ww = [
             w.x * w.x,
             w.y * w.y,

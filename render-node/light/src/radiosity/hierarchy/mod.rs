@@ -641,9 +641,8 @@ impl<'a> Hierarchy<'a> {
                 let e = &self.mesh.elements[node.element as usize];
                 Moments::leaf(b[node.element as usize], e.area, e.normal)
             } else {
-                let mut s = m[node.children[0] as usize];
-                s.add(&m[node.children[1] as usize]);
-                s
+                let [a, b] = node.children.map(|c| &m[c as usize]);
+                Moments::parent(a, b, node.flat)
             };
         }
         m

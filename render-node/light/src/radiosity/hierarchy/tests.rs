@@ -626,3 +626,46 @@ fn links_within_a_turned_mover_turn_with_it() {
     }
     assert!(compared > 100, "{compared} links compared");
 }
+
+#[test]
+fn a_flat_nodes_intensity_is_the_sum_of_its_members_cosine_lobes() {
+    // Coplanar members of different exitance and area, facing +y.
+    let n = DVec3::Y;
+    let members = [
+        (DVec3::new(1.0, 2.0, 3.0), 0.5),
+        (DVec3::new(0.2, 0.1, 4.0), 1.5),
+        (DVec3::splat(0.7), 0.25),
+    ];
+    let lobes = |w: DVec3| -> DVec3 {
+        members
+            .iter()
+            .map(|(b, a)| *b * *a * n.dot(w).max(0.0) / PI)
+            .sum()
+    };
+    let leaves: Vec<Moments> = members
+        .iter()
+        .map(|(b, a)| Moments::leaf(*b, *a, n))
+        .collect();
+    let node = |flat| {
+        let two = Moments::parent(&leaves[0], &leaves[1], flat);
+        Moments::parent(&two, &leaves[2], flat)
+    };
+    let (flat, general) = (node(true), node(false));
+    // Directions all over the sphere, the back hemisphere included.
+    for k in 0..200 {
+        let z = 1.0 - (k as f64 + 0.5) / 100.0;
+        let phi = k as f64 * 2.399_963_229_728_653;
+        let r = (1.0 - z * z).sqrt();
+        let w = DVec3::new(r * phi.cos(), z, r * phi.sin());
+        let want = lobes(w);
+        for (what, got) in [
+            ("flat", flat.intensity(w)),
+            ("general", general.intensity(w)),
+        ] {
+            assert!(
+                (got - want).abs().max_element() < 1e-9,
+                "{what} at {w}: {got} against {want}"
+            );
+        }
+    }
+}
