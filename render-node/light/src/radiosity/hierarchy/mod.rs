@@ -13,7 +13,8 @@
 //!   moments pulled up the tree, `Q = sum B A`, `P = sum B A n` and
 //!   `M = sum B A n n^T`: `I(w) = (P.w + sqrt(Q w^T M w)) / (2 pi)`,
 //!   exact for a flat node (then it is `Q max(0, n.w) / pi`) and 15 % high
-//!   for a sphere's worth of orientations.
+//!   for a sphere's worth of orientations. A flat node (and a leaf) takes
+//!   the cheaper `max(0, P.w) / pi`, which is the same there.
 //! - **Receivers**: a flat node takes irradiance with the cosine at its
 //!   normal; a volume cluster keeps it as spherical harmonics (`sh.rs`),
 //!   read by each member at its own normal when pushed down.
