@@ -16,6 +16,7 @@ fn global_mode_brings_figure3_at_least_three_times_closer_to_the_complete_target
         &GiBenchOptions {
             frame: 10,
             truth_paths: 256,
+            max_truth_paths: 256,
             without_occlusion: false,
             live_frames: 240,
             patch_area: None,
@@ -87,6 +88,7 @@ fn bench_gi_names_what_a_scene_lacks() {
         &GiBenchOptions {
             frame: 1,
             truth_paths: 8,
+            max_truth_paths: 8,
             without_occlusion: false,
             live_frames: 0,
             patch_area: None,
@@ -113,6 +115,7 @@ fn global_mode_faces_bring_the_virtual_objects_closer_to_the_complete_target() {
         &GiBenchOptions {
             frame: 60,
             truth_paths: 128,
+            max_truth_paths: 128,
             without_occlusion: false,
             live_frames: 0,
             patch_area: None,
