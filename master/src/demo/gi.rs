@@ -203,20 +203,19 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
         let mut judged = judge_both(paths)?;
         // The first setting finds the paths; the one without occlusion
         // shadows is judged with the same.
-        let figures = |judged: &[Value]| {
-            let global = &judged[1];
-            (
-                global["camera_consistency_rel_rmse"]
-                    .as_f64()
-                    .unwrap_or(0.0),
-                global["compared_noise_rel_rmse"].as_f64().unwrap_or(0.0),
-            )
-        };
         if occlusion_shadows {
-            while let Some(more) = {
-                let (figure, noise) = figures(&judged);
-                raised_truth_paths(paths, options.max_truth_paths, figure, noise)
-            } {
+            loop {
+                let global = &judged[1];
+                let Some(more) = raised_truth_paths(
+                    paths,
+                    options.max_truth_paths,
+                    global["camera_consistency_rel_rmse"]
+                        .as_f64()
+                        .unwrap_or(0.0),
+                    global["compared_noise_rel_rmse"].as_f64().unwrap_or(0.0),
+                ) else {
+                    break;
+                };
                 paths = more;
                 judged = judge_both(paths)?;
             }
