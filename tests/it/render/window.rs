@@ -252,10 +252,10 @@ fn encoded(image: &OutputImage) -> Result<Vec<[u8; 3]>> {
         .collect();
     let lit = want.iter().filter(|p| p.iter().any(|&c| c > 40)).count();
     ensure!(lit > 1000, "the frame is nearly black ({lit} lit pixels)");
+    let changed = differing(&want, &linear);
     ensure!(
-        differing(&want, &linear) > 1000,
-        "the device response changes only {} pixels: it would not be seen",
-        differing(&want, &linear)
+        changed > 1000,
+        "the device response changes only {changed} pixels: it would not be seen"
     );
     Ok(want)
 }
