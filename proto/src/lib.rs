@@ -26,4 +26,4 @@ pub use scene::*;
 pub use validate::{Validate, ValidationError};
 
 /// Version of the wire protocol. A node and a master must agree exactly.
-pub const PROTOCOL_VERSION: u32 = 7;
+pub const PROTOCOL_VERSION: u32 = 8;

@@ -509,6 +509,19 @@ impl Validate for Showcase {
                 );
             }
         }
+        if let Some(a) = self.patch_area {
+            finite(&|| "patch_area".into(), a)?;
+            if !PATCH_AREA_RANGE.contains(&a) {
+                return fail(
+                    "patch_area",
+                    format!(
+                        "{a} m^2 is outside {:e}..={} m^2",
+                        PATCH_AREA_RANGE.start(),
+                        PATCH_AREA_RANGE.end()
+                    ),
+                );
+            }
+        }
         nonneg3(&|| "ambient".into(), self.ambient)
     }
 }

@@ -438,7 +438,8 @@ pub struct RadiosityArgs {
     /// Output folder (the solution, the maps and `summary.json`).
     #[arg(long)]
     pub out: PathBuf,
-    /// Largest patch area in square metres.
+    /// Largest patch area in square metres (default: the scene's
+    /// `patch_area`, else 0.01).
     #[arg(long)]
     pub max_patch_area: Option<f64>,
     /// Hemi-cube resolution (pixels along the top face).

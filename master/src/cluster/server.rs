@@ -61,7 +61,8 @@ pub struct ServerSettings {
     /// (`replay`); `None`: publish as soon as a solve lands (live).
     pub illumination_lag: Option<u64>,
     /// Global mode only: the largest radiosity patch of the solution (m^2;
-    /// `None`: the radiosity job's default), which sets how many elements
+    /// `None`: the scene's `patch_area`, else the radiosity job's
+    /// default), which sets how many elements
     /// it has (`bench gi`'s records at about 20,000).
     pub illumination_patch_area: Option<f64>,
     /// Captured reflectance maps the cluster starts with (`run --maps`):
@@ -602,7 +603,8 @@ impl GlobalIllumination {
         let options = crate::radiosity_job::RadiosityOptions {
             max_patch_area: patch_area,
             ..Default::default()
-        };
+        }
+        .for_scene(core.scene());
         let scene = core.scene().clone();
         let state = initial_state(&scene, core.scene_version());
         // The solver thread solves the first state itself, so that the

@@ -136,6 +136,11 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     }
     let state = state.context("no frame")?;
     let resolved = showcase_light::render::FrameScene::resolve(&truth, &state)?;
+    let solve_options = crate::radiosity_job::RadiosityOptions {
+        max_patch_area: options.patch_area,
+        ..Default::default()
+    }
+    .for_scene(&resolved.showcase);
     let gpu = Backend::open();
     let cpu = Backend::Cpu("the GPU renderer always draws occlusion shadows".into());
     // The live cluster first, each mode on its own: the offline judging
@@ -169,14 +174,8 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
             &[]
         };
         let t = Instant::now();
-        let (field, elements) = crate::radiosity_job::indirect_field(
-            &resolved.showcase,
-            eyes,
-            &crate::radiosity_job::RadiosityOptions {
-                max_patch_area: options.patch_area,
-                ..Default::default()
-            },
-        )?;
+        let (field, elements) =
+            crate::radiosity_job::indirect_field(&resolved.showcase, eyes, &solve_options)?;
         let solve_s = t.elapsed().as_secs_f64();
         let field = Arc::new(field);
         let judge_both = |paths: u32| -> Result<Vec<Value>> {
@@ -239,10 +238,7 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
                 map.insert("dropped_frames".into(), json!(l.dropped_frames));
             }
             if let Some(map) = record.as_object_mut() {
-                let area = options
-                    .patch_area
-                    .unwrap_or(crate::radiosity_job::DEFAULT_PATCH_AREA);
-                map.insert("max_patch_area".into(), json!(area));
+                map.insert("max_patch_area".into(), json!(solve_options.patch_area()));
                 map.insert("truth_paths".into(), json!(paths));
             }
             records.push(record);

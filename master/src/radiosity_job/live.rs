@@ -61,6 +61,7 @@ impl LiveScene {
         maps: &[CapturedMap],
         options: &RadiosityOptions,
     ) -> anyhow::Result<Self> {
+        let options = &options.for_scene(showcase);
         let all =
             SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
         let real =

@@ -124,10 +124,25 @@ impl std::str::FromStr for FormFactorDevice {
 pub const DEFAULT_PATCH_AREA: f64 = 0.01;
 
 impl RadiosityOptions {
+    /// These options for `showcase`: its own largest patch area
+    /// ([`Showcase::patch_area`], scene key `patch_area`) where the options
+    /// name none. Every entry that meshes a scene resolves through here.
+    pub fn for_scene(&self, showcase: &Showcase) -> Self {
+        Self {
+            max_patch_area: self.max_patch_area.or(showcase.patch_area),
+            ..self.clone()
+        }
+    }
+
+    /// The largest patch area these options mesh with (m^2).
+    pub fn patch_area(&self) -> f64 {
+        self.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA)
+    }
+
     /// The mesh settings.
     pub fn mesh(&self) -> MeshOptions {
         MeshOptions {
-            max_patch_area: self.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA),
+            max_patch_area: self.patch_area(),
             element_depth: self.element_depth.unwrap_or(1),
             ..MeshOptions::default()
         }
@@ -313,6 +328,7 @@ pub fn solve_showcase_on(
     options: &RadiosityOptions,
     device: FormFactorDevice,
 ) -> anyhow::Result<Solved> {
+    let options = &options.for_scene(showcase);
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let real = SceneGeometry::build(showcase, &ObjectFilter::Real).context("building geometry")?;
     let mut mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
@@ -527,12 +543,13 @@ fn memory_check(elements: usize, options: &RadiosityOptions) -> anyhow::Result<u
         floor <= budget,
         "the mesh has {elements} elements; solving it hierarchically needs at least {:.0} MB \
          (the cluster tree and at least {} links per element of {} bytes), over the {:.0} MB \
-         budget: raise --max-patch-area (now {} m^2), or --max-memory-mb if the machine has more",
+         budget: raise --max-patch-area or the scene's patch_area (now {} m^2), or \
+         --max-memory-mb if the machine has more",
         floor as f64 / 1e6,
         radiosity::MIN_LINKS_PER_ELEMENT,
         radiosity::LINK_BYTES,
         budget as f64 / 1e6,
-        options.max_patch_area.unwrap_or(DEFAULT_PATCH_AREA),
+        options.patch_area(),
     );
     Ok((budget - radiosity::estimate_bytes(elements, 0)) / radiosity::LINK_BYTES)
 }
@@ -544,6 +561,7 @@ pub fn mesh_size(
     showcase: &Showcase,
     options: &RadiosityOptions,
 ) -> anyhow::Result<(usize, usize)> {
+    let options = &options.for_scene(showcase);
     let all = SceneGeometry::build(showcase, &ObjectFilter::All).context("building geometry")?;
     let mesh = RadiosityMesh::build(showcase, &all, &options.mesh()).context("meshing")?;
     let lights: Vec<_> = showcase.lights.iter().map(|l| l.light.clone()).collect();
@@ -693,7 +711,25 @@ pub fn run_radiosity_scene(
 
 #[cfg(test)]
 mod tests {
-    use super::{BadFormFactorDevice, FormFactorDevice};
+    use super::{BadFormFactorDevice, FormFactorDevice, RadiosityOptions, mesh_size};
+    use std::path::Path;
+
+    #[test]
+    fn a_scene_meshes_with_its_own_patch_area_unless_the_command_names_one() {
+        let figure3 = crate::scene_file::load_any(Path::new("builtin:figure3")).unwrap();
+        assert_eq!(figure3.patch_area, Some(0.0025));
+        let scene = RadiosityOptions::default();
+        let given = RadiosityOptions {
+            max_patch_area: Some(0.01),
+            ..Default::default()
+        };
+        assert_eq!(scene.for_scene(&figure3).patch_area(), 0.0025);
+        assert_eq!(given.for_scene(&figure3).patch_area(), 0.01);
+        // Every 0.01 m^2 patch of the box becomes four.
+        let (_, fine) = mesh_size(&figure3, &scene).unwrap();
+        let (_, coarse) = mesh_size(&figure3, &given).unwrap();
+        assert_eq!((fine, coarse), (3840, 960));
+    }
 
     #[test]
     fn form_factor_devices_parse_and_refuse_others_by_name() {

@@ -26,6 +26,9 @@
 //! illumination = "global"       # "direct" (default: direct light only) or
 //!                               # "global" (the master solves radiosity, the
 //!                               # projectors add its indirect light)
+//! patch_area = 0.0025           # m^2, the largest radiosity patch in global
+//!                               # mode; default 0.01. Finer is more accurate
+//!                               # and slower to solve and update
 //!
 //! [[object]]
 //! name = "room"                 # one scene object per part: "room/floor", ...
@@ -274,6 +277,7 @@ fn build(ctx: &Ctx, def: &SceneDef, base_dir: &Path) -> Result<Showcase, SceneEr
         name: def.name.clone(),
         ambient: def.ambient.map_or(glam::Vec3::ZERO, device::v3),
         illumination: def.illumination,
+        patch_area: def.patch_area.map(|a| a.0),
         ..Showcase::default()
     };
     let mut labels = Labels::default();

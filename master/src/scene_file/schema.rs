@@ -45,6 +45,9 @@ pub(crate) struct SceneDef {
     /// `"direct"` (the default) or `"global"`.
     #[serde(default)]
     pub(crate) illumination: showcase_proto::IlluminationMode,
+    /// The largest radiosity patch (m^2) in global mode.
+    #[serde(default)]
+    pub(crate) patch_area: Option<Num>,
     #[serde(default, rename = "object")]
     pub(crate) objects: Vec<ObjectDef>,
     #[serde(default, rename = "light")]

@@ -29,6 +29,20 @@ fn illumination_is_direct_or_global() {
 }
 
 #[test]
+fn a_scene_names_its_radiosity_patch_area_within_range() {
+    assert_eq!(load("name = \"g\"").unwrap().patch_area, None);
+    let s = load("name = \"g\"\npatch_area = 0.0025").unwrap();
+    assert_eq!(s.patch_area, Some(0.0025));
+    let err = load("name = \"g\"\npatch_area = -0.01")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("patch_area") && err.contains("outside 1e-6..=100 m^2"),
+        "{err}"
+    );
+}
+
+#[test]
 fn deeply_nested_toml_is_an_error_not_a_crash() {
     for (open, close) in [("[", "]"), ("{a=", "}")] {
         let text = format!(

@@ -43,7 +43,16 @@ pub struct Showcase {
     /// illumination.
     #[serde(default)]
     pub illumination: IlluminationMode,
+    /// The largest radiosity patch (m^2) this scene is meshed with for
+    /// global illumination (scene file key `patch_area`); `None`: the
+    /// solver's default. A command's own setting overrides it.
+    #[serde(default)]
+    pub patch_area: Option<f64>,
 }
+
+/// The range [`Showcase::patch_area`] must lie in (m^2): from 1 mm^2 to
+/// 100 m^2.
+pub const PATCH_AREA_RANGE: std::ops::RangeInclusive<f64> = 1e-6..=100.0;
 
 /// What a scene's outputs show (scene file key `illumination`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -175,6 +175,19 @@ fn showcase_validation_names_the_object() {
         s.validate().unwrap_err().to_string(),
         "objects[0].transform.scale: value NaN is not finite"
     );
+    s.objects[0].transform.scale.y = 1.0;
+    s.patch_area = Some(0.0025);
+    assert_eq!(s.validate(), Ok(()));
+    s.patch_area = Some(0.0);
+    assert_eq!(
+        s.validate().unwrap_err().to_string(),
+        "patch_area: 0 m^2 is outside 1e-6..=100 m^2"
+    );
+    s.patch_area = Some(f64::INFINITY);
+    assert_eq!(
+        s.validate().unwrap_err().to_string(),
+        "patch_area: value inf is not finite"
+    );
 }
 
 #[test]
