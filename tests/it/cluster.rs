@@ -355,11 +355,14 @@ async fn replay_twice(
 ) {
     use showcase_master::cluster::commands::replay;
     use showcase_master::tracking::recording::Recorder;
-    use showcase_master::tracking::scripted::walk_datagram;
+    use showcase_master::tracking::scripted::{carried_object, walk_datagram_carrying};
+    // The walk carries the scene's virtual object too, where it has one.
+    let carried = carried_object(scene).map(|i| &scene.objects[i].transform);
     let mut rec = Recorder::new(Vec::new(), "test walk", None).unwrap();
     for i in 0..100u64 {
         let t = i as f64 * 0.02 + if i % 3 == 0 { 0.004 } else { 0.0 };
-        rec.record(t, &walk_datagram(i, t)).unwrap();
+        rec.record(t, &walk_datagram_carrying(i, t, carried))
+            .unwrap();
     }
     let dir = std::env::temp_dir().join(format!("showcase-replay-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -10,7 +10,7 @@ use super::server::{Server, ServerSettings};
 use super::show::{Show, Tracking};
 use crate::tracking::Tracker;
 use crate::tracking::recording;
-use crate::tracking::scripted::{FIRST_HEAD_BODY, LIGHT_BODY};
+use crate::tracking::scripted::{FIRST_HEAD_BODY, LIGHT_BODY, OBJECT_BODY, carried_object};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use showcase_light::digest::Fnv64;
@@ -26,7 +26,8 @@ use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
 /// The body mapping of the built-in walk: bodies 0 and 1 are the first two
-/// observers' heads, body 2 carries the first light.
+/// observers' heads, body 2 carries the first light and body 3 the
+/// scene's carried virtual object ([`carried_object`]).
 pub fn walk_tracking(scene: &Showcase, source: TrackingSource) -> TrackingConfig {
     let mut bodies = Vec::new();
     for (i, o) in scene.observers.iter().take(2).enumerate() {
@@ -39,6 +40,12 @@ pub fn walk_tracking(scene: &Showcase, source: TrackingSource) -> TrackingConfig
         bodies.push(BodyMapping {
             id: LIGHT_BODY,
             target: format!("light:{}", l.name),
+        });
+    }
+    if let Some(i) = carried_object(scene) {
+        bodies.push(BodyMapping {
+            id: OBJECT_BODY,
+            target: format!("object:{}", scene.objects[i].name),
         });
     }
     TrackingConfig {

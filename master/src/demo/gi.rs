@@ -12,7 +12,8 @@
 //! GPU renderer always draws them); `renderer` says what drew the maps.
 //! Beside them, the live figures of each mode ([`live_figures`]): the
 //! scripted walk over a loopback cluster of state-hash nodes, direct and
-//! global one after the other, with the global-illumination updates'
+//! global one after the other, once moving the light and once the carried
+//! virtual object ([`WalkMove`]), with the global-illumination updates'
 //! latency and frames stale, swap skew and tracking-to-swap.
 
 use super::INTERACTIVE_HZ;
@@ -45,8 +46,8 @@ pub struct GiBenchOptions {
     /// patches they leave cost in the complete world, where they would
     /// have lit the rest of the room).
     pub without_occlusion: bool,
-    /// Frames of the live loopback cluster per mode (0: none): the
-    /// scripted walk at `INTERACTIVE_HZ` with one state-hash node per
+    /// Frames of the live loopback cluster per mode and move (0: none):
+    /// the scripted walk at `INTERACTIVE_HZ` with one state-hash node per
     /// output, in direct and in global mode, one after the other.
     pub live_frames: u64,
     /// The largest radiosity patch of global mode's solution (m^2; `None`:
@@ -78,11 +79,49 @@ pub struct LiveFigures {
     pub dropped_frames: u64,
 }
 
-/// Run the scripted walk on `scene` in `mode` over a loopback cluster for
-/// `frames` frames (one state-hash node per face and projector).
+/// What the walk moves in a live run besides the observers' heads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WalkMove {
+    /// The whole walk: the light and the object.
+    All,
+    /// The carried light only.
+    Light,
+    /// The carried virtual object only
+    /// ([`crate::tracking::scripted::carried_object`]).
+    Object,
+}
+
+impl WalkMove {
+    /// The record's `move`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::All => "light+object",
+            Self::Light => "light",
+            Self::Object => "object",
+        }
+    }
+
+    /// The walk's bodies with the other move's body left untracked.
+    fn bodies(self, scene: &showcase_proto::Showcase) -> showcase_proto::config::TrackingConfig {
+        use crate::tracking::scripted::{LIGHT_BODY, OBJECT_BODY};
+        let mut config = walk_tracking(scene, TrackingSource::Scripted);
+        let other = match self {
+            Self::All => None,
+            Self::Light => Some(OBJECT_BODY),
+            Self::Object => Some(LIGHT_BODY),
+        };
+        config.bodies.retain(|b| Some(b.id) != other);
+        config
+    }
+}
+
+/// Run the scripted walk on `scene` in `mode`, moving the heads and what
+/// `moving` names, over a loopback cluster for `frames` frames (one
+/// state-hash node per face and projector).
 pub fn live_figures(
     scene: &showcase_proto::Showcase,
     mode: showcase_proto::IlluminationMode,
+    moving: WalkMove,
     frames: u64,
     patch_area: Option<f64>,
 ) -> Result<LiveFigures> {
@@ -92,10 +131,12 @@ pub fn live_figures(
     scene.illumination = mode;
     let nodes = output_nodes(&scene);
     let count = nodes.len();
+    let tracker = crate::tracking::Tracker::new(&moving.bodies(&scene), &scene)?;
     let plan = LoopbackPlan {
         nodes,
         keep_frames: true,
         illumination_patch_area: patch_area,
+        show: Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64),
         ..walk_plan(&scene, 0, INTERACTIVE_HZ, frames)?
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -145,18 +186,29 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     let cpu = Backend::Cpu("the GPU renderer always draws occlusion shadows".into());
     // The live cluster first, each mode on its own: the offline judging
     // below would compete with it for the cores.
+    // Per move (the object's where the scene has one to carry), direct and
+    // global mode.
     let mut live = Vec::new();
     if options.live_frames > 0 {
-        for mode in [
-            showcase_proto::IlluminationMode::Direct,
-            showcase_proto::IlluminationMode::Global,
-        ] {
-            live.push(live_figures(
-                &truth,
-                mode,
-                options.live_frames,
-                options.patch_area,
-            )?);
+        let mut moves = vec![WalkMove::Light];
+        if crate::tracking::scripted::carried_object(&truth).is_some() {
+            moves.push(WalkMove::Object);
+        }
+        for moving in moves {
+            let mut both = Vec::new();
+            for mode in [
+                showcase_proto::IlluminationMode::Direct,
+                showcase_proto::IlluminationMode::Global,
+            ] {
+                both.push(live_figures(
+                    &truth,
+                    mode,
+                    moving,
+                    options.live_frames,
+                    options.patch_area,
+                )?);
+            }
+            live.push((moving, both));
         }
     }
     let mut records = Vec::new();
@@ -219,29 +271,41 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
                 judged = judge_both(paths)?;
             }
         }
-        for (m, mut record) in judged.into_iter().enumerate() {
-            if let (Some(l), true, Some(map)) =
-                (live.get(m), occlusion_shadows, record.as_object_mut())
-            {
-                // The walk moves the light and the observers' heads.
-                map.insert("move".into(), json!("light"));
-                map.insert("live_frames".into(), json!(options.live_frames));
-                map.insert("updates".into(), json!(l.updates));
-                map.insert("update_ms_p50".into(), json!(l.update_ms_p50));
-                map.insert("update_ms_p99".into(), json!(l.update_ms_p99));
-                map.insert("frames_stale_max".into(), json!(l.frames_stale_max));
-                map.insert("swap_skew_ms_p99".into(), json!(l.swap_skew_ms_p99));
-                map.insert(
-                    "tracking_to_swap_ms_p99".into(),
-                    json!(l.tracking_to_swap_ms_p99),
-                );
-                map.insert("dropped_frames".into(), json!(l.dropped_frames));
+        for (m, judged) in judged.into_iter().enumerate() {
+            // One record per move the live cluster ran, each with the same
+            // offline figures; one without live figures where it ran none
+            // (and without occlusion shadows).
+            let runs: Vec<Option<(WalkMove, &LiveFigures)>> =
+                if occlusion_shadows && !live.is_empty() {
+                    live.iter()
+                        .map(|(moving, both)| Some((*moving, &both[m])))
+                        .collect()
+                } else {
+                    vec![None]
+                };
+            for run in runs {
+                let mut record = judged.clone();
+                if let (Some((moving, l)), Some(map)) = (run, record.as_object_mut()) {
+                    // The walk moves the observers' heads and this.
+                    map.insert("move".into(), json!(moving.name()));
+                    map.insert("live_frames".into(), json!(options.live_frames));
+                    map.insert("updates".into(), json!(l.updates));
+                    map.insert("update_ms_p50".into(), json!(l.update_ms_p50));
+                    map.insert("update_ms_p99".into(), json!(l.update_ms_p99));
+                    map.insert("frames_stale_max".into(), json!(l.frames_stale_max));
+                    map.insert("swap_skew_ms_p99".into(), json!(l.swap_skew_ms_p99));
+                    map.insert(
+                        "tracking_to_swap_ms_p99".into(),
+                        json!(l.tracking_to_swap_ms_p99),
+                    );
+                    map.insert("dropped_frames".into(), json!(l.dropped_frames));
+                }
+                if let Some(map) = record.as_object_mut() {
+                    map.insert("max_patch_area".into(), json!(solve_options.patch_area()));
+                    map.insert("truth_paths".into(), json!(paths));
+                }
+                records.push(record);
             }
-            if let Some(map) = record.as_object_mut() {
-                map.insert("max_patch_area".into(), json!(solve_options.patch_area()));
-                map.insert("truth_paths".into(), json!(paths));
-            }
-            records.push(record);
         }
     }
     Ok(records)

@@ -846,6 +846,7 @@ fn interactive_stage(scene: &showcase_proto::Showcase, opts: &DemoOptions) -> Re
     let direct = gi::live_figures(
         scene,
         showcase_proto::IlluminationMode::Direct,
+        gi::WalkMove::All,
         opts.frames,
         None,
     )?;
