@@ -187,8 +187,24 @@ fn serve_scene(
         });
         match updated {
             // A change the live solution cannot follow (a real object moved).
-            Ok(None) => return Some(request),
+            Ok(None) => {
+                tracing::info!(
+                    frame = request.state.frame,
+                    "global illumination: the live solution cannot follow this state; solving it afresh"
+                );
+                return Some(request);
+            }
             Ok(Some((done, values))) => {
+                tracing::debug!(
+                    frame = request.state.frame,
+                    ms = begun.elapsed().as_secs_f64() * 1e3,
+                    moved = done.moved,
+                    lights_changed = done.lights_changed,
+                    gathers = done.gathers,
+                    links_made = done.links_made,
+                    links_rechecked = done.links_rechecked,
+                    "global illumination: update"
+                );
                 let mut solution = solved(&request, options, &values, begun);
                 solution.update = Some(done);
                 if !send(Ok(solution)) {
@@ -196,7 +212,13 @@ fn serve_scene(
                 }
             }
             // The live solution is gone: solve this state afresh.
-            Err(_) => return Some(request),
+            Err(e) => {
+                tracing::warn!(
+                    frame = request.state.frame,
+                    "global illumination: the update failed ({e:#}); solving the state afresh"
+                );
+                return Some(request);
+            }
         }
     }
 }

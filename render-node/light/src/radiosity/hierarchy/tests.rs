@@ -283,6 +283,53 @@ fn an_updates_tail_brings_it_nearer_the_converged_answer_than_its_gathers_alone(
     );
 }
 
+#[test]
+fn an_update_follows_a_light_that_dims_or_leaves_in_a_few_gathers() {
+    // Found live: figure 3's carried ceiling light left the box, so the
+    // new direct light was zero and every element's B only decayed by the
+    // box's reflectance a gather; the change relative to B never fell,
+    // and the update ran its 200 gathers (3 s). B is positively
+    // homogeneous in the light, so the old B scaled to the new light's
+    // power starts the gathers next to the answer.
+    let s = crate::radiosity::tests::closed_box(0.8, 0.0);
+    let (m, g) = mesh_of(&s, 0.02, 1);
+    let light = |k: f32| showcase_proto::Light::Point {
+        position: glam::Vec3::new(0.4, 0.5, 0.5),
+        intensity: glam::Vec3::splat(0.5 * k),
+    };
+    let o = HierarchyOptions::default();
+    let emission: Vec<DVec3> = m.elements.iter().map(|e| e.emission).collect();
+    let mut h = Hierarchy::new(&m, &g, None, &o).unwrap();
+    let direct = h.direct_of(&light(1.0));
+    let mut before = h.solve(&emission, &direct).unwrap().radiosity;
+    // Gathered to convergence, so that a tenth of it is the dimmed answer.
+    let init = h.initial(&emission, &direct);
+    for _ in 0..300 {
+        before = h.gather_step(&init, &before);
+    }
+    // Switched off: nothing lights the box, B is zero.
+    let mut off = before.clone();
+    let gathers = h.update(&mut off, &emission, &h.direct_of(&light(0.0)));
+    assert!(
+        gathers <= 2,
+        "{gathers} gathers to follow a light switched off"
+    );
+    assert!(off.iter().all(|b| *b == DVec3::ZERO));
+    // Dimmed to a tenth: a tenth of B.
+    let mut dim = before.clone();
+    let gathers = h.update(&mut dim, &emission, &h.direct_of(&light(0.1)));
+    let tenth: Vec<DVec3> = before.iter().map(|b| *b * 0.1).collect();
+    let e = relative_error(&m, &dim, &m, &tenth, 4).unwrap();
+    assert!(
+        gathers <= 2,
+        "{gathers} gathers to follow a light dimmed to a tenth"
+    );
+    assert!(
+        e < 1e-3,
+        "dimmed to a tenth, B is off a tenth of the old by {e}"
+    );
+}
+
 /// The closed box of the progressive solver's move tests, with a floating
 /// inside corner (object 2: three plates that light each other) at
 /// `shift` instead of its block, lit also by a point light.
