@@ -135,7 +135,20 @@ pub fn bench_record(nodes: usize, hz: f32, frames: u64, r: &LoopbackResult) -> C
 /// in turn) showing the scripted walk on `scene` at `hz` for `frames`; no
 /// restart, no metrics, no frames kept.
 pub fn walk_plan(scene: &Showcase, nodes: usize, hz: f32, frames: u64) -> Result<LoopbackPlan> {
-    let tracker = Tracker::new(&walk_tracking(scene, TrackingSource::Scripted), scene)?;
+    let tracking = walk_tracking(scene, TrackingSource::Scripted);
+    walk_plan_tracking(scene, &tracking, nodes, hz, frames)
+}
+
+/// [`walk_plan`] with the walk's bodies mapped by `tracking` (e.g. some of
+/// [`walk_tracking`]'s left out).
+pub fn walk_plan_tracking(
+    scene: &Showcase,
+    tracking: &TrackingConfig,
+    nodes: usize,
+    hz: f32,
+    frames: u64,
+) -> Result<LoopbackPlan> {
+    let tracker = Tracker::new(tracking, scene)?;
     Ok(LoopbackPlan {
         scene: scene.clone(),
         show: Show::new(Tracking::Scripted(tracker), hz as f64),

@@ -125,19 +125,17 @@ pub fn live_figures(
     frames: u64,
     patch_area: Option<f64>,
 ) -> Result<LiveFigures> {
-    use crate::cluster::commands::{bench_record, output_nodes, walk_plan};
+    use crate::cluster::commands::{bench_record, output_nodes, walk_plan_tracking};
     use crate::cluster::{LoopbackPlan, run_loopback};
     let mut scene = scene.clone();
     scene.illumination = mode;
     let nodes = output_nodes(&scene);
     let count = nodes.len();
-    let tracker = crate::tracking::Tracker::new(&moving.bodies(&scene), &scene)?;
     let plan = LoopbackPlan {
         nodes,
         keep_frames: true,
         illumination_patch_area: patch_area,
-        show: Show::new(Tracking::Scripted(tracker), INTERACTIVE_HZ as f64),
-        ..walk_plan(&scene, 0, INTERACTIVE_HZ, frames)?
+        ..walk_plan_tracking(&scene, &moving.bodies(&scene), 0, INTERACTIVE_HZ, frames)?
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -184,10 +182,9 @@ pub fn bench_gi_scene(scene_path: &Path, options: &GiBenchOptions) -> Result<Vec
     .for_scene(&resolved.showcase);
     let gpu = Backend::open();
     let cpu = Backend::Cpu("the GPU renderer always draws occlusion shadows".into());
-    // The live cluster first, each mode on its own: the offline judging
-    // below would compete with it for the cores.
-    // Per move (the object's where the scene has one to carry), direct and
-    // global mode.
+    // The live cluster first, each move (the object's where the scene has
+    // one to carry) and mode on its own: the offline judging below would
+    // compete with it for the cores.
     let mut live = Vec::new();
     if options.live_frames > 0 {
         let mut moves = vec![WalkMove::Light];
