@@ -947,3 +947,45 @@ async fn global_mode_draws_every_frame_with_the_named_solution() {
         versions.first()
     );
 }
+
+/// A global-mode scene whose first solve fails (nothing in it emits
+/// light): the nodes have joined while it ran, and the master stops with
+/// why, closing them, instead of waiting for a solution that never comes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_failed_first_solve_stops_the_master_with_why_and_closes_the_nodes() {
+    let mut scene =
+        showcase_master::scene_file::load_any(std::path::Path::new("builtin:figure3")).unwrap();
+    scene.illumination = showcase_proto::IlluminationMode::Global;
+    scene.lights.clear();
+    let names: Vec<String> = scene.projectors.iter().map(|p| p.name.clone()).collect();
+    let c = certs::generate(&names).unwrap();
+    let server = Server::bind(settings(
+        &c,
+        &names,
+        "127.0.0.1:0".parse().unwrap(),
+        Some(60),
+    ))
+    .unwrap();
+    let addr = server.local_addr();
+    let master = tokio::spawn(server.run(
+        scene,
+        Show::new(Tracking::None, HZ as f64),
+        CancellationToken::new(),
+    ));
+    let nodes: Vec<Node> = names.iter().map(|n| start_node(&c, n, addr)).collect();
+    let err = timeout(Duration::from_secs(60), master)
+        .await
+        .unwrap()
+        .unwrap()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("the first solution") && err.contains("emits light"),
+        "{err}"
+    );
+    for (h, stop, _) in nodes {
+        stop.cancel();
+        let log = timeout(Duration::from_secs(10), h).await.unwrap().unwrap();
+        assert_eq!(log.presented_count, 0);
+    }
+}

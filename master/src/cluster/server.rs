@@ -305,13 +305,14 @@ impl Server {
         let roster = Arc::new(std::mem::take(&mut settings.roster));
         let mut live = LiveStats::new(&roster, settings.core.target_hz, origin_unix_ms);
         let mut timer = DeadlineTimer::start().map_err(ServerError::Timer)?;
+        // Why the run stopped early (the first global-illumination solve
+        // failed); returned after the connections are closed.
+        let mut failed = None;
         let mut gi = GlobalIllumination::start(
-            &mut core,
-            now(),
+            &core,
             settings.illumination_lag,
             settings.illumination_patch_area,
-        )
-        .await?;
+        )?;
 
         'run: loop {
             while let Some(out) = core.poll() {
@@ -446,6 +447,12 @@ impl Server {
                 },
                 tick_at = ticker.tick() => {
                     if !started {
+                        // Global mode: frames start with the first solution
+                        // named (every node that joined holds it), whatever
+                        // the start timeout; the nodes join meanwhile.
+                        if gi.as_ref().is_some_and(|g| g.first || core.illumination_version().is_none()) {
+                            continue 'run;
+                        }
                         // A node that answered a clock probe (queued after its
                         // snapshot) has the scene; starting earlier would put
                         // frame 0 behind a snapshot still in flight.
@@ -519,11 +526,21 @@ impl Server {
                 } => captures.command(&mut core, now(), command),
                 Some(solved) = async {
                     match gi.as_mut() {
-                        Some(g) => g.results.recv().await,
+                        Some(g) => match g.results.recv().await {
+                            None if g.first => Some(Err("the solver stopped".to_owned())),
+                            r => r,
+                        },
                         None => std::future::pending().await,
                     }
                 } => {
                     if let Some(g) = gi.as_mut() {
+                        if g.first {
+                            if let Err(e) = g.first_landed(&mut core, now(), solved) {
+                                failed = Some(e);
+                                break 'run;
+                            }
+                            continue 'run;
+                        }
                         // Frames flow when one swapped within the last
                         // few periods; else nothing is in flight to wait for.
                         let flowing = last_swap_at.is_some_and(|t| t.elapsed() < Duration::from_millis(100));
@@ -560,7 +577,10 @@ impl Server {
         tasks.abort_all();
         endpoint.close(0u32.into(), b"master shutting down");
         let _ = tokio::time::timeout(Duration::from_secs(1), endpoint.wait_idle()).await;
-        Ok(run)
+        match failed {
+            Some(e) => Err(e),
+            None => Ok(run),
+        }
     }
 }
 
@@ -569,6 +589,9 @@ impl Server {
 struct GlobalIllumination {
     solver: super::illumination::Solver,
     results: mpsc::UnboundedReceiver<Result<super::illumination::Solved, String>>,
+    /// The first solution has not landed yet: the frame clock waits, the
+    /// nodes join meanwhile.
+    first: bool,
     /// The state last asked for.
     asked: Option<FrameState>,
     /// Lockstep ([`ServerSettings::illumination_lag`]): the lag, the frame
@@ -588,11 +611,13 @@ struct GlobalIllumination {
 }
 
 impl GlobalIllumination {
-    /// For a scene in global mode: solve its first state (the frame clock
-    /// waits for this one only), publish it, and start the solver thread.
-    async fn start(
-        core: &mut MasterCore,
-        now: u64,
+    /// For a scene in global mode: start the solver thread on the scene's
+    /// first state. The frame clock waits for that solution
+    /// ([`Self::first_landed`]); the loop keeps taking nodes meanwhile, so
+    /// their handshakes do not wait on the solve (they timed out behind
+    /// the demo cabinet's 3 s first solve).
+    fn start(
+        core: &MasterCore,
         lag: Option<u64>,
         patch_area: Option<f64>,
     ) -> Result<Option<Self>, ServerError> {
@@ -610,25 +635,13 @@ impl GlobalIllumination {
         // The solver thread solves the first state itself, so that the
         // live solution it keeps starts there.
         let first = Request::of(&scene, &state).with_maps(core.maps());
-        let (solver, mut results) = Solver::start(options, Some(first)).map_err(|e| {
+        let (solver, results) = Solver::start(options, Some(first)).map_err(|e| {
             ServerError::Illumination(format!("cannot start the solver thread: {e}"))
         })?;
-        let first = results
-            .recv()
-            .await
-            .ok_or_else(|| {
-                ServerError::Illumination("the first solution: the solver stopped".into())
-            })?
-            .map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?;
-        info!(
-            elements = first.values.len(),
-            solve_s = first.solve_s,
-            "global illumination: first solution"
-        );
-        core.set_illumination(now, first.mesh, first.values)?;
         Ok(Some(Self {
             solver,
             results,
+            first: true,
             asked: None,
             lag,
             outstanding: None,
@@ -637,6 +650,27 @@ impl GlobalIllumination {
             waiting: None,
             published: None,
         }))
+    }
+
+    /// The first solution landed: publish it to the nodes that joined (and
+    /// with the snapshot of those that join later). A failed first solve
+    /// stops the run: there is nothing to draw global mode with.
+    fn first_landed(
+        &mut self,
+        core: &mut MasterCore,
+        now: u64,
+        solved: Result<super::illumination::Solved, String>,
+    ) -> Result<(), ServerError> {
+        let first =
+            solved.map_err(|e| ServerError::Illumination(format!("the first solution: {e}")))?;
+        info!(
+            elements = first.values.len(),
+            solve_s = first.solve_s,
+            "global illumination: first solution"
+        );
+        core.set_illumination(now, first.mesh, first.values)?;
+        self.first = false;
+        Ok(())
     }
 
     /// Lockstep only: before frame `frame` is built, publish the solve due
