@@ -450,7 +450,7 @@ impl Server {
                         // Global mode: frames start with the first solution
                         // named (every node that joined holds it), whatever
                         // the start timeout; the nodes join meanwhile.
-                        if gi.as_ref().is_some_and(|g| g.first || core.illumination_version().is_none()) {
+                        if gi.is_some() && core.illumination_version().is_none() {
                             continue 'run;
                         }
                         // A node that answered a clock probe (queued after its

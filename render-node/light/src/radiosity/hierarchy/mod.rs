@@ -512,24 +512,21 @@ impl<'a> Hierarchy<'a> {
         // by the reflectance one gather at a time, its change relative to
         // B never falling (a light that left figure 3's box took the 200
         // gathers, 3 s).
-        let mut reflected = Some(self.reflect(b));
-        if let Some(r) = &reflected {
-            let was: Vec<DVec3> = b.iter().zip(r).map(|(b, r)| *b - *r).collect();
-            let (old, new) = (self.power(&was), self.power(&init));
-            let scale = new / old;
-            if old > 0.0 && scale.is_finite() && scale != 1.0 {
-                for v in b.iter_mut() {
-                    *v *= scale;
-                }
-                reflected = Some(r.iter().map(|v| *v * scale).collect());
+        let mut reflected = self.reflect(b);
+        let was: Vec<DVec3> = b.iter().zip(&reflected).map(|(b, r)| *b - *r).collect();
+        // No old power (0 / 0, x / 0): keep b.
+        let scale = self.power(&init) / self.power(&was);
+        if scale.is_finite() && scale != 1.0 {
+            for v in b.iter_mut().chain(reflected.iter_mut()) {
+                *v *= scale;
             }
         }
+        // The first gather's bounce is that one, scaled.
+        let mut first = Some(reflected);
         let (mut it, mut last, mut last_ratio) = (0, None::<f64>, None::<f64>);
         while it < self.options.max_iterations {
-            let next = match reflected.take() {
-                Some(r) => init.iter().zip(&r).map(|(i, r)| *i + *r).collect(),
-                None => self.gather_step(&init, b),
-            };
+            let bounce = first.take().unwrap_or_else(|| self.reflect(b));
+            let next = sum(&init, &bounce);
             let residual = relative_change(&self.mesh, &self.tree.order, b, &next);
             let previous = std::mem::replace(b, next);
             it += 1;
@@ -594,8 +591,7 @@ impl<'a> Hierarchy<'a> {
 
     /// `init + rho K b`: one gather of exitance `b` over the links.
     pub fn gather_step(&self, init: &[DVec3], b: &[DVec3]) -> Vec<DVec3> {
-        let reflected = self.reflect(b);
-        init.iter().zip(&reflected).map(|(i, r)| *i + *r).collect()
+        sum(init, &self.reflect(b))
     }
 
     /// `rho K b` per element: the exitance that one bounce of `b` along
@@ -707,6 +703,11 @@ impl<'a> Hierarchy<'a> {
         }
         g
     }
+}
+
+/// `a + b` per element.
+fn sum(a: &[DVec3], b: &[DVec3]) -> Vec<DVec3> {
+    a.iter().zip(b).map(|(a, b)| *a + *b).collect()
 }
 
 /// `sum |next - b| A / sum next A` over the active elements (max channel).
