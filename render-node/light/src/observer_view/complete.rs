@@ -28,6 +28,7 @@
 //! by it: each is still an unbiased estimate of its own world.
 
 use super::{ObserverViewError, ProjectedLight, SUBSAMPLES, check_size};
+use crate::finite::finite_or_zero;
 use crate::metrics::{relative_rmse, rmse_and_reference_mean};
 use crate::render::{FrameScene, RenderSetupError};
 use crate::sampling::pixel_seed;
@@ -263,9 +264,13 @@ fn trace_image(
                 };
                 let key = key(i, k as u32);
                 let cached = cache.lookup(s);
+                // The delta lights' part is exact: once for both halves.
+                let exact = world.exact_irradiance(s, lights);
                 for (half, sum) in halves.iter_mut().enumerate() {
                     let stream = pixel_seed(key, 2 + half as u64);
-                    let e_direct = world.direct_irradiance(s, lights, DIRECT_SAMPLES, stream);
+                    let e_direct = finite_or_zero(
+                        exact + world.sampled_irradiance(s, lights, DIRECT_SAMPLES, stream),
+                    );
                     let e_indirect = cached.map_or_else(
                         || {
                             world

@@ -25,7 +25,7 @@ use showcase_proto::{Light, LightSource};
 /// A point light (its intensity in W/sr per channel, on the axis for a
 /// spot), restricted to a cone for a spot.
 #[derive(Clone, Debug)]
-struct DeltaLight {
+pub(super) struct DeltaLight {
     light: IntensityLight,
     /// `(unit axis, cos_inner, cos_outer)` of a spot.
     cone: Option<(DVec3, f64, f64)>,
@@ -184,6 +184,15 @@ impl<'a> SimLights<'a> {
         finite_or_zero(e)
     }
 
+    /// The projectors and the point and spot lights, as a mirror sees them
+    /// ([`super::mirrors`]).
+    pub(super) fn delta_sources(&self) -> impl Iterator<Item = DeltaSource<'_>> {
+        self.projectors
+            .iter()
+            .map(|p| DeltaSource::Projector(p))
+            .chain(self.deltas.iter().map(DeltaSource::Lamp))
+    }
+
     /// One next-event estimate of the irradiance from every area light at
     /// a surface point: one point on each light, picked by `u` (a point of
     /// the unit square, uniform over the light's area).
@@ -214,5 +223,47 @@ impl<'a> SimLights<'a> {
             e += a.radiance * (cos_x * cos_y / dist2 * a.area);
         }
         finite_or_zero(e)
+    }
+}
+
+/// A projector, point or spot light ([`SimLights::delta_sources`]).
+pub(super) enum DeltaSource<'b> {
+    Projector(&'b ProjectorLight),
+    Lamp(&'b DeltaLight),
+}
+
+impl DeltaSource<'_> {
+    /// Where the light leaves from.
+    pub(super) fn position(&self) -> DVec3 {
+        match self {
+            Self::Projector(p) => p.position(),
+            Self::Lamp(d) => d.light.position,
+        }
+    }
+
+    /// Radiant intensity (W/sr) the source sends to surface point `q`
+    /// (unit normal `normal`, on the source's side), with true visibility:
+    /// zero outside a spot's cone or a projector's image, or when the
+    /// segment is blocked.
+    pub(super) fn intensity_toward(
+        &self,
+        geometry: &SceneGeometry,
+        q: DVec3,
+        normal: DVec3,
+    ) -> DVec3 {
+        match self {
+            Self::Projector(p) => p.intensity_toward(geometry, q, normal),
+            Self::Lamp(d) => {
+                let falloff = d.cone.map_or(1.0, |(axis, ci, co)| {
+                    let from = (q - d.light.position).normalize_or_zero();
+                    spot_falloff(axis.dot(from), ci, co)
+                });
+                if falloff > 0.0 && geometry.visible(q, normal, d.light.position, false) {
+                    finite_or_zero(falloff * d.light.color)
+                } else {
+                    DVec3::ZERO
+                }
+            }
+        }
     }
 }

@@ -10,6 +10,7 @@
 pub mod devices;
 pub mod irradiance_cache;
 pub mod lights;
+mod mirrors;
 pub mod quantiser;
 pub mod world;
 

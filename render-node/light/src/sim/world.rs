@@ -26,10 +26,12 @@
 //!
 //! A reflective material ([`Material::reflective`]) is an ideal mirror
 //! tinted by its albedo, about its geometric normal (the mesh as it is):
-//! camera rays and paths follow it. Light that reaches a diffuse surface
-//! only by way of a mirror from a point, spot or projector light (a
-//! caustic of a delta light) cannot be found by this estimator and is left
-//! out; every other mirror path is counted.
+//! camera rays and paths follow it. Light from a point, spot or projector
+//! light that reaches a diffuse surface by way of one mirror (a caustic of
+//! a delta light, which no continuation ray can find) is added exactly at
+//! every next-event estimate, facet by facet ([`super::mirrors`]); by way
+//! of two or more mirrors it is left out. Every other mirror path is
+//! counted.
 //!
 //! Every path has its own random stream, seeded from `(seed, pixel index,
 //! path index)`, so a render is reproducible for a seed whatever the
@@ -43,6 +45,7 @@ use rand::Rng;
 use rayon::prelude::*;
 use showcase_proto::{Material, Showcase};
 
+use super::mirrors::{Facet, MirrorFacets};
 use super::{SimError, SimLights};
 use crate::geometry::face_forward;
 use crate::sampling::{SplitMix64, cosine_direction, pixel_seed, stratified_point};
@@ -52,13 +55,16 @@ use crate::sampling::{SplitMix64, cosine_direction, pixel_seed, stratified_point
 const MAX_DEPTH: u32 = 64;
 /// Bounces before Russian roulette may end a path.
 const ROULETTE_AFTER: u32 = 3;
+/// The probability that a continuation path's vertex adds the delta
+/// lights' light by way of a mirror ([`SimWorld::mirrored_on_path`]).
+const MIRRORED_ON_PATHS: f64 = 1.0 / 32.0;
 /// How far in front of the point (in [`SceneGeometry::epsilon`]) the ray
 /// of [`SimWorld::exitance_at`] that finds its surface starts.
 const EXITANCE_LIFT: f64 = 16.0;
 
 /// What the estimator cannot find, in words for reports (see the module
 /// docs).
-pub const LEFT_OUT: &str = "light that reaches a diffuse surface only by way of a mirror from a point, spot or projector light (a caustic of a delta light)";
+pub const LEFT_OUT: &str = "light from a point, spot or projector light that reaches a diffuse surface only by way of two or more mirrors (a caustic of a delta light through a chain of mirrors)";
 
 /// One emitting triangle (`Ke` radiance, front side only).
 #[derive(Clone, Debug)]
@@ -100,6 +106,25 @@ impl ProjectorLight {
             light,
             intensity,
         })
+    }
+
+    /// The centre the light leaves from.
+    pub fn position(&self) -> DVec3 {
+        self.light.position
+    }
+
+    /// Radiant intensity (W/sr) this light sends to surface point `q`
+    /// (unit normal `normal`, on the projector's side), with true
+    /// visibility: the pixel's value inside the image, zero outside it or
+    /// when the segment is blocked.
+    pub fn intensity_toward(&self, geometry: &SceneGeometry, q: DVec3, normal: DVec3) -> DVec3 {
+        if !self.rays.sees(geometry, q, normal) {
+            return DVec3::ZERO;
+        }
+        self.rays
+            .pixel_of(q)
+            .and_then(|(x, y)| self.intensity.get(x, y))
+            .map_or(DVec3::ZERO, |i| finite_or_zero(i.as_dvec3()))
     }
 
     /// True when every pixel emits nothing.
@@ -179,6 +204,8 @@ pub struct SimWorld {
     materials: Vec<Material>,
     /// Per object: an ideal mirror ([`Material::reflective`]).
     mirrors: Vec<bool>,
+    /// The mirrors' facets, for the delta lights' caustics.
+    mirror_facets: MirrorFacets,
     emitters: Vec<Emitter>,
     /// Cumulative selection weights of `emitters`, ending at 1.
     emitter_cdf: Vec<f64>,
@@ -194,7 +221,14 @@ impl SimWorld {
     pub fn new(scene: &Showcase, filter: &ObjectFilter, emitters: bool) -> Result<Self, SimError> {
         let geometry = SceneGeometry::build(scene, filter)?;
         let materials: Vec<Material> = scene.objects.iter().map(|o| o.material.clone()).collect();
-        let mirrors = materials.iter().map(|m| m.reflective).collect();
+        let mirrors: Vec<bool> = materials.iter().map(|m| m.reflective).collect();
+        let mirror_facets = MirrorFacets::new(
+            geometry
+                .triangles()
+                .filter(|t| mirrors.get(t.object as usize).copied().unwrap_or(false))
+                .filter_map(|t| Facet::new(&t))
+                .collect(),
+        );
         let mut list = Vec::new();
         if emitters {
             for t in geometry.triangles() {
@@ -232,6 +266,7 @@ impl SimWorld {
             geometry,
             materials,
             mirrors,
+            mirror_facets,
             emitters: list,
             emitter_cdf,
             emitters_on: emitters,
@@ -396,7 +431,8 @@ impl SimWorld {
     /// The direct irradiance (W/m^2) at `surface`: the delta lights
     /// exactly, the area lights and emitters by `samples` next-event
     /// estimates (at least 1, stratified over the area lights), on the
-    /// streams of `seed` ([`Self::trace`]'s).
+    /// streams of `seed` ([`Self::trace`]'s). The sum of
+    /// [`Self::exact_irradiance`] and [`Self::sampled_irradiance`].
     pub fn direct_irradiance(
         &self,
         surface: &SurfacePoint,
@@ -404,25 +440,45 @@ impl SimWorld {
         samples: u32,
         seed: u64,
     ) -> DVec3 {
-        let seen = surface.seen();
-        let mut e = self.delta_irradiance(&seen, lights);
-        if lights.has_areas() || !self.emitters.is_empty() {
-            let samples = samples.max(1);
-            let mut sum = DVec3::ZERO;
-            for s in 0..samples {
-                let start = PathStart::new(s, samples, seed);
-                sum += self.sample_emitters(surface.point, &seen.frame, start.emitter);
-                sum += lights.sample_areas(
-                    &self.geometry,
-                    surface.point,
-                    surface.facing,
-                    surface.shading,
-                    start.area,
-                );
-            }
-            e += sum / f64::from(samples);
+        let exact = self.exact_irradiance(surface, lights);
+        finite_or_zero(exact + self.sampled_irradiance(surface, lights, samples, seed))
+    }
+
+    /// The part of [`Self::direct_irradiance`] that is exact, the same for
+    /// every seed: the projectors and the point and spot lights, straight
+    /// and by way of one mirror.
+    pub fn exact_irradiance(&self, surface: &SurfacePoint, lights: &SimLights<'_>) -> DVec3 {
+        self.delta_irradiance(&surface.seen(), lights)
+    }
+
+    /// The part of [`Self::direct_irradiance`] that is estimated: the area
+    /// lights and emitters by `samples` next-event estimates on the
+    /// streams of `seed` (zero without any).
+    pub fn sampled_irradiance(
+        &self,
+        surface: &SurfacePoint,
+        lights: &SimLights<'_>,
+        samples: u32,
+        seed: u64,
+    ) -> DVec3 {
+        if !lights.has_areas() && self.emitters.is_empty() {
+            return DVec3::ZERO;
         }
-        finite_or_zero(e)
+        let frame = surface.seen().frame;
+        let samples = samples.max(1);
+        let mut sum = DVec3::ZERO;
+        for s in 0..samples {
+            let start = PathStart::new(s, samples, seed);
+            sum += self.sample_emitters(surface.point, &frame, start.emitter);
+            sum += lights.sample_areas(
+                &self.geometry,
+                surface.point,
+                surface.facing,
+                surface.shading,
+                start.area,
+            );
+        }
+        sum / f64::from(samples)
     }
 
     /// The indirect irradiance (W/m^2) at `surface`, everything but its
@@ -565,12 +621,86 @@ impl SimWorld {
 
     /// The delta lights' irradiance (W/m^2) at a seen point.
     fn delta_irradiance(&self, seen: &Seen, lights: &SimLights<'_>) -> DVec3 {
-        lights.delta_irradiance(
-            &self.geometry,
-            seen.point,
-            seen.frame.facing,
-            seen.frame.shading,
-        )
+        self.delta_irradiance_at(seen.point, &seen.frame, lights)
+    }
+
+    /// The delta lights' irradiance (W/m^2) at a surface point: straight
+    /// ([`SimLights::delta_irradiance`]) and by way of one mirror.
+    fn delta_irradiance_at(
+        &self,
+        point: DVec3,
+        frame: &SurfaceFrame,
+        lights: &SimLights<'_>,
+    ) -> DVec3 {
+        let straight = lights.delta_irradiance(&self.geometry, point, frame.facing, frame.shading);
+        straight + self.mirrored_irradiance(point, frame, lights)
+    }
+
+    /// [`Self::mirrored_irradiance`] at a vertex of a continuation path:
+    /// found with probability [`MIRRORED_ON_PATHS`] and weighted by its
+    /// inverse, so the estimate stays unbiased while most vertices skip
+    /// the facets (there it is light after a mirror and at least one
+    /// diffuse bounce, a small part of the whole, and most of the cost).
+    /// The choice hashes the vertex's position: it draws nothing from the
+    /// path's stream, and two worlds whose surfaces agree choose alike
+    /// (common random numbers).
+    fn mirrored_on_path(
+        &self,
+        point: DVec3,
+        frame: &SurfaceFrame,
+        lights: &SimLights<'_>,
+    ) -> DVec3 {
+        if self.mirror_facets.is_empty() {
+            return DVec3::ZERO;
+        }
+        let key = point.x.to_bits()
+            ^ point.y.to_bits().rotate_left(21)
+            ^ point.z.to_bits().rotate_left(42);
+        if SplitMix64::new(key).random::<f64>() >= MIRRORED_ON_PATHS {
+            return DVec3::ZERO;
+        }
+        self.mirrored_irradiance(point, frame, lights) / MIRRORED_ON_PATHS
+    }
+
+    /// The delta lights' irradiance (W/m^2) at a surface point by way of
+    /// one mirror facet, exactly, with true visibility on both legs
+    /// ([`super::mirrors`]).
+    fn mirrored_irradiance(
+        &self,
+        point: DVec3,
+        frame: &SurfaceFrame,
+        lights: &SimLights<'_>,
+    ) -> DVec3 {
+        if self.mirror_facets.is_empty() {
+            return DVec3::ZERO;
+        }
+        let mut e = DVec3::ZERO;
+        for source in lights.delta_sources() {
+            let from = source.position();
+            self.mirror_facets.for_each_candidate(point, from, |facet| {
+                let Some(r) = facet.reflection(point, from) else {
+                    return;
+                };
+                let l = (r.point - point).normalize_or_zero();
+                let cos = frame.shading.dot(l);
+                if !(cos > 0.0 && frame.facing.dot(l) > 0.0) {
+                    return;
+                }
+                // The first leg: the facet is the first surface the ray
+                // from the point meets.
+                let origin = self.geometry.offset_point(point, frame.facing, r.point);
+                let ray = Ray::new(origin, (r.point - origin).normalize_or_zero());
+                let Some(hit) = self.geometry.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                    return;
+                };
+                if hit.object != facet.object || hit.triangle != facet.triangle {
+                    return;
+                }
+                let i = source.intensity_toward(&self.geometry, r.point, r.facing);
+                e += self.albedo(&hit) * i * (cos / r.distance2);
+            });
+        }
+        finite_or_zero(e)
     }
 
     /// `spp` paths from a seen point (none when its albedo is zero): each
@@ -663,6 +793,7 @@ impl SimWorld {
             if !off_mirror {
                 let mut e = self.sample_emitters(hit.point, &next, rng.random());
                 e += lights.delta_irradiance(&self.geometry, hit.point, next.facing, next.shading);
+                e += self.mirrored_on_path(hit.point, &next, lights);
                 let u = (rng.random(), rng.random());
                 if lights.has_areas() {
                     e += lights.sample_areas(

@@ -403,3 +403,224 @@ fn a_mirror_shows_what_it_faces_tinted_by_its_albedo() {
     );
     assert!(straight.max_element() > 0.0);
 }
+
+/// A lit floor (albedo 0.5) and a mirror wall at `x = 1` facing `-x`,
+/// `half_width` either side of `z = 0` and 2 m high.
+fn floor_and_mirror_wall(half_width: f32) -> Showcase {
+    let mut s = floor_only(Vec3::splat(0.5));
+    let mut mirror = Material::diffuse(Vec3::new(0.9, 0.8, 0.7));
+    mirror.reflective = true;
+    let w = half_width;
+    let wall = [
+        Vec3::new(1.0, 0.0, -w),
+        Vec3::new(1.0, 2.0, -w),
+        Vec3::new(1.0, 2.0, w),
+        Vec3::new(1.0, 0.0, w),
+    ];
+    add_quads(&mut s, "mirror", &[wall], mirror);
+    s
+}
+
+/// A diffuse floor point facing up.
+fn on_floor(world: &SimWorld, x: f64, z: f64) -> SurfacePoint {
+    let ray = Ray::new(DVec3::new(x, 0.5, z), -DVec3::Y);
+    let end = world.surface_along(&ray, &SimLights::none());
+    let s = end.surface.expect("the ray meets the floor");
+    assert!((s.point - DVec3::new(x, 0.0, z)).length() < 1e-9, "{s:?}");
+    s
+}
+
+#[test]
+fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
+    use showcase_proto::Light;
+    let world = SimWorld::new(&floor_and_mirror_wall(0.5), &ObjectFilter::All, false).unwrap();
+    let at = DVec3::new(0.0, 1.0, 0.0);
+    let intensity = DVec3::new(2.0, 1.0, 0.5);
+    let tint = Vec3::new(0.9, 0.8, 0.7).as_dvec3();
+    let lamp = [light(
+        "lamp",
+        Light::Point {
+            position: at.as_vec3(),
+            intensity: intensity.as_vec3(),
+        },
+    )];
+    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    // `I cos / r^2` from the lamp and from its image in the mirror's
+    // plane, `(2, 1, 0)`, tinted.
+    let closed_form = |p: DVec3, from: DVec3| {
+        let d = from - p;
+        intensity * (d.y / d.length()) / d.length_squared()
+    };
+    let image = DVec3::new(2.0, 1.0, 0.0);
+    let p = on_floor(&world, 0.3, 0.2);
+    let want = closed_form(p.point, at) + tint * closed_form(p.point, image);
+    let got = world.direct_irradiance(&p, &lights, 1, 7);
+    assert!(
+        (got - want).abs().max_element() < 1e-12 * want.max_element(),
+        "{got} against {want}"
+    );
+    // Where the line to the image passes beside the mirror (it crosses
+    // `x = 1` at `z = 0.9`), only the lamp lights the point.
+    let beside = on_floor(&world, 0.3, 1.9);
+    let got = world.direct_irradiance(&beside, &lights, 1, 7);
+    let want = closed_form(beside.point, at);
+    assert!(
+        (got - want).abs().max_element() < 1e-12 * want.max_element(),
+        "{got} against {want}"
+    );
+
+    // A spot aimed at the mirror's reflection point lights the floor point
+    // only by way of the mirror, as its image would.
+    let bounce = p.point + (image - p.point) * (0.7 / 1.7);
+    let spot = [light(
+        "spot",
+        Light::Spot {
+            position: at.as_vec3(),
+            direction: (bounce - at).as_vec3(),
+            intensity: intensity.as_vec3(),
+            inner_deg: 5.0,
+            outer_deg: 8.0,
+        },
+    )];
+    let lights = SimLights::virtual_lights(&spot, Vec3::ZERO).unwrap();
+    let got = world.direct_irradiance(&p, &lights, 1, 7);
+    let want = tint * closed_form(p.point, image);
+    assert!(
+        (got - want).abs().max_element() < 1e-9 * want.max_element(),
+        "{got} against {want}"
+    );
+}
+
+#[test]
+fn something_on_either_leg_stops_the_mirrored_light() {
+    use showcase_proto::Light;
+    let at = DVec3::new(0.0, 1.0, 0.0);
+    let lamp = [light(
+        "lamp",
+        Light::Point {
+            position: at.as_vec3(),
+            intensity: Vec3::ONE,
+        },
+    )];
+    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let p = DVec3::new(0.3, 0.0, 0.2);
+    let image = DVec3::new(2.0, 1.0, 0.0);
+    let bounce = p + (image - p) * (0.7 / 1.7);
+    let straight = {
+        let d = at - p;
+        (d.y / d.length()) / d.length_squared()
+    };
+    // A small card across the middle of each leg in turn; neither lies on
+    // the lamp's straight path to the point.
+    for (leg, middle) in [
+        ("floor to mirror", 0.5 * (p + bounce)),
+        ("mirror to lamp", 0.5 * (bounce + at)),
+    ] {
+        let mut s = floor_and_mirror_wall(0.5);
+        let c = middle.as_vec3();
+        let card = [
+            c + Vec3::new(-0.03, 0.0, -0.03),
+            c + Vec3::new(-0.03, 0.0, 0.03),
+            c + Vec3::new(0.03, 0.0, 0.03),
+            c + Vec3::new(0.03, 0.0, -0.03),
+        ];
+        add_quads(&mut s, "card", &[card], Material::diffuse(Vec3::splat(0.5)));
+        let world = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
+        let got = world.direct_irradiance(&on_floor(&world, p.x, p.z), &lights, 1, 7);
+        assert!(
+            (got - DVec3::splat(straight)).abs().max_element() < 1e-12 * straight,
+            "a card on the {leg} leg: {got} against the lamp's {straight} alone"
+        );
+    }
+}
+
+#[test]
+fn path_vertices_add_the_mirrored_light_without_bias() {
+    use showcase_proto::Light;
+    let world = SimWorld::new(&floor_and_mirror_wall(0.5), &ObjectFilter::All, false).unwrap();
+    let lamp = [light(
+        "lamp",
+        Light::Point {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            intensity: Vec3::ONE,
+        },
+    )];
+    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let frame = SurfaceFrame {
+        facing: DVec3::Y,
+        shading: DVec3::Y,
+    };
+    // Floor points in and around the mirror's patch of light: the mean of
+    // the path vertices' roulette against the exact mean.
+    let mut rng = SplitMix64::new(5);
+    let n = 40_000;
+    let (mut exact, mut rouletted, mut square) = (0.0, 0.0, 0.0);
+    for _ in 0..n {
+        let p = DVec3::new(
+            rng.random_range(-0.5..0.9),
+            0.0,
+            rng.random_range(-0.6..0.6),
+        );
+        exact += world.mirrored_irradiance(p, &frame, &lights).x;
+        let r = world.mirrored_on_path(p, &frame, &lights).x;
+        rouletted += r;
+        square += r * r;
+    }
+    let n = f64::from(n);
+    let (exact, mean) = (exact / n, rouletted / n);
+    let std_error = ((square / n - mean * mean) / n).sqrt();
+    assert!(
+        exact > 0.0 && std_error < 0.05 * exact,
+        "{exact} +- {std_error}"
+    );
+    assert!(
+        (mean - exact).abs() < 4.0 * std_error,
+        "rouletted {mean} +- {std_error} against exact {exact}"
+    );
+}
+
+#[test]
+fn light_a_mirror_throws_on_the_floor_lights_the_ceiling() {
+    use showcase_proto::Light;
+    // The floor and mirror wall under a ceiling at y = 1.5 facing down.
+    let mut s = floor_and_mirror_wall(0.5);
+    let ceiling = [
+        Vec3::new(-2.0, 1.5, -2.0),
+        Vec3::new(0.9, 1.5, -2.0),
+        Vec3::new(0.9, 1.5, 2.0),
+        Vec3::new(-2.0, 1.5, 2.0),
+    ];
+    add_quads(
+        &mut s,
+        "ceiling",
+        &[ceiling],
+        Material::diffuse(Vec3::splat(0.5)),
+    );
+    let world = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
+    // A narrow spot aimed at the mirror, 0.41 m up, lights the floor only
+    // by way of it, around (0.3, 0, 0.2).
+    let at = DVec3::new(0.0, 1.0, 0.0);
+    let bounce = DVec3::new(0.3, 0.0, 0.2) + DVec3::new(1.7, 1.0, -0.2) * (0.7 / 1.7);
+    let spot = [light(
+        "spot",
+        Light::Spot {
+            position: at.as_vec3(),
+            direction: (bounce - at).as_vec3(),
+            intensity: Vec3::ONE,
+            inner_deg: 3.0,
+            outer_deg: 5.0,
+        },
+    )];
+    let lights = SimLights::virtual_lights(&spot, Vec3::ZERO).unwrap();
+    // The ceiling above the lamp gets nothing directly, straight or by way
+    // of the mirror; it sees the lit floor, whose light only the paths'
+    // vertices find.
+    let ray = Ray::new(DVec3::new(-0.5, 1.0, 0.0), DVec3::Y);
+    let q = world
+        .surface_along(&ray, &SimLights::none())
+        .surface
+        .expect("the ray meets the ceiling");
+    assert_eq!(world.direct_irradiance(&q, &lights, 1, 3), DVec3::ZERO);
+    let (indirect, _) = world.indirect_irradiance(&q, &lights, 65_536, 3);
+    assert!(indirect.x > 0.0, "{indirect}");
+}
