@@ -619,19 +619,10 @@ impl SimWorld {
         })
     }
 
-    /// The delta lights' irradiance (W/m^2) at a seen point.
-    fn delta_irradiance(&self, seen: &Seen, lights: &SimLights<'_>) -> DVec3 {
-        self.delta_irradiance_at(seen.point, &seen.frame, lights)
-    }
-
-    /// The delta lights' irradiance (W/m^2) at a surface point: straight
+    /// The delta lights' irradiance (W/m^2) at a seen point: straight
     /// ([`SimLights::delta_irradiance`]) and by way of one mirror.
-    fn delta_irradiance_at(
-        &self,
-        point: DVec3,
-        frame: &SurfaceFrame,
-        lights: &SimLights<'_>,
-    ) -> DVec3 {
+    fn delta_irradiance(&self, seen: &Seen, lights: &SimLights<'_>) -> DVec3 {
+        let (point, frame) = (seen.point, &seen.frame);
         let straight = lights.delta_irradiance(&self.geometry, point, frame.facing, frame.shading);
         straight + self.mirrored_irradiance(point, frame, lights)
     }
@@ -639,8 +630,9 @@ impl SimWorld {
     /// [`Self::mirrored_irradiance`] at a vertex of a continuation path:
     /// found with probability [`MIRRORED_ON_PATHS`] and weighted by its
     /// inverse, so the estimate stays unbiased while most vertices skip
-    /// the facets (there it is light after a mirror and at least one
-    /// diffuse bounce, a small part of the whole, and most of the cost).
+    /// the facets. There it is light after a mirror and at least one
+    /// diffuse bounce: on the demo scene, found at every vertex, it took
+    /// `bench gi` from 34 to 89 s and moved no figure in its third digit.
     /// The choice hashes the vertex's position: it draws nothing from the
     /// path's stream, and two worlds whose surfaces agree choose alike
     /// (common random numbers).
