@@ -29,7 +29,7 @@
 //! camera rays and paths follow it. Light from a point, spot or projector
 //! light that reaches a diffuse surface by way of one mirror (a caustic of
 //! a delta light, which no continuation ray can find) is added exactly at
-//! every next-event estimate, facet by facet ([`super::mirrors`]); by way
+//! every next-event estimate, facet by facet (`sim/mirrors.rs`); by way
 //! of two or more mirrors it is left out. Every other mirror path is
 //! counted.
 //!
