@@ -264,7 +264,8 @@ fn trace_image(
                 };
                 let key = key(i, k as u32);
                 let cached = cache.lookup(s);
-                // The delta lights' part is exact: once for both halves.
+                // Direct light: the delta lights' part is exact, so once
+                // for both halves; the sampled part per half.
                 let exact = world.exact_irradiance(s, lights);
                 for (half, sum) in halves.iter_mut().enumerate() {
                     let stream = pixel_seed(key, 2 + half as u64);

@@ -31,6 +31,17 @@ pub(super) struct DeltaLight {
     cone: Option<(DVec3, f64, f64)>,
 }
 
+impl DeltaLight {
+    /// The share of the intensity sent toward point `q`: 1 for a point
+    /// light, a spot's cone falloff ([`spot_falloff`]) for a spot.
+    fn falloff_toward(&self, q: DVec3) -> f64 {
+        self.cone.map_or(1.0, |(axis, ci, co)| {
+            let from = (q - self.light.position).normalize_or_zero();
+            spot_falloff(axis.dot(from), ci, co)
+        })
+    }
+}
+
 /// A one-sided emitting parallelogram `corner + s edge_u + t edge_v`.
 #[derive(Clone, Debug)]
 struct AreaLight {
@@ -173,10 +184,7 @@ impl<'a> SimLights<'a> {
         }
         for d in &self.deltas {
             // A spot's cone first: outside it no shadow ray is cast.
-            let falloff = d.cone.map_or(1.0, |(axis, ci, co)| {
-                let from = (point - d.light.position).normalize_or_zero();
-                spot_falloff(axis.dot(from), ci, co)
-            });
+            let falloff = d.falloff_toward(point);
             if falloff > 0.0 {
                 e += falloff * d.light.intensity_at(geometry, point, facing, shading);
             }
@@ -254,10 +262,7 @@ impl DeltaSource<'_> {
         match self {
             Self::Projector(p) => p.intensity_toward(geometry, q, normal),
             Self::Lamp(d) => {
-                let falloff = d.cone.map_or(1.0, |(axis, ci, co)| {
-                    let from = (q - d.light.position).normalize_or_zero();
-                    spot_falloff(axis.dot(from), ci, co)
-                });
+                let falloff = d.falloff_toward(q);
                 if falloff > 0.0 && geometry.visible(q, normal, d.light.position, false) {
                     finite_or_zero(falloff * d.light.color)
                 } else {

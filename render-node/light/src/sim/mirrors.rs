@@ -19,11 +19,14 @@
 //! whose normals cannot ([`MirrorFacets::for_each_candidate`]): a
 //! conservative test, so the sum is the same as over every facet.
 
-use crate::WorldTriangle;
+use crate::{Aabb, WorldTriangle};
 use glam::DVec3;
 
 /// Facets per leaf of the tree.
 const LEAF: usize = 4;
+/// Deepest tree [`MirrorFacets::for_each_candidate`] walks without
+/// allocating: median splits halve the facets, so 2^40 of them fit.
+const MAX_DEPTH: usize = 40;
 
 /// One planar mirror facet.
 #[derive(Clone, Debug)]
@@ -167,9 +170,12 @@ impl MirrorFacets {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack = vec![0u32];
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
+        // Depth-first, on the stack: this runs at every next-event estimate.
+        let mut stack = [0u32; MAX_DEPTH + 1];
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &self.nodes[stack[len] as usize];
             if !may_reflect(node, x, source) {
                 continue;
             }
@@ -179,8 +185,9 @@ impl MirrorFacets {
                     f(facet);
                 }
             } else {
-                stack.push(node.first);
-                stack.push(node.first + 1);
+                stack[len] = node.first;
+                stack[len + 1] = node.first + 1;
+                len += 2;
             }
         }
     }
@@ -229,12 +236,11 @@ fn may_reflect(node: &Node, x: DVec3, source: DVec3) -> bool {
 
 /// The bounding sphere and normal cone of `facets` (not empty).
 fn bound(facets: &[Facet]) -> Node {
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for v in facets.iter().flat_map(|f| f.vertices) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    let center = 0.5 * (lo + hi);
+    let center = facets
+        .iter()
+        .flat_map(|f| f.vertices)
+        .fold(Aabb::EMPTY, Aabb::grow)
+        .center();
     let radius = facets
         .iter()
         .flat_map(|f| f.vertices)
@@ -266,12 +272,8 @@ fn bound(facets: &[Facet]) -> Node {
 /// median centroid along the centroids' longest extent.
 fn split_at_median(facets: &mut [Facet]) {
     let centroid = |f: &Facet| (f.vertices[0] + f.vertices[1] + f.vertices[2]) / 3.0;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for f in facets.iter() {
-        lo = lo.min(centroid(f));
-        hi = hi.max(centroid(f));
-    }
-    let extent = hi - lo;
+    let bounds = facets.iter().map(centroid).fold(Aabb::EMPTY, Aabb::grow);
+    let extent = bounds.max - bounds.min;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
     } else if extent.y >= extent.z {

@@ -121,10 +121,7 @@ impl ProjectorLight {
         if !self.rays.sees(geometry, q, normal) {
             return DVec3::ZERO;
         }
-        self.rays
-            .pixel_of(q)
-            .and_then(|(x, y)| self.intensity.get(x, y))
-            .map_or(DVec3::ZERO, |i| finite_or_zero(i.as_dvec3()))
+        self.pixel_intensity(q)
     }
 
     /// True when every pixel emits nothing.
@@ -145,11 +142,16 @@ impl ProjectorLight {
         let Some(a) = self.light.attenuation(geometry, point, facing, shading) else {
             return DVec3::ZERO;
         };
-        let Some((x, y)) = self.rays.pixel_of(point) else {
-            return DVec3::ZERO;
-        };
-        let i = self.intensity.get(x, y).copied().unwrap_or(Vec3::ZERO);
-        finite_or_zero(a * i.as_dvec3())
+        finite_or_zero(a * self.pixel_intensity(point))
+    }
+
+    /// The intensity (W/sr) of the pixel whose ray passes through `q`
+    /// (zero outside the image), visibility not checked.
+    fn pixel_intensity(&self, q: DVec3) -> DVec3 {
+        self.rays
+            .pixel_of(q)
+            .and_then(|(x, y)| self.intensity.get(x, y))
+            .map_or(DVec3::ZERO, |i| finite_or_zero(i.as_dvec3()))
     }
 }
 
@@ -428,32 +430,18 @@ impl SimWorld {
         }
     }
 
-    /// The direct irradiance (W/m^2) at `surface`: the delta lights
-    /// exactly, the area lights and emitters by `samples` next-event
-    /// estimates (at least 1, stratified over the area lights), on the
-    /// streams of `seed` ([`Self::trace`]'s). The sum of
-    /// [`Self::exact_irradiance`] and [`Self::sampled_irradiance`].
-    pub fn direct_irradiance(
-        &self,
-        surface: &SurfacePoint,
-        lights: &SimLights<'_>,
-        samples: u32,
-        seed: u64,
-    ) -> DVec3 {
-        let exact = self.exact_irradiance(surface, lights);
-        finite_or_zero(exact + self.sampled_irradiance(surface, lights, samples, seed))
-    }
-
-    /// The part of [`Self::direct_irradiance`] that is exact, the same for
-    /// every seed: the projectors and the point and spot lights, straight
-    /// and by way of one mirror.
+    /// The direct irradiance (W/m^2) at `surface` that is exact, the same
+    /// for every seed: the projectors and the point and spot lights,
+    /// straight and by way of one mirror. With
+    /// [`Self::sampled_irradiance`] it is the whole direct irradiance.
     pub fn exact_irradiance(&self, surface: &SurfacePoint, lights: &SimLights<'_>) -> DVec3 {
         self.delta_irradiance(&surface.seen(), lights)
     }
 
-    /// The part of [`Self::direct_irradiance`] that is estimated: the area
-    /// lights and emitters by `samples` next-event estimates on the
-    /// streams of `seed` (zero without any).
+    /// The direct irradiance (W/m^2) at `surface` that is estimated: the
+    /// area lights and emitters by `samples` next-event estimates (at
+    /// least 1, stratified over the area lights) on the streams of `seed`
+    /// ([`Self::trace`]'s); zero without any.
     pub fn sampled_irradiance(
         &self,
         surface: &SurfacePoint,

@@ -249,6 +249,18 @@ fn light(name: &str, light: showcase_proto::Light) -> showcase_proto::LightSourc
     }
 }
 
+/// The lights of one point lamp at `at` of `intensity` (W/sr).
+fn point_lamp(at: Vec3, intensity: Vec3) -> SimLights<'static> {
+    let lamp = [light(
+        "lamp",
+        showcase_proto::Light::Point {
+            position: at,
+            intensity,
+        },
+    )];
+    SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap()
+}
+
 #[test]
 fn virtual_lights_light_a_floor_as_their_closed_forms_say() {
     use showcase_proto::Light;
@@ -354,27 +366,9 @@ fn virtual_lights_light_a_floor_as_their_closed_forms_say() {
 
 #[test]
 fn a_mirror_shows_what_it_faces_tinted_by_its_albedo() {
-    use showcase_proto::Light;
     // A lit floor, and a mirror wall at x = 1 facing -x.
-    let mut s = floor_only(Vec3::splat(0.5));
-    let mut mirror = Material::diffuse(Vec3::new(0.9, 0.8, 0.7));
-    mirror.reflective = true;
-    let wall = [
-        Vec3::new(1.0, 0.0, -2.0),
-        Vec3::new(1.0, 2.0, -2.0),
-        Vec3::new(1.0, 2.0, 2.0),
-        Vec3::new(1.0, 0.0, 2.0),
-    ];
-    add_quads(&mut s, "mirror", &[wall], mirror);
-    let world = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
-    let lamp = [light(
-        "lamp",
-        Light::Point {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            intensity: Vec3::ONE,
-        },
-    )];
-    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let world = SimWorld::new(&floor_and_mirror_wall(2.0), &ObjectFilter::All, false).unwrap();
+    let lights = point_lamp(Vec3::new(0.0, 1.0, 0.0), Vec3::ONE);
     // A ray at the mirror, and its reflection, which meets the floor.
     let ray = Ray::new(
         DVec3::new(0.0, 0.5, 0.0),
@@ -437,14 +431,7 @@ fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
     let at = DVec3::new(0.0, 1.0, 0.0);
     let intensity = DVec3::new(2.0, 1.0, 0.5);
     let tint = Vec3::new(0.9, 0.8, 0.7).as_dvec3();
-    let lamp = [light(
-        "lamp",
-        Light::Point {
-            position: at.as_vec3(),
-            intensity: intensity.as_vec3(),
-        },
-    )];
-    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let lights = point_lamp(at.as_vec3(), intensity.as_vec3());
     // `I cos / r^2` from the lamp and from its image in the mirror's
     // plane, `(2, 1, 0)`, tinted.
     let closed_form = |p: DVec3, from: DVec3| {
@@ -454,7 +441,7 @@ fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
     let image = DVec3::new(2.0, 1.0, 0.0);
     let p = on_floor(&world, 0.3, 0.2);
     let want = closed_form(p.point, at) + tint * closed_form(p.point, image);
-    let got = world.direct_irradiance(&p, &lights, 1, 7);
+    let got = world.exact_irradiance(&p, &lights);
     assert!(
         (got - want).abs().max_element() < 1e-12 * want.max_element(),
         "{got} against {want}"
@@ -462,7 +449,7 @@ fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
     // Where the line to the image passes beside the mirror (it crosses
     // `x = 1` at `z = 0.9`), only the lamp lights the point.
     let beside = on_floor(&world, 0.3, 1.9);
-    let got = world.direct_irradiance(&beside, &lights, 1, 7);
+    let got = world.exact_irradiance(&beside, &lights);
     let want = closed_form(beside.point, at);
     assert!(
         (got - want).abs().max_element() < 1e-12 * want.max_element(),
@@ -483,7 +470,7 @@ fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
         },
     )];
     let lights = SimLights::virtual_lights(&spot, Vec3::ZERO).unwrap();
-    let got = world.direct_irradiance(&p, &lights, 1, 7);
+    let got = world.exact_irradiance(&p, &lights);
     let want = tint * closed_form(p.point, image);
     assert!(
         (got - want).abs().max_element() < 1e-9 * want.max_element(),
@@ -493,16 +480,8 @@ fn a_mirror_lights_the_floor_with_the_lamps_image_exactly() {
 
 #[test]
 fn something_on_either_leg_stops_the_mirrored_light() {
-    use showcase_proto::Light;
     let at = DVec3::new(0.0, 1.0, 0.0);
-    let lamp = [light(
-        "lamp",
-        Light::Point {
-            position: at.as_vec3(),
-            intensity: Vec3::ONE,
-        },
-    )];
-    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let lights = point_lamp(at.as_vec3(), Vec3::ONE);
     let p = DVec3::new(0.3, 0.0, 0.2);
     let image = DVec3::new(2.0, 1.0, 0.0);
     let bounce = p + (image - p) * (0.7 / 1.7);
@@ -526,7 +505,7 @@ fn something_on_either_leg_stops_the_mirrored_light() {
         ];
         add_quads(&mut s, "card", &[card], Material::diffuse(Vec3::splat(0.5)));
         let world = SimWorld::new(&s, &ObjectFilter::All, false).unwrap();
-        let got = world.direct_irradiance(&on_floor(&world, p.x, p.z), &lights, 1, 7);
+        let got = world.exact_irradiance(&on_floor(&world, p.x, p.z), &lights);
         assert!(
             (got - DVec3::splat(straight)).abs().max_element() < 1e-12 * straight,
             "a card on the {leg} leg: {got} against the lamp's {straight} alone"
@@ -536,16 +515,8 @@ fn something_on_either_leg_stops_the_mirrored_light() {
 
 #[test]
 fn path_vertices_add_the_mirrored_light_without_bias() {
-    use showcase_proto::Light;
     let world = SimWorld::new(&floor_and_mirror_wall(0.5), &ObjectFilter::All, false).unwrap();
-    let lamp = [light(
-        "lamp",
-        Light::Point {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            intensity: Vec3::ONE,
-        },
-    )];
-    let lights = SimLights::virtual_lights(&lamp, Vec3::ZERO).unwrap();
+    let lights = point_lamp(Vec3::new(0.0, 1.0, 0.0), Vec3::ONE);
     let frame = SurfaceFrame {
         facing: DVec3::Y,
         shading: DVec3::Y,
@@ -616,7 +587,7 @@ fn light_a_mirror_throws_on_the_floor_lights_the_ceiling() {
         .surface_along(&ray, &SimLights::none())
         .surface
         .expect("the ray meets the ceiling");
-    assert_eq!(world.direct_irradiance(&q, &lights, 1, 3), DVec3::ZERO);
+    assert_eq!(world.exact_irradiance(&q, &lights), DVec3::ZERO);
     let (indirect, _) = world.indirect_irradiance(&q, &lights, 65_536, 3);
     assert!(indirect.x > 0.0, "{indirect}");
 }
